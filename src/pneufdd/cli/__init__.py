@@ -1,0 +1,1 @@
+"""Advise: the thin, typed ``pneufdd`` command-line interface over the library."""

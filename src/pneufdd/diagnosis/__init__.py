@@ -1,0 +1,1 @@
+"""pneufdd.diagnosis (see README for the package map)."""

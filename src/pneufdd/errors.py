@@ -1,0 +1,58 @@
+"""Exception types shared by every layer of pneufdd.
+
+Every error raised on bad user input is an :class:`InputError` (a ``ValueError``),
+whose message names the file, channel or parameter, the allowed values and what was
+received. Use :func:`describe` to build such messages consistently.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+__all__ = [
+    "ChannelError",
+    "FileFormatError",
+    "InputError",
+    "MachineError",
+    "PneufddError",
+    "UnitError",
+    "describe",
+]
+
+
+class PneufddError(Exception):
+    """Base class of all pneufdd errors."""
+
+
+class InputError(PneufddError, ValueError):
+    """Bad input: a file, channel, parameter or value the user gave us."""
+
+
+class FileFormatError(InputError):
+    """A file that cannot be read: missing, truncated, corrupted or of the wrong kind."""
+
+
+class ChannelError(InputError):
+    """A channel that is missing, duplicated or inconsistent."""
+
+
+class UnitError(InputError):
+    """A unit that pneufdd does not know, or that does not fit the quantity."""
+
+
+class MachineError(InputError):
+    """An invalid machine description."""
+
+
+def describe(what: str, received: object, allowed: Iterable[object] | str | None = None) -> str:
+    """Build a uniform error message: what is wrong, what was received, what is allowed.
+
+    >>> describe("unit of channel 'P_In'", "furlong", ["Pa", "bar", "psi"])
+    "unit of channel 'P_In': received 'furlong'; allowed: 'Pa', 'bar', 'psi'"
+    """
+    message = f"{what}: received {received!r}"
+    if allowed is None:
+        return message
+    if isinstance(allowed, str):
+        return f"{message}; allowed: {allowed}"
+    return f"{message}; allowed: " + ", ".join(repr(a) for a in allowed)

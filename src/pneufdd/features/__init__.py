@@ -1,0 +1,1 @@
+"""pneufdd.features (see README for the package map)."""

@@ -1,0 +1,1 @@
+"""pneufdd.monitor (see README for the package map)."""

@@ -1,0 +1,1 @@
+"""pneufdd.report (see README for the package map)."""

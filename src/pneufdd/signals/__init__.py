@@ -1,0 +1,1 @@
+"""pneufdd.signals (see README for the package map)."""
