@@ -21,6 +21,7 @@ def model():
         machine_description={"name": "synth", "actuators": ["X", "Y"]},
         signatures=synth_signatures(),
         sources=["a.parquet", "b.parquet"],
+        sequence=[{"valves": ["U_X_A"], "switches": [["S_X_B", 1]]}],
     )
 
 
@@ -32,6 +33,7 @@ def test_round_trip_is_exact(model, tmp_path):
     assert back.channels == model.channels
     assert back.units == model.units
     assert back.sources == model.sources
+    assert back.sequence == model.sequence
     assert back.settings == model.settings
     assert back.supply_pressure == model.supply_pressure
     for name in ("features", "band_mean", "band_std", "trace_offsets"):

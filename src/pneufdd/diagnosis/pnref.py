@@ -62,6 +62,7 @@ def _header(model: ReferenceModel) -> dict[str, Any]:
         "supply_pressure": None if math.isnan(model.supply_pressure) else model.supply_pressure,
         "trace_rate_hz": model.trace_rate_hz,
         "signature_locations": None if sig is None else list(sig.locations),
+        "sequence": list(model.sequence),
     }
 
 
@@ -213,6 +214,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 signatures=signatures,
                 settings=settings,
                 sources=tuple(str(s) for s in header.get("sources", [])),
+                sequence=tuple(dict(step) for step in header.get("sequence", [])),
             )
     except FileFormatError:
         raise

@@ -114,6 +114,10 @@ class ReferenceModel:
         Detector tuning.
     sources : tuple of str
         Files the reference was built from.
+    sequence : tuple of dict
+        The machine's PLC step sequence as JSON-compatible records
+        ``{"valves": [...], "switches": [[channel, state], ...]}``, used to segment runs
+        exactly as the reference was segmented (empty: learn it from each run).
     """
 
     machine: str
@@ -130,6 +134,7 @@ class ReferenceModel:
     signatures: SignatureSet | None = None
     settings: DetectionSettings = field(default_factory=DetectionSettings)
     sources: tuple[str, ...] = ()
+    sequence: tuple[dict[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         feats = np.asarray(self.features, dtype=np.float64)
@@ -169,6 +174,7 @@ class ReferenceModel:
         signatures: SignatureSet | None = None,
         settings: DetectionSettings | None = None,
         sources: Sequence[str] = (),
+        sequence: Sequence[Mapping[str, Any]] = (),
     ) -> ReferenceModel:
         """Build a reference from the step table of leak-free cycles.
 
@@ -187,6 +193,8 @@ class ReferenceModel:
             Detector tuning.
         sources : sequence of str
             Names of the recordings used.
+        sequence : sequence of mapping
+            The PLC step sequence (see :attr:`sequence`).
 
         Returns
         -------
@@ -225,6 +233,7 @@ class ReferenceModel:
             signatures=None if signatures is None else signatures.select(names),
             settings=settings or DetectionSettings(),
             sources=tuple(sources),
+            sequence=tuple(dict(step) for step in sequence),
         )
 
     # ----------------------------------------------------------- derived
@@ -292,4 +301,5 @@ class ReferenceModel:
             signatures=None if signatures is None else signatures.select(self.feature_names),
             settings=self.settings,
             sources=self.sources,
+            sequence=self.sequence,
         )
