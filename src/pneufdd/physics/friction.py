@@ -196,7 +196,8 @@ def piston_force_kernel(Pa: float, Pb: float, Aa: float, Ab: float) -> float:
     float
         Force towards +x (extension) [N].
     """
-    return Pa * Aa - Pb * Ab - P_ATM * (Aa - Ab)
+    # same as Pa Aa - Pb Ab - P_atm (Aa - Ab), written in gauge form to avoid cancellation
+    return (Pa - P_ATM) * Aa - (Pb - P_ATM) * Ab
 
 
 _piston_ufunc = elementwise(piston_force_kernel, 4)
