@@ -29,6 +29,25 @@ def test_section_1_1_example_from_the_table() -> None:
     assert total == pytest.approx(57_069.0, rel=0.05)  # measured -2.96 %
 
 
+def test_section_1_1_example_from_the_orifice_law() -> None:
+    """Same example with flows from eq. 4.3 (Cd = 0.61, 293.15 K, CAGI scfm) instead."""
+    import math
+
+    from pneufdd.physics import P_ATM, orifice_mass_flow, psig_to_pa
+
+    def sharp(psig: float, d_in: float) -> float:
+        area = math.pi / 4 * (d_in * 0.0254) ** 2
+        return orifice_mass_flow(psig_to_pa(psig), P_ATM, area, 0.61, 293.15)
+
+    total = (
+        leak_annual_cost(sharp(90, 1 / 32), count=100)
+        + leak_annual_cost(sharp(90, 1 / 16), count=50)
+        + leak_annual_cost(sharp(100, 1 / 4), count=10)
+    )
+    assert total == pytest.approx(57_211.27, abs=0.01)
+    assert total == pytest.approx(57_069.0, rel=0.005)  # measured +0.25 %
+
+
 def test_cost_formula_and_defaults() -> None:
     one_scfm = scfm_to_kg_s(1.0)
     assert leak_annual_cost(one_scfm) == pytest.approx(0.18 * 7000 * 0.05, rel=1e-12)
