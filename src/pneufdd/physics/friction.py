@@ -135,9 +135,11 @@ def friction_force(
         \\end{cases}
 
     In stick, friction cancels the driving force F_d until it exceeds the breakaway
-    force Fsf; the net force ``F_d - F_f`` is then ``F_d - sign(F_d) Fsf``. The
-    integrator should hold the velocity at zero while ``|F_d| <= Fsf`` inside the
-    band (net force zero keeps it constant there). Note that the published DNC
+    force Fsf; the net force ``F_d - F_f`` is then ``F_d - sign(F_d) Fsf``. While
+    ``|F_d| <= Fsf`` inside the band the net force is zero, so the velocity stays
+    constant there; the integrator should set it to zero on entering the band
+    (standard Karnopp practice), otherwise a residual |v| < v_stick drifts the
+    piston and friction can then do positive work on it. Note that the published DNC
     values have Fcf = 158.6 N > Fsf = 150 N, unusual (breakaway is normally the
     larger); they are kept as published.
 
