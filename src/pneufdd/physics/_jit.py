@@ -50,6 +50,27 @@ def njit(func: F) -> F:
     return cast(F, numba.njit(cache=True)(func))
 
 
+class _Elementwise:
+    """A float64 numba ufunc over a scalar kernel, compiled on first call.
+
+    Building the ufunc compiles (or loads from cache) machine code; doing that
+    lazily keeps ``import pneufdd`` fast for code that never evaluates physics.
+    """
+
+    def __init__(self, kernel: Callable[..., float], n_args: int) -> None:
+        self._kernel = kernel
+        self._signature = "float64(" + ", ".join(["float64"] * n_args) + ")"
+        self._ufunc: Callable[..., Any] | None = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self._ufunc is None:
+            self._ufunc = cast(
+                Callable[..., Any],
+                numba.vectorize([self._signature], cache=True)(self._kernel),  # type: ignore[no-untyped-call]
+            )
+        return self._ufunc(*args)
+
+
 def elementwise(kernel: Callable[..., float], n_args: int) -> Callable[..., Any]:
     """Build a float64 numba ufunc that applies a scalar kernel element by element.
 
@@ -63,13 +84,9 @@ def elementwise(kernel: Callable[..., float], n_args: int) -> Callable[..., Any]
     Returns
     -------
     callable
-        A ufunc broadcasting its ``n_args`` arguments like numpy.
+        A ufunc broadcasting its ``n_args`` arguments like numpy, compiled on first call.
     """
-    signature = "float64(" + ", ".join(["float64"] * n_args) + ")"
-    return cast(
-        Callable[..., Any],
-        numba.vectorize([signature], cache=True)(kernel),  # type: ignore[no-untyped-call]
-    )
+    return _Elementwise(kernel, n_args)
 
 
 def as_float_array(value: npt.ArrayLike, name: str) -> FloatArray:
