@@ -354,3 +354,39 @@ def test_continuity_at_borders_property(law: str, p1: float, border: int) -> Non
     a = LAWS[law](p1, ratio * p1 * (1 - 1e-12))
     b = LAWS[law](p1, ratio * p1 * (1 + 1e-12))
     assert b == pytest.approx(a, rel=1e-7, abs=1e-18)
+
+
+# ---------------------------------------------------------------------------
+# Use from compiled code and from a stiff integrator (what the twin does)
+# ---------------------------------------------------------------------------
+
+
+def test_kernels_callable_from_user_numba_code() -> None:
+    import numba
+
+    @numba.njit
+    def net_flow(p_supply: float, p_chamber: float) -> float:
+        inflow = isa_mass_flow_kernel(p_supply, p_chamber, 0.4, 0.7, 293.15)
+        leak = orifice_mass_flow_kernel(p_chamber, 101325.0, 1e-6, 1.0, 293.15)
+        return inflow - leak
+
+    expected = isa_mass_flow(P6, P5, 0.4, 0.7) - orifice_mass_flow(P5, P_ATM, 1e-6)
+    assert net_flow(P6, P5) == pytest.approx(expected, rel=1e-15)
+
+
+def test_stiff_integrator_settles_a_chamber_fed_through_each_law() -> None:
+    """Isothermal 0.1 l chamber filled from 6 bar(g): BDF must reach the supply pressure
+    without stalling at P -> P_supply (the point where the square-root laws' slope is
+    infinite)."""
+    from scipy.integrate import solve_ivp
+
+    V, T = 1e-4, 293.15
+    for law in LAWS.values():
+
+        def rhs(t: float, y: np.ndarray, law=law) -> list[float]:  # type: ignore[no-untyped-def]
+            return [287.058 * T / V * law(P6, y[0])]
+
+        sol = solve_ivp(rhs, (0.0, 20.0), [P_ATM], method="BDF", rtol=1e-8, atol=1.0)
+        assert sol.success
+        assert sol.y[0, -1] == pytest.approx(P6, abs=5.0)
+        assert sol.nfev < 2000
