@@ -10,8 +10,10 @@ basis of Figure 1.2) and the compressor's specific power given as kW per 100 cfm
 (the dissertation's example: 18 kW/100 cfm, 7000 h, $0.05/kWh).
 
 The equivalent orifice is the sharp-edged orifice (discharge coefficient 0.61, the
-Figure 1.2 note) that passes the leak's mass flow choked from the leak's nominal
-absolute pressure to the atmosphere (eq. 4.2-4.3 in the choked regime).
+Figure 1.2 note) that passes the leak's mass flow from the leak's nominal absolute
+pressure to the atmosphere (eq. 4.2-4.3). Both formulas are those of
+:mod:`pneufdd.physics.economics` and :mod:`pneufdd.physics.leaks`; this module adds
+the units an engineer reads (SLPM, mm) and the ranking.
 """
 
 from __future__ import annotations
@@ -21,8 +23,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from pneufdd.errors import InputError, describe
-from pneufdd.physics.constants import GAMMA_AIR, R_AIR, T_ROOM
-from pneufdd.physics.units import kg_s_to_scfm, kg_s_to_slpm
+from pneufdd.physics.constants import P_ATM, T_ROOM
+from pneufdd.physics.economics import leak_annual_cost
+from pneufdd.physics.leaks import SHARP_EDGE_CD, equivalent_orifice_diameter
+from pneufdd.physics.units import kg_s_to_slpm
 
 __all__ = [
     "SHARP_EDGED_CD",
@@ -33,7 +37,7 @@ __all__ = [
     "equivalent_orifice_mm",
 ]
 
-SHARP_EDGED_CD: float = 0.61
+SHARP_EDGED_CD: float = SHARP_EDGE_CD
 """Discharge coefficient of a sharp-edged orifice (Figure 1.2 note) [-]."""
 
 
@@ -86,17 +90,21 @@ def annual_cost(mass_flow: float, settings: CostSettings) -> float:
     >>> round(annual_cost(scfm_to_kg_s(100.9 * 0.61), CostSettings()))
     3878
     """
-    cfm = float(kg_s_to_scfm(float(mass_flow)))
-    return cfm * settings.kw_per_100_cfm / 100.0 * settings.hours * settings.price_per_kwh
+    return float(
+        leak_annual_cost(
+            float(mass_flow),
+            hours=settings.hours,
+            energy_price=settings.price_per_kwh,
+            kw_per_100_cfm=settings.kw_per_100_cfm,
+        )
+    )
 
 
 def equivalent_orifice_mm(mass_flow: float, pressure: float, temperature: float = T_ROOM) -> float:
-    """Diameter of the sharp-edged orifice passing ``mass_flow`` choked from ``pressure``.
+    """Diameter of the sharp-edged orifice passing ``mass_flow`` from ``pressure``.
 
-    .. math::
-
-        \\dot m = C_d A\\, p \\sqrt{\\frac{k}{R T}}
-        \\left(\\frac{2}{k+1}\\right)^{\\frac{k+1}{2(k-1)}}
+    Delegates to :func:`pneufdd.physics.leaks.equivalent_orifice_diameter`
+    (eq. 4.2-4.3 with C_d = 0.61) and returns millimetres.
 
     Parameters
     ----------
@@ -120,14 +128,10 @@ def equivalent_orifice_mm(mass_flow: float, pressure: float, temperature: float 
     >>> round(equivalent_orifice_mm(scfm_to_kg_s(5.72 * 0.61), psig_to_pa(90.0)), 2)
     1.56
     """
-    if pressure <= 0 or not math.isfinite(pressure):
-        raise InputError(describe("leak pressure [Pa]", pressure, "> 0"))
-    k = GAMMA_AIR
-    flux = (
-        pressure * math.sqrt(k / (R_AIR * temperature)) * (2 / (k + 1)) ** ((k + 1) / (2 * (k - 1)))
-    )
-    area = max(float(mass_flow), 0.0) / (SHARP_EDGED_CD * flux)
-    return 1e3 * math.sqrt(4.0 * area / math.pi)
+    if not math.isfinite(pressure) or pressure <= P_ATM:
+        raise InputError(describe("leak pressure [Pa]", pressure, "> 101325 Pa absolute"))
+    diameter = equivalent_orifice_diameter(max(float(mass_flow), 0.0), pressure, temperature)
+    return 1e3 * float(diameter)
 
 
 @dataclass(frozen=True)
