@@ -107,3 +107,44 @@ def test_signature_select_and_validation():
         SignatureSet(
             ("a",), np.array([[2.0, 1.0]]), np.zeros((1, 2, 3)), ("x", "y", "z"), np.array([6e5])
         )
+
+
+def test_vectorised_subset_fits_match_bounded_least_squares_oracle():
+    # oracle: scipy.optimize.lsq_linear on every combination of signature segments
+    import itertools
+
+    from scipy.optimize import lsq_linear
+
+    from pneufdd.diagnosis.fingerprint import _PiecewiseModel
+
+    rng = np.random.default_rng(8)
+    n_loc, n_sizes, n_feat = 4, 3, 25
+    sizes = np.cumsum(rng.uniform(0.5, 1.5, size=(n_loc, n_sizes)), axis=1)
+    deltas = np.cumsum(rng.normal(size=(n_loc, n_sizes, n_feat)), axis=1)
+    sig = SignatureSet(
+        tuple(f"L{i}" for i in range(n_loc)),
+        sizes,
+        deltas,
+        tuple(f"f{j}" for j in range(n_feat)),
+        np.full(n_loc, 6e5),
+    )
+    target = rng.normal(size=n_feat) * 3.0
+    model = _PiecewiseModel(sig, lambda d: np.atleast_2d(d), target)
+    knots = np.concatenate([np.zeros((n_loc, 1)), sizes], axis=1)
+    values = np.concatenate([np.zeros((n_loc, 1, n_feat)), deltas], axis=1)
+
+    def pieces(loc, k):
+        slope = (values[loc, k + 1] - values[loc, k]) / (knots[loc, k + 1] - knots[loc, k])
+        hi = knots[loc, k + 1] if k < n_sizes - 1 else np.inf
+        return values[loc, k] - knots[loc, k] * slope, slope, knots[loc, k], hi
+
+    for subset in [(0,), (2,), (0, 1), (1, 3), (2, 3)]:
+        best = np.inf
+        for segs in itertools.product(range(n_sizes), repeat=len(subset)):
+            parts = [pieces(loc, k) for loc, k in zip(subset, segs, strict=True)]
+            rhs = target - sum(p[0] for p in parts)
+            A = np.column_stack([p[1] for p in parts])
+            res = lsq_linear(A, rhs, bounds=([p[2] for p in parts], [p[3] for p in parts]))
+            best = min(best, float(np.sum((A @ res.x - rhs) ** 2)))
+        _, rss = model.fit(subset)
+        assert rss == pytest.approx(best, rel=1e-6, abs=1e-9)

@@ -15,10 +15,14 @@ reference noise: each feature is divided by its reference standard deviation, th
 house-air fluctuation directions are projected out (the same space as
 :class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`), and the residual
 is scaled to unit variance for a run mean of ``m`` cycles. For every subset ``M`` of
-at most ``max_leaks`` locations the sizes come from :func:`scipy.optimize.nnls`,
-refined a few times with the secant signature at the current size (the effects are
-not exactly linear). A larger subset is preferred only when it lowers the residual by
-more than an information-criterion penalty and by a minimum relative gain.
+at most ``max_leaks`` (1 or 2) locations the non-negative sizes minimise the
+weighted residual exactly: the signatures are piecewise linear in size, so on every
+combination of segments the fit is a box-constrained least-squares problem in one or
+two unknowns, solved in closed form from one Gram matrix of the whitened signature
+pieces (an exhaustive sparse subset search instead of :func:`scipy.optimize.nnls`,
+whose linear model cannot follow saturating effects such as a line pressure that
+drops to atmosphere). A larger subset is preferred only when it lowers the residual by
+an information-criterion penalty and by a minimum relative gain.
 
 Ambiguity: for each leak of the chosen model, every other location is tried in its
 place. Alternatives whose fit is nearly as good (Akaike-type weight
@@ -37,7 +41,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import nnls
 
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import InputError, describe
@@ -99,24 +102,150 @@ class Localisation:
     explained: float
 
 
-def _fit_subset(
-    target: FloatArray,
-    columns: Callable[[int, float | None], FloatArray],
-    subset: tuple[int, ...],
-    refinements: int,
-) -> tuple[FloatArray, float]:
-    sizes: list[float | None] = [None] * len(subset)
-    coef = np.zeros(len(subset))
-    rss = float(target @ target)
-    for _ in range(refinements + 1):
-        A = np.column_stack([columns(loc, s) for loc, s in zip(subset, sizes, strict=True)])
-        coef, norm = nnls(A, target)
-        rss = float(norm) ** 2
-        new = [float(c) if c > 0 else None for c in coef]
-        if new == sizes:
-            break
-        sizes = new
-    return np.asarray(coef, dtype=np.float64), rss
+class _PiecewiseModel:
+    """Whitened leak effects as piecewise-linear functions of size, with a Gram matrix.
+
+    On segment ``k`` of location ``l`` the whitened effect is ``V[l, k] + a S[l, k]``;
+    the last segment extends to infinity. Every residual norm of every subset of one
+    or two locations follows from inner products among the target, the ``V`` and the
+    ``S``; all subsets and segment combinations are solved at once, vectorised.
+    """
+
+    def __init__(self, signatures: SignatureSet, whiten: Whitener, target: FloatArray):
+        n_loc, n_seg = signatures.sizes.shape
+        knots = np.concatenate([np.zeros((n_loc, 1)), signatures.sizes], axis=1)
+        values = np.stack(
+            [
+                np.vstack([np.zeros(target.size), whiten(signatures.deltas[loc])])
+                for loc in range(n_loc)
+            ]
+        )  # (n_loc, n_seg + 1, n)
+        S = np.diff(values, axis=1) / np.diff(knots, axis=1)[:, :, None]
+        V = values[:, :-1, :] - knots[:, :-1, None] * S
+        self.S, self.V = S, V
+        self.lo = knots[:, :-1]
+        self.hi = knots[:, 1:].copy()
+        self.hi[:, -1] = np.inf
+        Vf, Sf = V.reshape(-1, target.size), S.reshape(-1, target.size)
+        shape = (n_loc, n_seg)
+        yy = float(target @ target)
+        yV, yS = (Vf @ target).reshape(shape), (Sf @ target).reshape(shape)
+        VV = (Vf @ Vf.T).reshape(*shape, *shape)
+        VS = (Vf @ Sf.T).reshape(*shape, *shape)  # [V index, S index]
+        SS = (Sf @ Sf.T).reshape(*shape, *shape)
+        self.rss_null = yy
+        self.single_sizes, self.single_rss = self._singles(yy, yV, yS, VV, VS, SS)
+        self.pair_sizes, self.pair_rss = self._pairs(yy, yV, yS, VV, VS, SS)
+
+    def _singles(
+        self,
+        yy: float,
+        yV: FloatArray,
+        yS: FloatArray,
+        VV: FloatArray,
+        VS: FloatArray,
+        SS: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        n_loc, n_seg = yV.shape
+        li, ki = np.meshgrid(np.arange(n_loc), np.arange(n_seg), indexing="ij")
+        cc = yy - 2 * yV + VV[li, ki, li, ki]
+        b = yS - VS[li, ki, li, ki]
+        g = SS[li, ki, li, ki]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = np.where(g > 0, b / g, self.lo)
+        a = np.clip(a, self.lo, self.hi)
+        rss = cc - 2 * a * b + a * a * g
+        k = np.argmin(rss, axis=1)
+        rows = np.arange(n_loc)
+        return a[rows, k], np.maximum(rss[rows, k], 0.0)
+
+    def _pairs(
+        self,
+        yy: float,
+        yV: FloatArray,
+        yS: FloatArray,
+        VV: FloatArray,
+        VS: FloatArray,
+        SS: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        n_loc, n_seg = yV.shape
+        li, ki = np.meshgrid(np.arange(n_loc), np.arange(n_seg), indexing="ij")
+        dVV, dVS, dSS = VV[li, ki, li, ki], VS[li, ki, li, ki], SS[li, ki, li, ki]
+        # axes: (l, k1, m, k2)
+        A = (slice(None), slice(None), None, None)
+        B = (None, None, slice(None), slice(None))
+        cc = yy - 2 * yV[A] - 2 * yV[B] + dVV[A] + dVV[B] + 2 * VV
+        b1 = yS[A] - dVS[A] - np.transpose(VS, (2, 3, 0, 1))
+        b2 = yS[B] - VS - dVS[B]
+        g11, g22, g12 = dSS[A] * np.ones_like(cc), dSS[B] * np.ones_like(cc), SS
+        lo1, hi1 = self.lo[A] * np.ones_like(cc), self.hi[A] * np.ones_like(cc)
+        lo2, hi2 = self.lo[B] * np.ones_like(cc), self.hi[B] * np.ones_like(cc)
+
+        def value(a1: FloatArray, a2: FloatArray) -> FloatArray:
+            ok = np.isfinite(a1) & np.isfinite(a2)
+            x1, x2 = np.where(ok, a1, 0.0), np.where(ok, a2, 0.0)
+            out = x1 * x1 * g11 + 2 * x1 * x2 * g12 + x2 * x2 * g22 - 2 * x1 * b1 - 2 * x2 * b2
+            return np.where(ok, out, np.inf)
+
+        def clip1(g: FloatArray, b: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a = np.where(g > 0, b / g, lo)
+            return np.clip(a, lo, hi)
+
+        det = g11 * g22 - g12 * g12
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a1u = (g22 * b1 - g12 * b2) / det
+            a2u = (g11 * b2 - g12 * b1) / det
+        inside = (
+            (det > 1e-12 * np.maximum(g11 * g22, 1e-300))
+            & (a1u >= lo1)
+            & (a1u <= hi1)
+            & (a2u >= lo2)
+            & (a2u <= hi2)
+        )
+        cands = [(np.where(inside, a1u, np.inf), np.where(inside, a2u, np.inf))]
+        for fixed2 in (lo2, hi2):
+            cands.append(
+                (clip1(g11, b1 - g12 * np.where(np.isfinite(fixed2), fixed2, 0), lo1, hi1), fixed2)
+            )
+        for fixed1 in (lo1, hi1):
+            cands.append(
+                (fixed1, clip1(g22, b2 - g12 * np.where(np.isfinite(fixed1), fixed1, 0), lo2, hi2))
+            )
+        vals = np.stack([value(a1, a2) for a1, a2 in cands])
+        pick = np.argmin(vals, axis=0)
+        a1 = np.choose(pick, [c[0] for c in cands])
+        a2 = np.choose(pick, [c[1] for c in cands])
+        rss = cc + np.min(vals, axis=0)
+        flat = rss.transpose(0, 2, 1, 3).reshape(n_loc, n_loc, n_seg * n_seg)
+        best = np.argmin(flat, axis=2)
+        k1, k2 = np.divmod(best, n_seg)
+        l_idx, m_idx = np.meshgrid(np.arange(n_loc), np.arange(n_loc), indexing="ij")
+        sizes = np.stack(
+            [a1[l_idx, k1, m_idx, k2], a2[l_idx, k1, m_idx, k2]], axis=-1
+        )  # (l, m, 2): size at l, size at m
+        best_rss = np.maximum(np.take_along_axis(flat, best[..., None], axis=2)[..., 0], 0.0)
+        best_rss[np.arange(n_loc), np.arange(n_loc)] = np.inf
+        return sizes, best_rss
+
+    def fit(self, subset: tuple[int, ...]) -> tuple[FloatArray, float]:
+        """Sizes and residual of the best fit of a subset of 1 or 2 locations."""
+        if len(subset) == 1:
+            (loc,) = subset
+            return np.array([self.single_sizes[loc]]), float(self.single_rss[loc])
+        first, second = subset
+        return np.asarray(self.pair_sizes[first, second], dtype=np.float64), float(
+            self.pair_rss[first, second]
+        )
+
+    def column(self, loc: int, size: float) -> FloatArray:
+        """Whitened effect of location ``loc`` at ``size``, per unit size (secant)."""
+        seg = int(
+            np.clip(np.searchsorted(self.lo[loc], size, side="right") - 1, 0, self.lo.shape[1] - 1)
+        )
+        return np.asarray(
+            (self.V[loc, seg] + size * self.S[loc, seg]) / max(size, 1e-300), dtype=np.float64
+        )
 
 
 def locate(
@@ -127,7 +256,7 @@ def locate(
     min_relative_gain: float = 0.1,
     group_ratio: float = 0.05,
     collinear_cos: float = 0.995,
-    refinements: int = 3,
+    min_flow: float = 4.3e-5,
 ) -> Localisation:
     """Decompose an observed feature change into non-negative leak contributions.
 
@@ -153,8 +282,9 @@ def locate(
     collinear_cos : float
         Alternatives whose weighted signature has at least this cosine similarity
         with the chosen one join the group [-].
-    refinements : int
-        Secant refinements of the signatures at the current size estimate [-].
+    min_flow : float
+        Smallest leak reported; a model needing a smaller leak is not considered
+        (2 SLPM by default, below the leak valve's first turn) [kg/s].
 
     Returns
     -------
@@ -179,15 +309,14 @@ def locate(
         raise InputError(describe("observed feature change", "NaN or infinite", "finite"))
     if max_leaks < 1:
         raise InputError(describe("max_leaks", max_leaks, ">= 1"))
+    if max_leaks > 2:
+        raise InputError(describe("max_leaks", max_leaks, "1 or 2"))
     target = whiten(obs)[0]
     n_loc = len(signatures.locations)
-    cache: dict[tuple[int, float | None], FloatArray] = {}
+    model = _PiecewiseModel(signatures, whiten, target)
 
-    def column(loc: int, size: float | None) -> FloatArray:
-        key = (loc, None if size is None else round(size, 15))
-        if key not in cache:
-            cache[key] = whiten(signatures.slope(loc, size))[0]
-        return cache[key]
+    def column(loc: int, size: float) -> FloatArray:
+        return model.column(loc, size)
 
     rss_null = float(target @ target)
     dof = int(target.size)
@@ -195,9 +324,9 @@ def locate(
     fits: dict[tuple[int, ...], tuple[FloatArray, float]] = {}
     for k in range(1, min(max_leaks, n_loc) + 1):
         for subset in itertools.combinations(range(n_loc), k):
-            coef, rss = _fit_subset(target, column, subset, refinements)
+            coef, rss = model.fit(subset)
             fits[subset] = (coef, rss)
-            if np.any(coef <= 0):
+            if np.any(coef < min_flow):
                 continue
             if k not in best or rss < best[k][2]:
                 best[k] = (subset, coef, rss)
@@ -225,7 +354,7 @@ def locate(
                 continue
             trial = tuple(sorted((*others, alt)))
             if trial not in fits:
-                fits[trial] = _fit_subset(target, column, trial, refinements)
+                fits[trial] = model.fit(trial)
             alt_coef, alt_rss = fits[trial]
             alt_size = float(alt_coef[trial.index(alt)])
             alternatives.append((alt_rss, alt, alt_size))
@@ -235,7 +364,7 @@ def locate(
         chosen_col = column(loc, float(coef[slot]))
         members = []
         for alt, w in weights.items():
-            if sizes[alt] <= 0:
+            if sizes[alt] < min_flow and alt != loc:
                 continue
             alt_col = column(alt, sizes[alt])
             norm = float(np.linalg.norm(chosen_col) * np.linalg.norm(alt_col))
