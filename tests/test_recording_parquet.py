@@ -188,7 +188,7 @@ def test_refuses_to_overwrite_and_leaves_the_file_alone(tmp_path: Path) -> None:
     first = rig_recording(seconds=0.5, seed=1)
     write_parquet(first, path)
     before = path.read_bytes()
-    with pytest.raises(FileExistsInputError, match="run.parquet.*overwrite=True"):
+    with pytest.raises(FileExistsInputError, match=r"run\.parquet.*overwrite=True"):
         write_parquet(rig_recording(seconds=0.5, seed=2), path)
     with pytest.raises(FileExistsError):
         rig_recording(seconds=0.5, seed=2).write(path)
@@ -255,7 +255,7 @@ def written(tmp_path: Path) -> Path:
 
 def test_missing_file_names_it(tmp_path: Path) -> None:
     path = tmp_path / "absent.parquet"
-    with pytest.raises(MissingFileError, match="absent.parquet.*does not exist") as info:
+    with pytest.raises(MissingFileError, match=r"absent\.parquet.*does not exist") as info:
         read_parquet(path)
     assert isinstance(info.value, FileNotFoundError)
     assert isinstance(info.value, FileFormatError)
@@ -319,8 +319,9 @@ def test_every_flipped_byte_is_detected_or_harmless(tmp_path: Path) -> None:
         try:
             back = read_parquet(flipped)
         except InputError as exc:
-            assert "flipped.parquet" in str(exc)
+            message = str(exc)
             detected += 1
+            assert "flipped.parquet" in message
         else:
             assert identical(back, rec), f"silent change after flipping byte {position}"
             harmless += 1

@@ -183,7 +183,7 @@ def _time_base(
         row = int(backwards[0]) + 1
         raise InputError(
             f"{label}, line {_line(row)}: time is not strictly increasing: "
-            f"{time[row]!r} s follows {time[row - 1]!r} s in column {time_column!r}"
+            f"{float(time[row])!r} s follows {float(time[row - 1])!r} s in column {time_column!r}"
         )
     index = np.arange(time.size, dtype=np.float64)
 
@@ -197,14 +197,25 @@ def _time_base(
     off = deviation(rate)
     worst = int(np.argmax(off))
     if off[worst] > tolerance / rate:
+        typical = float(np.median(steps))
+        odd = np.flatnonzero(np.abs(steps - typical) > tolerance * typical)
+        if odd.size:  # a gap or a jump: name the first
+            row = int(odd[0]) + 1
+            where = (
+                f"the step to line {_line(row)} is {float(steps[row - 1]):.6g} s where the "
+                f"median step is {typical:.6g} s ({1.0 / typical:.6g} Hz)"
+            )
+        else:  # small steps that add up: the grid drifts
+            where = (
+                f"the sample at line {_line(worst)} (t = {float(time[worst])!r} s) lies "
+                f"{float(off[worst]):.6g} s off the uniform grid of {rate!r} Hz"
+            )
         raise InputError(
-            f"{label}: column {time_column!r} is not uniformly sampled: the sample at line "
-            f"{_line(worst)} (t = {time[worst]!r} s) lies {off[worst]:.6g} s off the uniform "
-            f"grid of {rate!r} Hz; allowed: rate_tolerance = {tolerance!r} of the "
-            f"{1.0 / rate:.6g} s interval (steps range from {steps.min():.6g} s to "
-            f"{steps.max():.6g} s). pneufdd stores uniformly sampled channels: resample the "
-            "data onto a uniform time grid first (e.g. numpy.interp or pandas resample), "
-            "split the file at gaps, or raise rate_tolerance if the jitter is acceptable"
+            f"{label}: column {time_column!r} is not uniformly sampled: {where}; allowed: "
+            f"rate_tolerance = {tolerance!r} of one sample interval. pneufdd stores uniformly "
+            "sampled channels: resample the data onto a uniform time grid first (e.g. "
+            "numpy.interp or pandas resample), split the file at gaps, or raise "
+            "rate_tolerance if the jitter is acceptable"
         )
     return float(time[0]), rate
 

@@ -22,9 +22,11 @@ column                    type                content
 
 Exactly one ``values_*`` cell of a row holds data; the other two are null. The file's
 key-value metadata holds ``pneufdd.format`` (``"pneufdd.recording"``),
-``pneufdd.format_version`` (``"1"``) and ``pneufdd.recording``: a JSON object with the
-start time (ISO 8601 with microseconds and UTC offset, plus the IANA zone name when
-there is one), the channel count, the free metadata and the writer's version.
+``pneufdd.format_version`` (``"1"``), ``pneufdd.recording`` (a JSON object with the
+start time as ISO 8601 with microseconds and UTC offset, the IANA zone name and
+``fold`` when there is one, the channel count, the free metadata and the writer's
+version) and ``pneufdd.recording.crc32`` (CRC-32 of that JSON, as the Parquet footer
+has no checksum of its own).
 
 Why this layout: channels have their own lengths and rates (1 kHz analog beside
 100 Hz digital on the rig, section 3.2.4), so a wide table would either pad the
@@ -45,6 +47,7 @@ import contextlib
 import json
 import os
 import secrets
+import zlib
 from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -70,6 +73,7 @@ FORMAT_VERSION = 1
 _KEY_FORMAT = b"pneufdd.format"
 _KEY_VERSION = b"pneufdd.format_version"
 _KEY_RECORDING = b"pneufdd.recording"
+_KEY_CHECKSUM = b"pneufdd.recording.crc32"  # the footer has no checksum of its own
 _EXPECTED = f"a pneufdd recording (Parquet, format {FORMAT_NAME!r} version {FORMAT_VERSION})"
 _MAGIC = b"PAR1"
 _VALUE_COLUMNS = {"float32": "values_float32", "float64": "values_float64", "uint8": "values_uint8"}
@@ -233,12 +237,13 @@ def write_parquet(recording: Recording, path: str | Path, overwrite: bool = Fals
         raise InputError(f"{file_label(path)}: folder {str(path.parent)!r} does not exist")
     if path.exists() and not overwrite:
         raise _refuse_overwrite(path)
-    schema = _schema()
-    schema = schema.with_metadata(
+    info = json.dumps(_recording_info(recording), allow_nan=False).encode()
+    schema = _schema().with_metadata(
         {
             _KEY_FORMAT: FORMAT_NAME.encode(),
             _KEY_VERSION: str(FORMAT_VERSION).encode(),
-            _KEY_RECORDING: json.dumps(_recording_info(recording), allow_nan=False).encode(),
+            _KEY_RECORDING: info,
+            _KEY_CHECKSUM: str(zlib.crc32(info)).encode(),
         }
     )
     tmp = _temporary_path(path)
@@ -306,8 +311,14 @@ def _check_format(path: Path, kv: dict[bytes, bytes]) -> dict[str, Any]:
                 f"1 to {FORMAT_VERSION}",
             )
         )
+    raw = kv.get(_KEY_RECORDING, b"")
+    if kv.get(_KEY_CHECKSUM) != str(zlib.crc32(raw)).encode():
+        raise FileFormatError(
+            f"{label} is corrupted: its {_KEY_RECORDING.decode()!r} metadata does not match "
+            f"its CRC-32 ({_KEY_CHECKSUM.decode()!r})"
+        )
     try:
-        info = json.loads(kv.get(_KEY_RECORDING, b""))
+        info = json.loads(raw)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise FileFormatError(
             f"{label} is corrupted: its {_KEY_RECORDING.decode()!r} metadata "
@@ -403,23 +414,34 @@ def read_parquet(path: str | Path) -> Recording:
     path = check_input_file(Path(path), _EXPECTED)
     label = file_label(path)
     _check_magic(path)
+    # A corrupted footer can fail in many ways inside pyarrow; all of them mean the same.
+    unreadable = (pa.ArrowException, OSError, UnicodeError, ValueError)
     try:
         parquet = pq.ParquetFile(path, page_checksum_verification=True)
         kv = dict(parquet.schema_arrow.metadata or {})
-    except (pa.ArrowException, OSError) as exc:
+    except unreadable as exc:
         raise FileFormatError(
-            f"{label} is corrupted: its Parquet footer cannot be read ({exc}); expected {_EXPECTED}"
+            f"{label} is corrupted: its Parquet footer cannot be read "
+            f"({type(exc).__name__}: {exc}); expected {_EXPECTED}"
         ) from exc
     info = _check_format(path, kv)
     try:
         table = parquet.read()
-    except (pa.ArrowException, OSError) as exc:
+        names = table.column_names
+    except unreadable as exc:
         raise FileFormatError(
-            f"{label} is corrupted: its data cannot be read ({exc}); re-copy or re-write the file"
+            f"{label} is corrupted: its data cannot be read ({type(exc).__name__}: {exc}); "
+            "re-copy or re-write the file"
         ) from exc
-    missing = [c for c in _schema().names if c not in table.column_names]
-    if missing:
-        raise FileFormatError(f"{label} is corrupted: it lacks the column(s) {missing}")
+    wrong = [
+        f.name
+        for f in _schema()
+        if f.name not in names or table.schema.field(f.name).type != f.type
+    ]
+    if wrong:
+        raise FileFormatError(
+            f"{label} is corrupted: column(s) {wrong} are missing or of the wrong type"
+        )
     if table.num_rows != info["n_channels"]:
         raise FileFormatError(
             f"{label} is corrupted: {table.num_rows} channel rows where the file declares "
@@ -446,3 +468,5 @@ def read_parquet(path: str | Path) -> Recording:
         raise
     except InputError as exc:
         raise _with_file(path, exc) from exc
+    except UnicodeError as exc:
+        raise FileFormatError(f"{label} is corrupted: a text cell is not UTF-8 ({exc})") from exc
