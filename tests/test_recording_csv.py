@@ -187,5 +187,41 @@ def test_file_errors(tmp_path: Path) -> None:
         read_csv(duplicate, {"p": "P_In"}, {"P_In": "Pa"})
     binary = tmp_path / "binary.csv"
     binary.write_bytes(b"\xff\xfe\x00\x81garbage")
-    with pytest.raises(FileFormatError, match=r"binary\.csv.*not a UTF-8 text file"):
+    with pytest.raises(
+        FileFormatError, match=r"binary\.csv.*not a text file in encoding 'utf-8-sig'"
+    ):
         read_csv(binary, {"p": "P_In"}, {"P_In": "Pa"})
+
+
+def test_european_export_and_trailing_blank_lines(tmp_path: Path) -> None:
+    path = tmp_path / "eu.csv"
+    path.write_bytes(
+        "Zeit;Druck [bar(g)];Temperatur\n0,00;6,5;20,0\n0,01;6,0;20,5\n\n\n".encode("latin-1")
+    )
+    rec = read_csv(
+        path,
+        {"Druck [bar(g)]": "P_In", "Temperatur": "T_In"},
+        {"P_In": "bar(g)", "T_In": "degC"},
+        time_column="Zeit",
+        delimiter=";",
+        decimal=",",
+        encoding="latin-1",
+    )
+    assert rec.channel("P_In")[1].tolist() == [751325.0, 701325.0]
+    assert rec.channel("T_In")[1].tolist() == [293.15, 293.65]
+    assert rec.rate("P_In") == 100.0
+    bad = tmp_path / "bad_eu.csv"
+    bad.write_text("Zeit;p\n0,00;6,5\n0,01;6.5\n")
+    with pytest.raises(FileFormatError, match=r"line 3, column 'p'.*'6\.5'"):
+        read_csv(bad, {"p": "P_In"}, {"P_In": "Pa"}, time_column="Zeit", delimiter=";", decimal=",")
+
+
+def test_spaces_after_delimiters_and_ragged_rows(tmp_path: Path) -> None:
+    path = _write(tmp_path, "time, p\n0.000, 1\n0.001, 2\n")
+    assert read_csv(path, {"p": "P_In"}, {"P_In": "kPa"}).channel("P_In")[1].tolist() == [
+        1000.0,
+        2000.0,
+    ]
+    ragged = _write(tmp_path, "time,p\n0.000,1\n0.001,2,3,4\n", "ragged.csv")
+    with pytest.raises(FileFormatError, match=r"ragged\.csv.* is not valid CSV"):
+        read_csv(ragged, {"p": "P_In"}, {"P_In": "Pa"})

@@ -348,6 +348,7 @@ def test_foreign_parquet_is_refused(tmp_path: Path) -> None:
     assert "pandas.parquet" in message
     assert "not a pneufdd recording" in message
     assert "'pneufdd.recording' version 1" in message
+    assert message.startswith(f"file {str(path)!r} is a Parquet file but not a pneufdd recording")
 
 
 def _rewrite(

@@ -91,20 +91,21 @@ def _check_maps(
         si_unit_of(units[channel], where)
 
 
-def _read_header(path: Path, delimiter: str) -> list[str]:
+def _read_header(path: Path, delimiter: str, encoding: str) -> list[str]:
     label = file_label(path)
     try:
-        with path.open(newline="", encoding="utf-8-sig") as handle:
-            header = next(_stdlib_csv.reader(handle, delimiter=delimiter), None)
+        with path.open(newline="", encoding=encoding) as handle:
+            reader = _stdlib_csv.reader(handle, delimiter=delimiter, skipinitialspace=True)
+            header = next(reader, None)
     except UnicodeDecodeError as exc:
         raise FileFormatError(
-            f"{label} is not a UTF-8 text file ({exc}); expected a CSV file"
+            f"{label} is not a text file in encoding {encoding!r} ({exc}); expected a CSV "
+            "file (pass encoding=... if it is in another encoding)"
         ) from exc
     except _stdlib_csv.Error as exc:
         raise FileFormatError(f"{label}: the header row is not valid CSV ({exc})") from exc
     if not header or not any(cell.strip() for cell in header):
         raise FileFormatError(f"{label} has no header row; expected column names on line 1")
-    header = [cell.strip() for cell in header]
     duplicated = sorted({c for c in header if header.count(c) > 1})
     if duplicated:
         raise FileFormatError(
@@ -113,13 +114,15 @@ def _read_header(path: Path, delimiter: str) -> list[str]:
     return header
 
 
-def _first_bad_cell(frame: pd.DataFrame) -> tuple[str, int, str] | None:
+def _first_bad_cell(frame: pd.DataFrame, decimal: str) -> tuple[str, int, str] | None:
     """Locate the first cell of ``frame`` (read as text) that is neither a number nor NA."""
     import pandas as pd
 
     first: tuple[str, int, str] | None = None
     for column in frame.columns:
         text = frame[column].astype(str).str.strip()
+        if decimal != ".":  # as pandas reads it: the decimal mark, and "." is no number
+            text = text.str.replace(".", "?", regex=False).str.replace(decimal, ".", regex=False)
         numbers = pd.to_numeric(text.where(~text.isin(NA_TOKENS)), errors="coerce")
         bad = np.flatnonzero(numbers.isna().to_numpy() & ~text.isin(NA_TOKENS).to_numpy())
         if bad.size and (first is None or bad[0] < first[1]):
@@ -127,28 +130,42 @@ def _first_bad_cell(frame: pd.DataFrame) -> tuple[str, int, str] | None:
     return first
 
 
-def _read_table(path: Path, columns: list[str], delimiter: str) -> pd.DataFrame:
+def _read_table(path: Path, columns: list[str], dialect: dict[str, str]) -> pd.DataFrame:
     import pandas as pd
 
     options: dict[str, Any] = {
-        "sep": delimiter,
-        "usecols": columns,
-        "encoding": "utf-8-sig",
+        "sep": dialect["delimiter"],
+        "decimal": dialect["decimal"],
+        "encoding": dialect["encoding"],
         "skipinitialspace": True,
-        "skip_blank_lines": False,
+        "skip_blank_lines": False,  # keeps line numbers in messages right
         "keep_default_na": False,
         "na_values": list(NA_TOKENS),
     }
     label = file_label(path)
+    # All columns are parsed (not usecols), so a row with too many fields is an error
+    # rather than silently shifted data; only the wanted ones must be numbers.
     try:
-        frame: pd.DataFrame = pd.read_csv(path, dtype=np.float64, **options)
-        return frame
-    except ValueError:
-        pass
-    except pd.errors.ParserError as exc:
+        frame: pd.DataFrame = pd.read_csv(
+            path, dtype=dict.fromkeys(columns, np.float64), **options
+        )[columns]
+    except pd.errors.ParserError as exc:  # before ValueError: it is one
         raise FileFormatError(f"{label} is not valid CSV ({exc})") from exc
-    text = pd.read_csv(path, dtype=str, **{**options, "na_values": [], "na_filter": False})
-    bad = _first_bad_cell(text)
+    except ValueError:
+        pass  # a cell is not a number: find it below
+    else:
+        blank = frame.isna().all(axis=1).to_numpy()
+        keep = blank.size
+        while keep and blank[keep - 1]:  # trailing empty lines
+            keep -= 1
+        return frame.iloc[:keep]
+    try:
+        text = pd.read_csv(
+            path, dtype=str, usecols=columns, **{**options, "na_values": [], "na_filter": False}
+        )
+    except ValueError as exc:
+        raise FileFormatError(f"{label} is not valid CSV ({exc})") from exc
+    bad = _first_bad_cell(text, dialect["decimal"])
     if bad is None:  # pragma: no cover - the float parse failed, so some cell is bad
         raise FileFormatError(f"{label}: a cell is not a number")
     column, row, cell = bad
@@ -230,6 +247,8 @@ def read_csv(
     metadata: Mapping[str, Any] | None = None,
     rate_tolerance: float = 0.01,
     delimiter: str = ",",
+    decimal: str = ".",
+    encoding: str = "utf-8-sig",
 ) -> Recording:
     """Read a uniformly sampled CSV file into a :class:`Recording`.
 
@@ -257,7 +276,11 @@ def read_csv(
         Largest allowed distance of any row's time from the uniform grid, as a
         fraction of one sample interval [1].
     delimiter : str
-        Field separator.
+        Field separator (``";"`` for many European exports).
+    decimal : str
+        Decimal mark (``","`` for many European exports).
+    encoding : str
+        Text encoding; the default reads UTF-8 with or without a byte-order mark.
 
     Returns
     -------
@@ -296,12 +319,13 @@ def read_csv(
         raise InputError(describe("rate_tolerance", rate_tolerance, "0 < rate_tolerance < 0.5"))
     digital = set(digital)
     _check_maps(label, column_map, units, time_column, digital)
-    header = _read_header(path, delimiter)
+    header = _read_header(path, delimiter, encoding)
     wanted = [time_column, *column_map]
     missing = [c for c in wanted if c not in header]
     if missing:
         raise ChannelError(describe(f"{label}: column(s) not in the file", missing, header))
-    frame = _read_table(path, wanted, delimiter)
+    dialect = {"delimiter": delimiter, "decimal": decimal, "encoding": encoding}
+    frame = _read_table(path, wanted, dialect)
     t0, rate = _time_base(
         label, time_column, frame[time_column].to_numpy(np.float64), float(rate_tolerance)
     )

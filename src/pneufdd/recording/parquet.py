@@ -424,15 +424,19 @@ def read_parquet(path: str | Path) -> Recording:
             f"{label} is corrupted: its Parquet footer cannot be read "
             f"({type(exc).__name__}: {exc}); expected {_EXPECTED}"
         ) from exc
-    info = _check_format(path, kv)
     try:
+        info = _check_format(path, kv)
         table = parquet.read()
         names = table.column_names
+    except InputError:
+        raise
     except unreadable as exc:
         raise FileFormatError(
             f"{label} is corrupted: its data cannot be read ({type(exc).__name__}: {exc}); "
             "re-copy or re-write the file"
         ) from exc
+    finally:
+        parquet.close()
     wrong = [
         f.name
         for f in _schema()
