@@ -1,9 +1,10 @@
-"""Parquet write/read time and size for a realistic 2000 s rig recording.
+"""Parquet write/read time and size, CSV and TDMS read time, for a realistic 2000 s recording.
 
 100 cycles of 20 s: 11 analog channels at 1 kHz (float32, quantised like the 12-bit
 NI PCI-6025E with 0-10 V sensors, section 3.2.4 and Table 3.2) and 40 digital
-channels at 100 Hz (valve solenoids and reed switches of 10 actuators). Baseline: the
-same arrays written uncompressed with ``numpy.savez``.
+channels at 100 Hz (valve solenoids and reed switches of 10 actuators). Baselines: the
+same arrays written uncompressed with ``numpy.savez``; the CSV parsed by plain
+``pandas.read_csv``; the TDMS file read by ``nptdms.TdmsFile.read``.
 """
 
 from __future__ import annotations
@@ -13,11 +14,22 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.csv as pa_csv
+from nptdms import ChannelObject, TdmsFile, TdmsWriter
 from scipy.signal import lfilter
 
 from common import BenchResult, best_time
 from pneufdd.physics.units import bar_gauge_to_pa, slpm_to_kg_s
-from pneufdd.recording import Channel, Recording, read_parquet, write_parquet
+from pneufdd.recording import (
+    Channel,
+    Recording,
+    read_csv,
+    read_parquet,
+    read_tdms,
+    write_parquet,
+)
 
 ACTUATORS = ("DNC", "HMPL_H", "HMPL_V", "HMPL_VS", "DRQD", "SLT", "HGD1", "HGD2", "DSL", "ADVU")
 
@@ -98,10 +110,34 @@ def run() -> list[BenchResult]:
         load_s = best_time(lambda: dict(np.load(npz)))
         size = path.stat().st_size
         assert read_parquet(path).equals(rec)
+        analog = rec.analog_channels
+        csv = Path(folder) / "run.csv"
+        time_s = rec.channel(analog[0])[0]
+        pa_csv.write_csv(pa.table({"time": time_s, **{n: rec.info(n).values for n in analog}}), csv)
+        units = {n: rec.unit(n) for n in analog}
+        csv_s = best_time(lambda: read_csv(csv, {n: n for n in analog}, units), repeat=1)
+        pandas_s = best_time(lambda: pd.read_csv(csv), repeat=1)
+        tdms = Path(folder) / "run.tdms"
+        with TdmsWriter(tdms) as writer:
+            writer.write_segment(
+                [
+                    ChannelObject(
+                        "AI" if rec.info(n).kind == "analog" else "DI",
+                        n,
+                        rec.info(n).values,
+                        properties={"wf_increment": 1.0 / rec.rate(n), "unit_string": rec.unit(n)},
+                    )
+                    for n in rec.channels
+                ]
+            )
+        tdms_s = best_time(lambda: read_tdms(tdms))
+        nptdms_s = best_time(lambda: TdmsFile.read(tdms))
     return [
         BenchResult("parquet size, 2000 s rig recording", size / 1e6, "MB", "raw", raw_bytes / 1e6),
         BenchResult("parquet write, 2000 s", write_s, "s", "np.savez", savez_s),
         BenchResult("parquet read, 2000 s", read_s, "s", "np.load", load_s),
+        BenchResult("read_csv, 2000 s x 11 analog", csv_s, "s", "pandas.read_csv", pandas_s),
+        BenchResult("read_tdms, 2000 s x 51 channels", tdms_s, "s", "TdmsFile.read", nptdms_s),
     ]
 
 
