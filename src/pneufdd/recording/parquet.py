@@ -170,6 +170,16 @@ def _refuse_overwrite(path: Path) -> FileExistsInputError:
     )
 
 
+def _sync_folder(folder: Path) -> None:
+    """Flush the folder entry of a renamed file to disk where the OS allows it (POSIX)."""
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
 def _commit(tmp: Path, path: Path, overwrite: bool) -> None:
     """Move the finished temporary file to ``path`` in one step."""
     if overwrite:
@@ -264,6 +274,7 @@ def write_parquet(recording: Recording, path: str | Path, overwrite: bool = Fals
         _commit(tmp, path, overwrite)
     finally:
         tmp.unlink(missing_ok=True)
+    _sync_folder(path.parent)
     return path
 
 
