@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import tempfile
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from pneufdd.errors import ChannelError, FileFormatError, InputError, UnitError
 from pneufdd.recording import MissingFileError, read_csv, read_parquet, write_parquet
@@ -225,3 +228,31 @@ def test_spaces_after_delimiters_and_ragged_rows(tmp_path: Path) -> None:
     ragged = _write(tmp_path, "time,p\n0.000,1\n0.001,2,3,4\n", "ragged.csv")
     with pytest.raises(FileFormatError, match=r"ragged\.csv.* is not valid CSV"):
         read_csv(ragged, {"p": "P_In"}, {"P_In": "Pa"})
+
+
+@given(
+    rate=st.one_of(
+        st.sampled_from([1000.0, 100.0, 2048.0, 10.0, 1.0 / 3.0, 44100.0]),
+        st.floats(min_value=0.5, max_value=1e5),
+    ),
+    t0=st.floats(min_value=-10.0, max_value=10.0),
+    values=st.lists(
+        st.floats(min_value=-1e9, max_value=1e9).filter(lambda v: v != 0.0),
+        min_size=2,
+        max_size=400,
+    ),
+)
+def test_any_uniform_csv_reads_back_exactly(rate: float, t0: float, values: list[float]) -> None:
+    time = t0 + np.arange(len(values)) / rate
+    text = "time,p\n" + "".join(f"{float(t)!r},{v!r}\n" for t, v in zip(time, values, strict=True))
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "p.csv"
+        path.write_text(text)
+        rec = read_csv(path, {"p": "P_In"}, {"P_In": "Pa"})
+    read_time, read_values = rec.channel("P_In")
+    assert read_values.tolist() == values  # bit-exact through the "Pa" identity conversion
+    assert rec.info("P_In").t0 == time[0]
+    # the (possibly snapped) rate puts every sample within 1e-6 of an interval of its time
+    assert np.max(np.abs(read_time - time)) <= 1e-6 / rec.rate("P_In") + 1e-12 * (1 + abs(t0))
+    if rate in (1000.0, 100.0, 2048.0, 10.0, 44100.0):
+        assert rec.rate("P_In") == rate
