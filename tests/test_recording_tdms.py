@@ -175,3 +175,27 @@ def test_truncated_file_names_it(tmp_path: Path, fraction: float) -> None:
     cut.write_bytes(data[: int(len(data) * fraction)])
     with pytest.raises(FileFormatError, match=r"cut\.tdms.*(truncated|not a readable)"):
         read_tdms(cut)
+
+
+def test_given_start_time_sets_offsets(tmp_path: Path) -> None:
+    start = datetime(2011, 6, 14, 9, 29, 59, tzinfo=UTC)  # one second before the waveforms
+    rec = read_tdms(_rig(tmp_path), start_time=start, metadata={"machine": "festo-dsd"})
+    assert rec.start_time == start
+    assert rec.info("P_In").t0 == 1.0
+    assert rec.info("Q_In").t0 == pytest.approx(1.252, abs=1e-12)
+    assert rec.metadata["machine"] == "festo-dsd"
+    assert rec.metadata["source"]["file"] == "rig.tdms"
+    with pytest.raises(ChannelError, match=r"digital names channels not read.*'U_XYZ'"):
+        read_tdms(_rig(tmp_path), digital=["U_XYZ"])
+
+
+def test_labview_zero_timestamp_means_unset(tmp_path: Path) -> None:
+    path = _write(
+        tmp_path / "zero.tdms",
+        _wave(
+            "AI", "P_In", [1.0], 0.001, unit_string="Pa", wf_start_time=np.datetime64("1904-01-01")
+        ),
+    )
+    rec = read_tdms(path)
+    assert rec.start_time == datetime(1970, 1, 1, tzinfo=UTC)
+    assert rec.info("P_In").t0 == 0.0
