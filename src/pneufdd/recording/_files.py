@@ -7,17 +7,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pneufdd.errors import FileFormatError, InputError
+from pneufdd.errors import FileExistsInputError, FileFormatError, MissingFileError
 
 __all__ = ["FileExistsInputError", "MissingFileError", "check_input_file", "file_label"]
-
-
-class MissingFileError(FileFormatError, FileNotFoundError):
-    """The file to read does not exist (also a :class:`FileNotFoundError`)."""
-
-
-class FileExistsInputError(InputError, FileExistsError):
-    """The file to write exists and ``overwrite`` is false (also a :class:`FileExistsError`)."""
 
 
 def file_label(path: Path) -> str:
