@@ -37,7 +37,13 @@ import numpy.typing as npt
 
 from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
 from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.errors import FileFormatError, InputError, describe
+from pneufdd.errors import (
+    FileExistsInputError,
+    FileFormatError,
+    InputError,
+    MissingFileError,
+    describe,
+)
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
 
@@ -85,7 +91,9 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
     """
     target = Path(path)
     if target.exists() and not overwrite:
-        raise InputError(describe(f"reference file {str(target)!r}", "exists", "overwrite=True"))
+        raise FileExistsInputError(
+            describe(f"reference file {str(target)!r}", "exists", "overwrite=True")
+        )
     arrays: dict[str, npt.NDArray[Any]] = {
         "header": np.array(json.dumps(_header(model), allow_nan=False)),
         "features": model.features,
@@ -142,7 +150,7 @@ def load_reference(path: str | Path) -> ReferenceModel:
     """
     source = Path(path)
     if not source.is_file():
-        raise FileFormatError(describe("reference file", str(source), "an existing .pnref file"))
+        raise MissingFileError(describe("reference file", str(source), "an existing .pnref file"))
     with open(source, "rb") as handle:
         return _load(handle, source)
 

@@ -20,7 +20,7 @@ from pneufdd import __version__
 from pneufdd.diagnosis.engine import Diagnosis, check_compatible
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.diagnosis.steps import StepTable
-from pneufdd.errors import InputError, describe
+from pneufdd.errors import FileExistsInputError, describe
 from pneufdd.report.figures import (
     band_figure,
     statistic_figure,
@@ -286,7 +286,7 @@ def render_report(
 def write_text_atomic(path: Path, text: str, overwrite: bool = True) -> Path:
     """Write ``text`` to ``path`` via a temporary file and a rename."""
     if path.exists() and not overwrite:
-        raise InputError(describe(f"output file {str(path)!r}", "exists", "overwrite"))
+        raise FileExistsInputError(describe(f"output file {str(path)!r}", "exists", "overwrite"))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
