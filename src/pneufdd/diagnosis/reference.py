@@ -19,6 +19,7 @@ It is saved to a portable ``.pnref`` file by :mod:`pneufdd.diagnosis.pnref`.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -212,8 +213,10 @@ class ReferenceModel:
             table = table.select(list(channels))
         band_mean = band_std = None
         if table.traces is not None and table.channels:
-            band_mean = np.nanmean(table.traces, axis=0)
-            band_std = np.nanstd(table.traces, axis=0, ddof=1)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # samples no cycle reaches
+                band_mean = np.nanmean(table.traces, axis=0)
+                band_std = np.nanstd(table.traces, axis=0, ddof=1)
         supply = float("nan")
         if "P_In" in table.channels:
             supply = float(np.mean(table.summaries[:, :, table.channels.index("P_In"), 0]))

@@ -11,6 +11,7 @@ import html
 import math
 import os
 import tempfile
+import warnings
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -105,7 +106,9 @@ def _figures(reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis) ->
             diff = np.abs(run_means - ref_means)
             top = sorted(int(j) for j in np.argsort(diff)[::-1][:3])
             ref_tr = [reference.band_mean[c, offsets[j] : offsets[j + 1]] for j in top]
-            run_mean = np.nanmean(run.traces[:, c, :], axis=0)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # samples no cycle reaches
+                run_mean = np.nanmean(run.traces[:, c, :], axis=0)
             run_tr = [run_mean[offsets[j] : offsets[j + 1]] for j in top]
             out.append(
                 _img(
