@@ -11,15 +11,26 @@ import pytest
 from _diag_synth import synth_signatures, synth_table
 from pneufdd.diagnosis.pnref import load_reference, save_reference
 from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import FileFormatError, InputError
 
 
 @pytest.fixture(scope="module")
 def model():
+    sig = synth_signatures()
+    sig = SignatureSet(
+        sig.locations,
+        sig.sizes,
+        sig.deltas,
+        sig.feature_names,
+        sig.nominal_pressure,
+        np.full((len(sig.locations), len(sig.feature_names)), 0.5),
+        np.array([1e-3, 6e-4]),
+    )
     return ReferenceModel.build(
         synth_table(20, seed=3),
         machine_description={"name": "synth", "actuators": ["X", "Y"]},
-        signatures=synth_signatures(),
+        signatures=sig,
         sources=["a.parquet", "b.parquet"],
         sequence=[{"valves": ["U_X_A"], "switches": [["S_X_B", 1]]}],
     )
@@ -41,6 +52,8 @@ def test_round_trip_is_exact(model, tmp_path):
     assert back.signatures.locations == model.signatures.locations
     assert np.array_equal(back.signatures.deltas, model.signatures.deltas)
     assert np.array_equal(back.signatures.sizes, model.signatures.sizes)
+    assert np.array_equal(back.signatures.interaction, model.signatures.interaction)
+    assert np.array_equal(back.signatures.interaction_sizes, model.signatures.interaction_sizes)
     assert np.array_equal(back.detector.threshold_, model.detector.threshold_)
     assert not list(tmp_path.glob(".*tmp"))
 

@@ -22,12 +22,16 @@ two unknowns, solved in closed form from one Gram matrix of the whitened signatu
 pieces (an exhaustive sparse subset search instead of :func:`scipy.optimize.nnls`,
 whose linear model cannot follow saturating effects such as a line pressure that
 drops to atmosphere). A larger subset is preferred only when it lowers the residual by
-an information-criterion penalty and by a minimum relative gain.
+an information-criterion penalty and by a minimum relative gain. When the chosen pair
+includes a supply leak and the signatures carry the supply interaction, the two sizes
+are refined with the bilinear interaction term (a supply leak lowers the pressure the
+line leak sees, so their effects are not additive).
 
 Ambiguity: for each leak of the chosen model, every other location is tried in its
 place. Alternatives whose fit is nearly as good (Akaike-type weight
-:math:`\\exp(-\\Delta RSS / 2 s^2)` at least ``group_ratio`` of the best) or whose
-weighted signature is nearly collinear with the chosen one form its ambiguity group;
+:math:`\\exp(-\\Delta RSS / 2 s^2)` at least ``group_ratio`` of the best, or a
+residual at most ``1 + relative_tolerance`` times the best) or whose weighted
+signature is nearly collinear with the chosen one form its ambiguity group;
 the sensors cannot tell them apart and they are reported together. The confidence is
 the weight of the group times the fraction of the observed deviation the model
 explains.
@@ -123,6 +127,7 @@ class _PiecewiseModel:
         S = np.diff(values, axis=1) / np.diff(knots, axis=1)[:, :, None]
         V = values[:, :-1, :] - knots[:, :-1, None] * S
         self.S, self.V = S, V
+        self.target = target
         self.lo = knots[:, :-1]
         self.hi = knots[:, 1:].copy()
         self.hi[:, -1] = np.inf
@@ -238,6 +243,57 @@ class _PiecewiseModel:
             self.pair_rss[first, second]
         )
 
+    def effect(self, loc: int, size: float) -> FloatArray:
+        """Whitened effect of location ``loc`` at ``size``."""
+        seg = int(
+            np.clip(np.searchsorted(self.lo[loc], size, side="right") - 1, 0, self.lo.shape[1] - 1)
+        )
+        return np.asarray(self.V[loc, seg] + size * self.S[loc, seg], dtype=np.float64)
+
+    def _best_1d(self, loc: int, target: FloatArray, extra: FloatArray) -> tuple[float, float]:
+        best_a, best_rss = 0.0, np.inf
+        for k in range(self.lo.shape[1]):
+            c = target - self.V[loc, k]
+            slope = self.S[loc, k] + extra
+            g = float(slope @ slope)
+            a = float(
+                np.clip(
+                    (c @ slope) / g if g > 0 else self.lo[loc, k], self.lo[loc, k], self.hi[loc, k]
+                )
+            )
+            r = c - a * slope
+            rss = float(r @ r)
+            if rss < best_rss:
+                best_a, best_rss = a, rss
+        return best_a, best_rss
+
+    def refine_with_supply(
+        self,
+        line: int,
+        supply: int,
+        coupling: FloatArray,
+        sizes: tuple[float, float],
+        iterations: int = 30,
+    ) -> tuple[float, float, float]:
+        """Sizes of a line leak and a supply leak with their bilinear interaction.
+
+        Minimises ``|y - E_line(a) - E_supply(b) - a b K|`` by alternating exact
+        one-dimensional fits (each piecewise linear in its own size).
+
+        Returns
+        -------
+        a, b : float
+            Line and supply leak sizes [kg/s].
+        rss : float
+            Whitened residual [-].
+        """
+        a, b = sizes
+        rss = np.inf
+        for _ in range(iterations):
+            a, _ = self._best_1d(line, self.target - self.effect(supply, b), b * coupling)
+            b, rss = self._best_1d(supply, self.target - self.effect(line, a), a * coupling)
+        return a, b, rss
+
     def column(self, loc: int, size: float) -> FloatArray:
         """Whitened effect of location ``loc`` at ``size``, per unit size (secant)."""
         seg = int(
@@ -257,6 +313,7 @@ def locate(
     group_ratio: float = 0.05,
     collinear_cos: float = 0.995,
     min_flow: float = 4.3e-5,
+    relative_tolerance: float = 0.25,
 ) -> Localisation:
     """Decompose an observed feature change into non-negative leak contributions.
 
@@ -282,6 +339,11 @@ def locate(
     collinear_cos : float
         Alternatives whose weighted signature has at least this cosine similarity
         with the chosen one join the group [-].
+    relative_tolerance : float
+        Alternatives whose weighted residual is at most ``1 + relative_tolerance``
+        times the best join the group: the fit barely changes when they are swapped
+        in, which matters when the residual is dominated by model error (effects of
+        simultaneous leaks are only approximately additive) rather than noise [-].
     min_flow : float
         Smallest leak reported; a model needing a smaller leak is not considered
         (2 SLPM by default, below the leak valve's first turn) [kg/s].
@@ -343,6 +405,22 @@ def locate(
         else:
             break
     subset, coef, rss = best[chosen]
+    refined: dict[int, float] = {}
+    if len(subset) == 2 and "supply" in signatures.locations:
+        supply = signatures.locations.index("supply")
+        if supply in subset:
+            line = subset[0] if subset[1] == supply else subset[1]
+            slope = signatures.interaction_slope(line)
+            if slope is not None:
+                coupling = whiten(slope)[0]
+                a, b, rss_i = model.refine_with_supply(
+                    line,
+                    supply,
+                    coupling,
+                    (float(coef[subset.index(line)]), float(coef[subset.index(supply)])),
+                )
+                if rss_i < rss:
+                    refined = {line: a, supply: b}
     s2 = max(1.0, rss / max(dof - len(subset), 1))
     explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
     leaks: list[LeakEstimate] = []
@@ -360,6 +438,7 @@ def locate(
             alternatives.append((alt_rss, alt, alt_size))
         rss_min = min(a[0] for a in alternatives)
         weights = {alt: np.exp(-(r - rss_min) / (2.0 * s2)) for r, alt, _ in alternatives}
+        rss_of = {alt: r for r, alt, _ in alternatives}
         sizes = {alt: size for _, alt, size in alternatives}
         chosen_col = column(loc, float(coef[slot]))
         members = []
@@ -369,12 +448,20 @@ def locate(
             alt_col = column(alt, sizes[alt])
             norm = float(np.linalg.norm(chosen_col) * np.linalg.norm(alt_col))
             cos = float(chosen_col @ alt_col) / norm if norm > 0 else 0.0
-            if alt == loc or w >= group_ratio * max(weights.values()) or cos >= collinear_cos:
+            close = rss_of[alt] <= (1.0 + relative_tolerance) * rss_min
+            if (
+                alt == loc
+                or w >= group_ratio * max(weights.values())
+                or close
+                or cos >= collinear_cos
+            ):
                 members.append(alt)
         members.sort(key=lambda a: -weights[a])
         total = float(sum(weights.values()))
         mass = float(sum(weights[a] for a in members)) / total if total > 0 else 0.0
         best_member = members[0]
+        if best_member == loc and loc in refined:
+            sizes[loc] = refined[loc]
         leaks.append(
             LeakEstimate(
                 location=signatures.locations[best_member],

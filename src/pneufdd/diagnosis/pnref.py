@@ -16,6 +16,8 @@ entry                  content
 ``sig_sizes``          (n_locations, n_sizes) float64, optional [kg/s]
 ``sig_deltas``         (n_locations, n_sizes, n_features) float64, optional
 ``sig_pressure``       (n_locations,) float64, optional [Pa]
+``sig_interaction``    (n_locations, n_features) float64, optional
+``sig_interaction_sizes`` (2,) float64, optional [kg/s]
 =====================  ===========================================================
 
 The file is written to a temporary name and renamed into place; it is read with
@@ -106,9 +108,13 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
         arrays["sig_sizes"] = model.signatures.sizes
         arrays["sig_deltas"] = model.signatures.deltas
         arrays["sig_pressure"] = model.signatures.nominal_pressure
+        if model.signatures.interaction is not None:
+            arrays["sig_interaction"] = model.signatures.interaction
+            arrays["sig_interaction_sizes"] = np.asarray(model.signatures.interaction_sizes)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
+        _default_mode(tmp)
         with os.fdopen(fd, "wb") as handle:
             np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
         os.replace(tmp, target)
@@ -205,7 +211,13 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 sizes = _array(data, source, "sig_sizes", "f", (n_loc, None))
                 deltas = _array(data, source, "sig_deltas", "f", (n_loc, sizes.shape[1], n_feat))
                 pressure = _array(data, source, "sig_pressure", "f", (n_loc,))
-                signatures = SignatureSet(tuple(locations), sizes, deltas, names, pressure)
+                inter = inter_sizes = None
+                if "sig_interaction" in data.files:
+                    inter = _array(data, source, "sig_interaction", "f", (n_loc, n_feat))
+                    inter_sizes = _array(data, source, "sig_interaction_sizes", "f", (2,))
+                signatures = SignatureSet(
+                    tuple(locations), sizes, deltas, names, pressure, inter, inter_sizes
+                )
             supply = header.get("supply_pressure")
             model = ReferenceModel(
                 machine=machine,
@@ -231,3 +243,10 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
     if model.feature_names != names:
         raise _bad(source, "feature_names", "inconsistent with channels/n_steps", "consistent")
     return model
+
+
+def _default_mode(path: str) -> None:
+    """Give a temporary file the mode a new file gets (mkstemp makes it 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, 0o666 & ~umask)

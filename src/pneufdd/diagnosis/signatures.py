@@ -46,6 +46,14 @@ class SignatureSet:
         Names of the features (columns of :meth:`StepTable.features`).
     nominal_pressure : ndarray, shape (n_locations,)
         Absolute pressure at which each location's size is stated [Pa].
+    interaction : ndarray, shape (n_locations, n_features), optional
+        Non-additive part of the effect of a leak at each location together with a
+        supply leak: ``effect(l + supply) - effect(l) - effect(supply)`` at the sizes
+        ``interaction_sizes`` [feature unit]. A supply leak lowers the pressure every
+        line sees, so line leaks act differently with it; the term is modelled as
+        bilinear in the two sizes. Zero for ``supply`` itself.
+    interaction_sizes : ndarray, shape (2,), optional
+        Line and supply leak sizes at which ``interaction`` was simulated [kg/s].
 
     Examples
     --------
@@ -65,6 +73,8 @@ class SignatureSet:
     deltas: FloatArray
     feature_names: tuple[str, ...]
     nominal_pressure: FloatArray
+    interaction: FloatArray | None = None
+    interaction_sizes: FloatArray | None = None
 
     def __post_init__(self) -> None:
         locations = tuple(self.locations)
@@ -88,6 +98,21 @@ class SignatureSet:
             raise InputError(describe("signature deltas", "NaN or infinite", "finite values"))
         if pressure.shape != (n_loc,):
             raise InputError(describe("shape of nominal_pressure", pressure.shape, [(n_loc,)]))
+        if (self.interaction is None) != (self.interaction_sizes is None):
+            raise InputError(
+                describe("interaction and interaction_sizes", "only one", "both or neither")
+            )
+        if self.interaction is not None and self.interaction_sizes is not None:
+            inter = np.asarray(self.interaction, dtype=np.float64)
+            isz = np.asarray(self.interaction_sizes, dtype=np.float64)
+            if inter.shape != (n_loc, len(names)) or not np.all(np.isfinite(inter)):
+                raise InputError(
+                    describe("shape of interaction", inter.shape, [(n_loc, len(names))])
+                )
+            if isz.shape != (2,) or np.any(isz <= 0):
+                raise InputError(describe("interaction_sizes [kg/s]", isz.tolist(), "2 sizes > 0"))
+            object.__setattr__(self, "interaction", inter)
+            object.__setattr__(self, "interaction_sizes", isz)
         object.__setattr__(self, "locations", locations)
         object.__setattr__(self, "sizes", sizes)
         object.__setattr__(self, "deltas", deltas)
@@ -148,4 +173,17 @@ class SignatureSet:
             self.deltas[:, :, cols],
             tuple(names),
             self.nominal_pressure,
+            None if self.interaction is None else self.interaction[:, cols],
+            self.interaction_sizes,
         )
+
+    def interaction_slope(self, location: int) -> FloatArray | None:
+        """Bilinear interaction with a supply leak per unit of both sizes.
+
+        Returns ``interaction[location] / (line size * supply size)``
+        [feature unit per (kg/s)^2], or None when not available.
+        """
+        if self.interaction is None or self.interaction_sizes is None:
+            return None
+        line, supply = self.interaction_sizes
+        return np.asarray(self.interaction[location] / (line * supply), dtype=np.float64)

@@ -293,6 +293,7 @@ def write_text_atomic(path: Path, text: str, overwrite: bool = True) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        _default_mode(tmp)
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
             handle.write(text)
         os.replace(tmp, path)
@@ -315,3 +316,10 @@ def write_report(
     return write_text_atomic(
         Path(path), render_report(reference, run, diagnosis, title, run_name), overwrite
     )
+
+
+def _default_mode(path: str) -> None:
+    """Give a temporary file the mode a new file gets (mkstemp makes it 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, 0o666 & ~umask)
