@@ -202,11 +202,13 @@ def diagnose(
     band = reference.band_detector()
     band_fraction = np.zeros(0)
     band_alarms = 0
-    if band is not None and table.traces is not None:
-        n = min(band.n_features_in_ // max(len(table.channels), 1), table.traces.shape[2])
-        if n * len(table.channels) == band.n_features_in_:
-            band_fraction = band.score_samples(table.traces.reshape(m, -1))
-            band_alarms = int(np.sum(band_fraction > band.alarm_fraction))
+    if (
+        band is not None
+        and table.traces is not None
+        and table.traces[0].size == band.n_features_in_
+    ):
+        band_fraction = band.score_samples(table.traces.reshape(m, -1))
+        band_alarms = int(np.sum(band_fraction > band.alarm_fraction))
     observed = np.asarray(np.mean(X, axis=0) - det.mean_, dtype=np.float64)
     notes: list[str] = []
     localisation = None
