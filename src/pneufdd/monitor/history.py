@@ -74,7 +74,7 @@ def read_history(path: str | Path) -> list[HistoryEntry]:
     >>> with tempfile.TemporaryDirectory() as d:
     ...     p = Path(d) / "h.jsonl"
     ...     _ = p.write_text('{"time": "2026-01-01T00:00:00+00:00", "run": "a", '
-    ...                      '"detected": false, "total_annual_cost": 0, "leaks": []}\n')
+    ...                      '"detected": false, "total_annual_cost": 0, "leaks": []}\\n')
     ...     [e.run for e in read_history(p)]
     ['a']
     """
