@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
+from pneufdd.physics.leaks import leak_mass_flow
 from pneufdd.physics.units import kg_s_to_slpm, pa_to_psig
 from pneufdd.sim import SimulationResult, run_simulation
-from pneufdd.sim._physics_shim import leak_mass_flow
 
 MACHINE = "festo-dsd"
 SEED = 11

@@ -39,11 +39,8 @@ import numpy as np
 from numba import njit
 
 from pneufdd.physics.constants import GAMMA_AIR, P_ATM, R_AIR
-from pneufdd.sim._physics_shim import (  # TEMPORARY: replace by pneufdd.physics kernels
-    isa_mass_flow_kernel,
-    karnopp_friction_kernel,
-    orifice_mass_flow_kernel,
-)
+from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
+from pneufdd.physics.friction import friction_force_kernel
 from pneufdd.sim.layout import (
     AP_AROD,
     AP_CVF,
@@ -559,7 +556,7 @@ def run_cycle(
                     v_old = 0.0
                 else:
                     v_old = v[i]
-                ff = karnopp_friction_kernel(v_old, force, fs, fc, cvf, _DV)
+                ff = friction_force_kernel(v_old, force, fs, fc, cvf, _DV)
                 acc = (force - ff) / ap[i, AP_MASS]
                 v_new = v_old + acc * dt
                 if v_old != 0.0 and v_new * v_old < 0.0:

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from pneufdd.errors import InputError, describe
+from pneufdd.physics.leaks import leak_area, leak_mass_flow
 from pneufdd.physics.units import kg_s_to_slpm, psig_to_pa
-from pneufdd.sim._physics_shim import leak_area, leak_mass_flow  # TEMPORARY
 from pneufdd.sim.description import MachineDescription
 
 __all__ = ["Leak", "LeakSpec", "parse_leak_size", "resolve_leaks"]
@@ -141,8 +141,9 @@ def resolve_leaks(
         if leak.location in seen:
             raise InputError(describe("leak location given twice", leak.location, "once"))
         seen.add(leak.location)
-        area = float(leak_area(leak.size, leak.unit, p_nom))
-        mdot = leak_mass_flow(p_nom, area)
+        ref = p_nom if leak.unit == "SLPM" else None
+        area = float(leak_area(leak.size, leak.unit, ref))
+        mdot = float(leak_mass_flow(p_nom, area))
         specs.append(
             LeakSpec(
                 leak.location, leak.size, leak.unit, area, mdot, float(kg_s_to_slpm(mdot)), p_nom
