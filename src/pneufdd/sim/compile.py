@@ -14,7 +14,7 @@ from pneufdd.sim import layout as lay
 from pneufdd.sim.description import Actuator, MachineDescription
 from pneufdd.sim.leaks import LeakSpec
 
-__all__ = ["Plant", "compile_plant", "series_cv", "tube_cv"]
+__all__ = ["DEFAULT_RESOLUTION", "Plant", "Resolution", "compile_plant", "series_cv", "tube_cv"]
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
@@ -95,7 +95,33 @@ def _areas(a: Actuator) -> tuple[float, float, float]:
     return area_a, area_a - rod, rod
 
 
-def compile_plant(machine: MachineDescription, leaks: list[LeakSpec]) -> Plant:
+@dataclass(frozen=True)
+class Resolution:
+    """Accuracy knobs of the integrator (sub-steps inside each 1 ms output sample).
+
+    Attributes
+    ----------
+    moving_substeps : int
+        Minimum sub-steps per ms while any piston moves [-].
+    pressure_step_pa : float
+        Target largest pressure change of any active node per sub-step [Pa].
+    max_substeps : int
+        Sub-steps per ms right after a valve switches, and the upper limit [-].
+    """
+
+    moving_substeps: int = 1
+    pressure_step_pa: float = 5000.0
+    max_substeps: int = 10
+
+
+DEFAULT_RESOLUTION = Resolution()
+
+
+def compile_plant(
+    machine: MachineDescription,
+    leaks: list[LeakSpec],
+    resolution: Resolution = DEFAULT_RESOLUTION,
+) -> Plant:
     """Build the integrator's arrays from a validated description and resolved leaks."""
     s = machine.supply
     t_wall = machine.temperature_c + KELVIN_OFFSET
@@ -117,6 +143,9 @@ def compile_plant(machine: MachineDescription, leaks: list[LeakSpec]) -> Plant:
     sp[lay.SP_SCAN] = machine.scan_time_s
     sp[lay.SP_WINDOW] = machine.switch_window_mm * 1e-3
     sp[lay.SP_OU_DT] = 0.1
+    sp[lay.SP_N_MOVE] = resolution.moving_substeps
+    sp[lay.SP_DP_TOL] = resolution.pressure_step_pa
+    sp[lay.SP_N_MAX] = resolution.max_substeps
     vac = machine.vacuum
     if vac is not None:
         sp[lay.SP_NOZZLE] = vac.nozzle_cd * math.pi * (vac.nozzle_diameter_mm * 1e-3) ** 2 / 4

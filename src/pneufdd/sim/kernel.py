@@ -73,8 +73,11 @@ from pneufdd.sim.layout import (
     SP_COMP_BAND,
     SP_COMP_PERIOD,
     SP_COMP_PHASE,
+    SP_DP_TOL,
     SP_LINE_CV,
     SP_LINE_XT,
+    SP_N_MAX,
+    SP_N_MOVE,
     SP_NOZZLE,
     SP_OU_DT,
     SP_P_HOUSE,
@@ -112,9 +115,6 @@ _CP_AIR = GAMMA_AIR * R_AIR / (GAMMA_AIR - 1.0)
 _DV = 1e-4  # Karnopp velocity band [m/s]
 _WAKE = 300.0  # pressure difference that wakes a frozen chamber [Pa]
 _SLEEP = 30.0  # pressure difference below which a resting chamber may freeze [Pa]
-_DP_TOL = 1500.0  # target pressure change per sub-step [Pa]
-_N_MOVE = 5  # minimum sub-steps per ms while a piston moves
-_N_MAX = 25
 
 
 @njit(cache=True)
@@ -254,6 +254,9 @@ def run_cycle(
     max_samples = out_p.shape[0]
     t_wall = sp[SP_T_WALL]
     window = sp[SP_WINDOW]
+    n_move = int(sp[SP_N_MOVE])
+    n_max = int(sp[SP_N_MAX])
+    dp_tol = sp[SP_DP_TOL]
     t0 = ss[SS_TIME]
     vol = np.empty(nn)
     vdot = np.zeros(nn)
@@ -426,14 +429,14 @@ def run_cycle(
         # ---------------------------------------------------- sub-step count
         nsub = 1
         if any_moving:
-            nsub = _N_MOVE
-        need = math.ceil(dp_prev / _DP_TOL)
+            nsub = n_move
+        need = math.ceil(dp_prev / dp_tol)
         if need > nsub:
             nsub = need
         if spool_changed:
-            nsub = _N_MAX
-        if nsub > _N_MAX:
-            nsub = _N_MAX
+            nsub = n_max
+        if nsub > n_max:
+            nsub = n_max
         spool_changed = False
         dt = SAMPLE_DT / nsub
         total_sub += nsub

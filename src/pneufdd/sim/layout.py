@@ -31,7 +31,10 @@ SP_VAC_LEVEL = 21
 SP_VAC_ON_DELAY = 22
 SP_VAC_OFF_DELAY = 23
 SP_OU_DT = 24  # grid of the house-pressure drift array [s]
-SP_SIZE = 25
+SP_N_MOVE = 25  # minimum sub-steps per ms while a piston moves [-]
+SP_DP_TOL = 26  # target pressure change per sub-step [Pa]
+SP_N_MAX = 27  # maximum sub-steps per ms [-]
+SP_SIZE = 28
 
 # actuator parameters (float array, one row per actuator)
 AP_STROKE = 0  # [m]

@@ -14,7 +14,7 @@ from pneufdd import __version__
 from pneufdd.errors import InputError, PneufddError, describe
 from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
-from pneufdd.sim.compile import Plant, compile_plant, initial_state
+from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
 from pneufdd.sim.description import MachineDescription
 from pneufdd.sim.kernel import SAMPLE_DT, run_cycle
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
@@ -101,6 +101,7 @@ def run_simulation(
     progress: Callable[[int, int], None] | None = None,
     keep_outputs: bool = True,
     max_cycle_s: float = 120.0,
+    resolution: Resolution = DEFAULT_RESOLUTION,
 ) -> SimulationResult:
     """Simulate ``cycles`` machine cycles and return true states plus the recording.
 
@@ -122,6 +123,8 @@ def run_simulation(
         Keep the internal states (``outputs``); False saves memory for long runs.
     max_cycle_s : float
         A cycle longer than this is a stalled machine [s].
+    resolution : Resolution
+        Sub-step settings of the integrator (defaults are those benchmarked).
 
     Returns
     -------
@@ -130,7 +133,7 @@ def run_simulation(
     _check_args(cycles, seed, max_cycle_s)
     desc = load_machine(machine)
     specs = resolve_leaks(desc, leaks)
-    plant = compile_plant(desc, specs)
+    plant = compile_plant(desc, specs, resolution)
     rng = np.random.default_rng(seed)
     state = initial_state(desc, plant)
     plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
