@@ -286,6 +286,12 @@ def run_cycle(
     istate[IS_PHASE] = -1  # -1: step not yet started
     istate[IS_CYCLE_DONE] = 0
 
+    # heat exchange: the gas temperature relaxes to the wall with exp(-dt / tau)
+    decay = np.ones((n_max + 1, nn))
+    for q in range(1, n_max + 1):
+        for j in range(nn):
+            tau = sp[SP_TAU_TH] if j < 2 else cp[j - 2, CP_TAU_TH]
+            decay[q, j] = math.exp(-SAMPLE_DT / q / tau)
     for c in range(nc):
         i = c // 2
         if c % 2 == 0:
@@ -597,8 +603,7 @@ def run_cycle(
                 if m_new < 1e-12:
                     m_new = 1e-12
                 t_new = u / (m_new * _CV_AIR)
-                tau = sp[SP_TAU_TH] if j < 2 else cp[j - 2, CP_TAU_TH]
-                t_new = t_wall + (t_new - t_wall) * math.exp(-dt / tau)
+                t_new = t_wall + (t_new - t_wall) * decay[nsub, j]
                 if t_new < 150.0:
                     t_new = 150.0
                 m[j] = m_new

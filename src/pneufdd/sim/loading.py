@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import tomllib
+from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -13,6 +14,7 @@ from pneufdd.sim.description import MachineDescription, parse_description
 __all__ = ["builtin_machines", "load_machine"]
 
 
+@lru_cache(maxsize=1)
 def builtin_machines() -> tuple[str, ...]:
     """Names of the machine descriptions shipped with pneufdd.
 
@@ -23,6 +25,12 @@ def builtin_machines() -> tuple[str, ...]:
     """
     folder = resources.files("pneufdd.sim") / "machines"
     return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
+
+
+@lru_cache(maxsize=8)
+def _builtin(name: str) -> MachineDescription:
+    res = resources.files("pneufdd.sim") / "machines" / f"{name}.toml"
+    return parse_description(_read_toml(res.read_text("utf-8"), f"{name}.toml"), name)
 
 
 def _read_toml(text: str, source: str) -> dict[str, Any]:
@@ -63,8 +71,7 @@ def load_machine(
     if isinstance(machine, dict):
         return parse_description(machine, "<dict>")
     if isinstance(machine, str) and machine in builtin_machines():
-        res = resources.files("pneufdd.sim") / "machines" / f"{machine}.toml"
-        return parse_description(_read_toml(res.read_text("utf-8"), f"{machine}.toml"), machine)
+        return _builtin(machine)
     path = Path(machine)
     if path.suffix.lower() == ".toml" or path.exists():
         if not path.is_file():

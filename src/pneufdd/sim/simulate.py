@@ -199,6 +199,8 @@ def _take(buf: _Buffers, n: int, keep: bool) -> dict[str, npt.NDArray[Any]]:
 
 
 def _cat(chunks: list[dict[str, npt.NDArray[Any]]], key: str) -> npt.NDArray[Any]:
+    if len(chunks) == 1:
+        return chunks[0][key]
     return np.concatenate([c[key] for c in chunks], axis=0)
 
 
