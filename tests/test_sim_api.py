@@ -79,6 +79,11 @@ def test_outputs_and_dataframe() -> None:
     for col in ("p_manifold", "x_DNC", "mdot_in_DNC_A", "mass_supplied", "stored_mass"):
         assert col in df.columns
     assert res.step_start.shape == (1, 58)
+    assert "step_start" not in df.columns
+    np.testing.assert_array_equal(res.outputs["step_start"], res.step_start)
+    ends = res.outputs["stroke_end_DNC"]
+    assert ends.size >= 1
+    assert np.all(ends > res.outputs["stroke_start_DNC"])
     assert np.all(np.diff(res.step_start[0]) > 0)
     x = res.outputs["x_DNC"]
     assert x.min() == 0.0

@@ -31,9 +31,9 @@ class Stroke:
     start : float
         Time the piston broke away [s].
     end : float
-        Time it reached the end stop [s]; NaN if it never arrived.
+        Time it reached the end stop [s] (only completed strokes are listed).
     cycle : int
-        Cycle index (0-based).
+        Cycle index (0-based) in which the stroke started.
     """
 
     actuator: str
@@ -65,7 +65,10 @@ class SimulationResult:
         ``Q_In`` meter), ``mdot_regulator``, ``mdot_vacuum`` [kg/s], ``stored_mass``
         (reservoir + manifold + chambers) [kg], cumulative masses ``mass_supplied``
         (through the supply line), ``mass_regulator``, ``mass_exhausted``,
-        ``mass_leaked``, ``mass_vacuum`` [kg], ``vacuum_level`` [-], ``step`` (0-based).
+        ``mass_leaked``, ``mass_vacuum`` [kg], ``vacuum_level`` [-], ``step`` (0-based);
+        and, not on the time base: ``step_start`` (cycles x steps) [s] and per
+        actuator ``stroke_start_<ACT>``, ``stroke_end_<ACT>`` [s],
+        ``stroke_direction_<ACT>`` (+1 extend, -1 retract).
     step_start : ndarray
         Start time of every step, shape (cycles, steps) [s].
     strokes : list of Stroke
@@ -104,7 +107,8 @@ class SimulationResult:
         ]
 
     def to_pandas(self) -> pd.DataFrame:
-        """The internal outputs as a DataFrame indexed by time [s] (``time_s``)."""
+        """The internal time series as a DataFrame indexed by time [s] (``time_s``)."""
         import pandas as pd
 
-        return pd.DataFrame(self.outputs, index=pd.Index(self.time, name="time_s"))
+        series = {k: v for k, v in self.outputs.items() if v.ndim == 1 and v.size == self.time.size}
+        return pd.DataFrame(series, index=pd.Index(self.time, name="time_s"))

@@ -269,6 +269,12 @@ def _assemble(
     outputs: dict[str, npt.NDArray[Any]] = {}
     if "cum" in chunks[0]:
         outputs = _outputs(desc, chunks, p, x, fch, fexh, fr)
+        outputs["step_start"] = step_start
+        for a in desc.actuators:
+            mine = [s for s in strokes if s.actuator == a.id]
+            outputs[f"stroke_start_{a.id}"] = np.array([s.start for s in mine])
+            outputs[f"stroke_end_{a.id}"] = np.array([s.end for s in mine])
+            outputs[f"stroke_direction_{a.id}"] = np.array([s.direction for s in mine])
     return SimulationResult(
         time=time,
         outputs=outputs,
