@@ -78,6 +78,7 @@ def test_error_names_file_key_value_and_allowed(tmp_path: Path) -> None:
         (lambda r: r["actuator"][1].__setitem__("id", "DNC"), "unique"),
         (lambda r: r["step"][0]["do"][0].__setitem__("until", "S_NOPE"), "S_NOPE"),
         (lambda r: r["supply"].__setitem__("colour", "blue"), "colour"),
+        (lambda r: r["step"][0]["do"][0].__setitem__("until", "S_DRQD_A"), "S_DRQD_B"),
         (lambda r: r["sensor"][0].__setitem__("location", "DNC_C"), "DNC_C"),
     ],
 )

@@ -503,6 +503,21 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
         solenoids.append(f"U_{vacuum.id}")
         switches.append(f"S_{vacuum.id}")
     steps = tuple(_step(s, solenoids, switches, i) for i, s in enumerate(top.tables("step")))
+    for k, step in enumerate(steps):
+        for a, act in enumerate(step.actions):
+            ident, _, side = act.solenoid[2:].rpartition("_")
+            if act.mode != "until" or ident not in ids:
+                continue
+            expected = f"S_{ident}_{'B' if side == 'A' else 'A'}"
+            if act.switch != expected:
+                raise MachineError(
+                    describe(
+                        f"{source}: step[{k}].do[{a}].until (for {act.solenoid})",
+                        act.switch,
+                        [expected],
+                    )
+                    + "; a solenoid is released at the end its actuator moves to"
+                )
     if not steps:
         raise MachineError(describe(f"{source}: step", [], "at least one [[step]]"))
     top.finish()
