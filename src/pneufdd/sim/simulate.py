@@ -183,19 +183,33 @@ def run_simulation(
                     int(np.searchsorted(step_start[: cyc + 1, 0], buf.ev_t0[e], "right")) - 1,
                 )
             )
-        chunk = _take(buf, n, keep_outputs)
-        chunk["k0"] = np.array([k_start])
-        chunks.append(chunk)
+        chunks.append(_take(desc, buf, n, k_start, keep_outputs))
         if progress is not None:
             progress(cyc + 1, cycles)
     return _assemble(desc, plant, specs, chunks, step_start, strokes, rng, seed, cycles, total_sub)
 
 
-def _take(buf: _Buffers, n: int, keep: bool) -> dict[str, npt.NDArray[Any]]:
-    names = ["p", "x", "fch", "fexh", "fr", "cmd", "sw"]
+def _take(
+    desc: MachineDescription, buf: _Buffers, n: int, k0: int, keep: bool
+) -> dict[str, npt.NDArray[Any]]:
+    """Copy what one cycle produced out of the reusable buffers.
+
+    Only the sensors' true signals and the digital samples are kept unless ``keep``
+    asks for every internal state (memory grows with cycles x samples x states).
+    """
+    p, x, fch, fexh, fr = buf.p[:n], buf.x[:n], buf.fch[:n], buf.fexh[:n], buf.fr[:n]
+    chunk: dict[str, npt.NDArray[Any]] = {}
+    for sensor in desc.sensors:
+        chunk["truth:" + sensor.channel] = _truth_for(
+            desc, sensor.kind, sensor.location, p, x, fch, fexh, fr
+        ).copy()
+    first = (-k0) % _DIGITAL_EVERY  # digital samples fall on every 10th global sample
+    chunk["cmd"] = buf.cmd[first:n:_DIGITAL_EVERY].copy()
+    chunk["sw"] = buf.sw[first:n:_DIGITAL_EVERY].copy()
     if keep:
-        names += ["vac", "fleak", "cum", "mass", "step"]
-    return {k: getattr(buf, k)[:n].copy() for k in names}
+        for k in ("p", "x", "fch", "fexh", "fr", "vac", "fleak", "cum", "mass", "step"):
+            chunk[k] = getattr(buf, k)[:n].copy()
+    return chunk
 
 
 def _cat(chunks: list[dict[str, npt.NDArray[Any]]], key: str) -> npt.NDArray[Any]:
@@ -233,17 +247,18 @@ def _assemble(
     cycles: int,
     total_sub: int,
 ) -> SimulationResult:
-    p, x, fch, fexh, fr = (_cat(chunks, k) for k in ("p", "x", "fch", "fexh", "fr"))
-    n = p.shape[0]
+    n = sum(c["truth:" + desc.sensors[0].channel].size for c in chunks) if desc.sensors else 0
+    if not desc.sensors:
+        n = sum(c["cmd"].shape[0] for c in chunks) * _DIGITAL_EVERY
     time = np.arange(n, dtype=np.float64) * SAMPLE_DT
     analog: dict[str, npt.NDArray[np.float64]] = {}
     units: dict[str, str] = {}
     for sensor in desc.sensors:
-        truth = _truth_for(desc, sensor.kind, sensor.location, p, x, fch, fexh, fr)
+        truth = _cat(chunks, "truth:" + sensor.channel)
         analog[sensor.channel] = apply_sensor(sensor, truth, rng, ANALOG_RATE_HZ)
         units[sensor.channel] = SENSOR_SI_UNIT[sensor.kind]
-    cmd = _cat(chunks, "cmd")[::_DIGITAL_EVERY]
-    sw = _cat(chunks, "sw")[::_DIGITAL_EVERY]
+    cmd = _cat(chunks, "cmd")
+    sw = _cat(chunks, "sw")
     digital: dict[str, npt.NDArray[np.uint8]] = {}
     for j, name in enumerate(desc.solenoids):
         digital[name] = cmd[:, j]
@@ -268,6 +283,7 @@ def _assemble(
     )
     outputs: dict[str, npt.NDArray[Any]] = {}
     if "cum" in chunks[0]:
+        p, x, fch, fexh, fr = (_cat(chunks, k) for k in ("p", "x", "fch", "fexh", "fr"))
         outputs = _outputs(desc, chunks, p, x, fch, fexh, fr)
         outputs["step_start"] = step_start
         for a in desc.actuators:
