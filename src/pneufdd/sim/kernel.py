@@ -428,7 +428,9 @@ def run_cycle(
                 d = abs(p[2 + c] - P_ATM)
             else:
                 d = 0.0
-            if awake[c] == 1 and d < _SLEEP and abs(temp[2 + c] - t_wall) < 0.5:
+            # an exhausted chamber holds almost no air: its temperature does not matter
+            settled = conn[c] == 2 or abs(temp[2 + c] - t_wall) < 0.5
+            if awake[c] == 1 and d < _SLEEP and settled:
                 awake[c] = 0
             elif awake[c] == 0 and d > _WAKE:
                 awake[c] = 1

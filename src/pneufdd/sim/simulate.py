@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from scipy.signal import lfilter
 
 from pneufdd import __version__
 from pneufdd.errors import InputError, PneufddError, describe
@@ -61,15 +62,13 @@ class _Buffers:
 
 
 def _ou_grid(rng: np.random.Generator, start: float, std: float, tau: float, n: int) -> Any:
-    """Ornstein-Uhlenbeck drift of the house pressure on a 0.1 s grid [Pa]."""
+    """Ornstein-Uhlenbeck drift of the house pressure on a 0.1 s grid, from ``start`` [Pa]."""
     a = math.exp(-0.1 / tau)
     b = std * math.sqrt(1.0 - a * a)
-    noise = rng.standard_normal(n - 1) * b
-    out = np.empty(n)
-    out[0] = start
-    for i in range(1, n):
-        out[i] = a * out[i - 1] + noise[i - 1]
-    return out
+    drive = np.empty(n)
+    drive[0] = start
+    drive[1:] = rng.standard_normal(n - 1) * b
+    return lfilter([1.0], [1.0, -a], drive)
 
 
 def _stall_message(machine: MachineDescription, cycle: int, step: int) -> str:
