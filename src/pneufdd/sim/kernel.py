@@ -573,6 +573,10 @@ def run_cycle(
                 if v_old != 0.0 and v_new * v_old < 0.0:
                     v_new = 0.0
                     stuck[i] = 1
+                elif abs(v_new) < _DV and abs(force) <= fs:
+                    # inside the Karnopp band with a force below breakaway: sticks
+                    v_new = 0.0
+                    stuck[i] = 1
                 x_new = x[i] + v_new * dt
                 if x_new <= 0.0:
                     x_new = 0.0
