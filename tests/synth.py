@@ -19,8 +19,15 @@ SLPM = 1.294 / 60_000.0  # kg/s per SLPM on the dissertation basis
 OTHERS = ["DGPL", "HMPL_HZ", "HMPL_V", "HMPL_VS", "HGD2", "DRQD"]
 ACTUATORS = ["DNC", "DRQD", "DGPL", "SLT", "HMPL_H", *OTHERS[:-1]]
 STROKE_S = {
-    "DNC": 0.38, "DRQD": 0.20, "DGPL": 0.30, "SLT": 0.15, "HMPL_H": 0.25,
-    "HMPL_HZ": 0.22, "HMPL_V": 0.18, "HMPL_VS": 0.12, "HGD2": 0.10,
+    "DNC": 0.38,
+    "DRQD": 0.20,
+    "DGPL": 0.30,
+    "SLT": 0.15,
+    "HMPL_H": 0.25,
+    "HMPL_HZ": 0.22,
+    "HMPL_V": 0.18,
+    "HMPL_VS": 0.12,
+    "HGD2": 0.10,
 }
 DNC_STROKE_M = 0.200
 T_P = 0.025
@@ -108,8 +115,11 @@ def make_recording(
                 ts = STROKE_S[act] * (1 + 0.01 * rng.standard_normal())
                 ts *= 1 + 0.02 * supply
                 if act == "DNC":
-                    ts *= (1 + 0.08 * leaks.get("DNC_B", 0)) if side == "B" else (
-                        1 - 0.02 * leaks.get("DNC_B", 0))
+                    ts *= (
+                        (1 + 0.08 * leaks.get("DNC_B", 0))
+                        if side == "B"
+                        else (1 - 0.02 * leaks.get("DNC_B", 0))
+                    )
                     ts *= (1 + 0.08 * leaks.get("DNC_A", 0)) if side == "A" else 1
                 t0, t1 = t + T_P, t + T_P + ts
                 held = t1 + 0.01 if act == "DNC" else t + PULSE
@@ -134,7 +144,7 @@ def make_recording(
         end = min(end, truncate_s)
     truth.duration = end
 
-    nd = int(round(end * digital_rate))
+    nd = round(end * digital_rate)
     digital: dict[str, np.ndarray] = {}
 
     def square(intervals: list[tuple[float, float]]) -> np.ndarray:
@@ -164,7 +174,7 @@ def make_recording(
         ia, ib = int(a * digital_rate), int(b * digital_rate)
         digital[name][ia:ib] = value
 
-    na = int(round(end * analog_rate))
+    na = round(end * analog_rate)
     ta = np.arange(na) / analog_rate
     x = np.full(na, DNC_STROKE_M)
     q_in = np.full(na, 20.0 * supply * SLPM)
@@ -197,8 +207,15 @@ def make_recording(
     b_level = P_SUPPLY - 0.3e5 * leaks.get("DNC_B", 0)
     p_a = np.where(a_on, P_ATM + (P_SUPPLY - P_ATM) * rise, P_SUPPLY - (P_SUPPLY - P_ATM) * rise)
     p_b = np.where(a_on, b_level - (b_level - P_ATM) * rise, P_ATM + (b_level - P_ATM) * rise)
-    analog = {"P_In": p_in, "Q_In": q_in, "P_DNC_A": p_a, "P_DNC_B": p_b,
-              "Q_DNC_A": q_a, "Q_DNC_B": q_b, "X_DNC": x}
+    analog = {
+        "P_In": p_in,
+        "Q_In": q_in,
+        "P_DNC_A": p_a,
+        "P_DNC_B": p_b,
+        "Q_DNC_A": q_a,
+        "Q_DNC_B": q_b,
+        "X_DNC": x,
+    }
     if forward_only:
         analog["Q_DNC_A"] = np.maximum(q_a, 0.0)
         analog["Q_DNC_B"] = np.maximum(q_b, 0.0)
@@ -212,10 +229,19 @@ def make_recording(
             for s0 in rng.integers(0, na - 10, n_gaps):
                 v[s0 : s0 + 10] = np.nan
             analog[name] = v
-    units = {"P_In": "Pa", "Q_In": "kg/s", "P_DNC_A": "Pa", "P_DNC_B": "Pa",
-             "Q_DNC_A": "kg/s", "Q_DNC_B": "kg/s", "X_DNC": "m"}
-    meta = {"machine": "synthetic", "leaks": [
-        {"location": loc, "size": size, "unit": "turns"} for loc, size in leaks.items()]}
+    units = {
+        "P_In": "Pa",
+        "Q_In": "kg/s",
+        "P_DNC_A": "Pa",
+        "P_DNC_B": "Pa",
+        "Q_DNC_A": "kg/s",
+        "Q_DNC_B": "kg/s",
+        "X_DNC": "m",
+    }
+    meta = {
+        "machine": "synthetic",
+        "leaks": [{"location": loc, "size": size, "unit": "turns"} for loc, size in leaks.items()],
+    }
     if forward_only:
         meta["flow_meter_direction"] = "forward"
     rec = Recording.from_arrays(analog, analog_rate, digital, digital_rate, units, metadata=meta)

@@ -13,8 +13,8 @@ from pneufdd.features.table44 import TABLE_4_5, TABLE_44_NAMES
 __all__ = [
     "GROUPS",
     "REGISTRY",
-    "TABLE_44_NAMES",
     "TABLE_4_5",
+    "TABLE_44_NAMES",
     "CycleView",
     "Feature",
     "Options",
@@ -27,6 +27,6 @@ __all__ = [
     "get",
     "labels_of",
     "motion",
-    "wavelet",
     "table44",
+    "wavelet",
 ]

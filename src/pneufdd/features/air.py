@@ -94,26 +94,50 @@ def cycle_air(view: CycleView, _: object) -> float:
 def _register(motion: str) -> None:
     fill, ex = supply_line(motion), exhaust_line(motion)
 
-    @register(f"air_{motion}_SL", "actuator", "SL", "air", (f"Q_{{act}}_{fill}",),
-              description=f"Air consumed by the {motion} stroke, line {fill} [SL] (eq. 4.17, Tables 4.2/4.3).")
+    @register(
+        f"air_{motion}_SL",
+        "actuator",
+        "SL",
+        "air",
+        (f"Q_{{act}}_{fill}",),
+        description=f"Air consumed by the {motion} stroke, line {fill} [SL] (eq. 4.17, Table 4.2)",
+    )
     def stroke_air(view: CycleView, act: str) -> float:
         step = view.stroke(act, motion).step
         return consumed(view, f"Q_{act}_{fill}", step.start_s, step.end_s)
 
-    @register(f"air_exhaust_{motion}_SL", "actuator", "SL", "air", (f"Q_{{act}}_{ex}",),
-              description=f"Air exhausted through line {ex} in the {motion} stroke [SL] (eq. 4.17).")
+    @register(
+        f"air_exhaust_{motion}_SL",
+        "actuator",
+        "SL",
+        "air",
+        (f"Q_{{act}}_{ex}",),
+        description=f"Air exhausted through line {ex} in the {motion} stroke [SL] (eq. 4.17).",
+    )
     def stroke_exhaust(view: CycleView, act: str) -> float:
         step = view.stroke(act, motion).step
         return exhausted(view, f"Q_{act}_{ex}", step.start_s, step.end_s)
 
-    @register(f"supply_air_{motion}_SL", "actuator", "SL", "air", ("Q_In",),
-              description=f"Air from the supply (Q_In) during the {motion} step, all parallel motions [SL].")
+    @register(
+        f"supply_air_{motion}_SL",
+        "actuator",
+        "SL",
+        "air",
+        ("Q_In",),
+        description=f"Air from the supply (Q_In) in the {motion} step, all parallel motions [SL]",
+    )
     def stroke_supply_air(view: CycleView, act: str) -> float:
         step = view.stroke(act, motion).step
         return consumed(view, "Q_In", step.start_s, step.end_s)
 
-    @register(f"p_supply_min_{motion}_Pa", "actuator", "Pa", "air", ("P_In",),
-              description=f"Minimum supply pressure P_In during the {motion} stroke's step [Pa] (Tables 4.2/4.3).")
+    @register(
+        f"p_supply_min_{motion}_Pa",
+        "actuator",
+        "Pa",
+        "air",
+        ("P_In",),
+        description=f"Minimum supply pressure P_In in the {motion} stroke's step [Pa] (Table 4.2)",
+    )
     def stroke_min_supply(view: CycleView, act: str) -> float:
         return min_supply_pressure(view, act, motion)
 

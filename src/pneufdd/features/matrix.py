@@ -166,10 +166,12 @@ def _plan(
     plan: list[tuple[Feature, Any, str]] = []
     for feat in feats:
         targets: Iterable[Any]
-        targets = actuators if feat.scope == "actuator" else steps if feat.scope == "step" else [None]
+        targets = (
+            actuators if feat.scope == "actuator" else steps if feat.scope == "step" else [None]
+        )
         for target in targets:
             col = column_name(feat, target)
-            need = feat.channels(target if feat.scope == "actuator" else None)
+            need = feat.channels(str(target) if feat.scope == "actuator" else None)
             missing = [n for n in need if n not in rec.channels]
             if missing:
                 if on_missing == "raise":

@@ -68,9 +68,7 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
         v_max = float(speed[peak])
         slow = np.flatnonzero(speed[:peak] < opts.start_fraction * v_max)
         i_start = int(slow[-1]) + 1 if slow.size else 0
-        reached = np.flatnonzero(
-            sign * (x[peak:] - x_end) >= -opts.end_tolerance * abs(travel)
-        )
+        reached = np.flatnonzero(sign * (x[peak:] - x_end) >= -opts.end_tolerance * abs(travel))
         if reached.size == 0:
             stroke.reason = f"X_{actuator}: the stroke does not reach its end in step {step.index}"
             return stroke
@@ -118,31 +116,58 @@ def _lvdt(view: CycleView, actuator: str, motion: str) -> Stroke:
 def _register_motion(motion: str) -> None:
     m = motion
 
-    @register(f"t_p_{m}_s", "actuator", "s", "motion",
-              description=f"Positioning time t_p of the {m} stroke, valve to motion start [s] (3.3).")
+    @register(
+        f"t_p_{m}_s",
+        "actuator",
+        "s",
+        "motion",
+        description=f"Positioning time t_p of the {m} stroke, valve to motion start [s] (3.3).",
+    )
     def positioning_time(view: CycleView, act: str) -> float:
         s = _times(view, act, m)
         return s.t_start - s.t_valve
 
-    @register(f"t_s_{m}_s", "actuator", "s", "motion",
-              description=f"Stroke time t_s of the {m} stroke, motion start to arrival [s] (3.3).")
+    @register(
+        f"t_s_{m}_s",
+        "actuator",
+        "s",
+        "motion",
+        description=f"Stroke time t_s of the {m} stroke, motion start to arrival [s] (3.3).",
+    )
     def stroke_time(view: CycleView, act: str) -> float:
         s = _times(view, act, m)
         return s.t_end - s.t_start
 
-    @register(f"t_o_{m}_s", "actuator", "s", "motion",
-              description=f"Operating time t_o = t_p + t_s of the {m} stroke [s] (3.3).")
+    @register(
+        f"t_o_{m}_s",
+        "actuator",
+        "s",
+        "motion",
+        description=f"Operating time t_o = t_p + t_s of the {m} stroke [s] (3.3).",
+    )
     def operating_time(view: CycleView, act: str) -> float:
         s = _times(view, act, m)
         return s.t_end - s.t_valve
 
-    @register(f"v_max_{m}_m_s", "actuator", "m/s", "motion", ("X_{act}",),
-              description=f"Maximum piston speed in the {m} stroke [m/s] (3.3, LVDT).")
+    @register(
+        f"v_max_{m}_m_s",
+        "actuator",
+        "m/s",
+        "motion",
+        ("X_{act}",),
+        description=f"Maximum piston speed in the {m} stroke [m/s] (3.3, LVDT).",
+    )
     def max_velocity(view: CycleView, act: str) -> float:
         return _lvdt(view, act, m).v_max
 
-    @register(f"v_balance_{m}_m_s", "actuator", "m/s", "motion", ("X_{act}",),
-              description=f"Balancing speed of the {m} stroke: median over 50-90 % travel [m/s] (3.3).")
+    @register(
+        f"v_balance_{m}_m_s",
+        "actuator",
+        "m/s",
+        "motion",
+        ("X_{act}",),
+        description=f"Balancing speed of the {m} stroke: median over 50-90 % travel [m/s] (3.3).",
+    )
     def balancing_velocity(view: CycleView, act: str) -> float:
         v = _lvdt(view, act, m).v_balance
         if not np.isfinite(v):
@@ -151,8 +176,14 @@ def _register_motion(motion: str) -> None:
 
     ex = exhaust_line(m)
 
-    @register(f"exhaust_flow_max_{m}_kg_s", "actuator", "kg/s", "motion", (f"Q_{{act}}_{ex}",),
-              description=f"Maximum exhaust flow from chamber {ex} in the {m} step [kg/s] (3.3).")
+    @register(
+        f"exhaust_flow_max_{m}_kg_s",
+        "actuator",
+        "kg/s",
+        "motion",
+        (f"Q_{{act}}_{ex}",),
+        description=f"Maximum exhaust flow from chamber {ex} in the {m} step [kg/s] (3.3).",
+    )
     def max_exhaust_flow(view: CycleView, act: str) -> float:
         return max_exhaust(view, act, m)
 
@@ -171,8 +202,14 @@ def max_exhaust(view: CycleView, act: str, motion: str) -> float:
 
 
 def _register_balance(motion: str, side: str) -> None:
-    @register(f"p_balance_{side}_{motion}_Pa", "actuator", "Pa", "motion", (f"P_{{act}}_{side}",),
-              description=f"Balancing pressure in chamber {side} at the {motion} motion start [Pa] (3.3).")
+    @register(
+        f"p_balance_{side}_{motion}_Pa",
+        "actuator",
+        "Pa",
+        "motion",
+        (f"P_{{act}}_{side}",),
+        description=f"Balancing pressure in chamber {side} at the {motion} start [Pa] (3.3).",
+    )
     def balancing_pressure(view: CycleView, act: str) -> float:
         s = _times(view, act, motion)
         seg = view.window(f"P_{act}_{side}", s.t_start - 0.0025, s.t_start + 0.0025)

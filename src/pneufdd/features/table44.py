@@ -68,7 +68,9 @@ TABLE_4_5: dict[str, str] = {
 extend line, the retract line, both lines, and the supply line."""
 
 
-def _extreme(view: CycleView, act: str, motion: str, side: str, pick: Callable[..., float]) -> float:
+def _extreme(
+    view: CycleView, act: str, motion: str, side: str, pick: Callable[..., float]
+) -> float:
     s = _times(view, act, motion)
     return float(pick(view.window(f"P_{act}_{side}", s.t_start, s.t_end + 1e-9)))
 

@@ -92,8 +92,12 @@ def _bands(view: CycleView, act: str, signal: str, motion: str) -> dict[str, Flo
     return bands
 
 
-_UNITS = {("P", False): ("Pa", "Pa"), ("P", True): ("Pa^2", "Pa2"),
-          ("Q", False): ("kg/s", "kg_s"), ("Q", True): ("(kg/s)^2", "kg2_s2")}
+_UNITS = {
+    ("P", False): ("Pa", "Pa"),
+    ("P", True): ("Pa^2", "Pa2"),
+    ("Q", False): ("kg/s", "kg_s"),
+    ("Q", True): ("(kg/s)^2", "kg2_s2"),
+}
 
 
 def _register(signal: str, motion: str, band: str, how: str) -> None:
@@ -101,8 +105,14 @@ def _register(signal: str, motion: str, band: str, how: str) -> None:
     unit, suffix = _UNITS[(kind, how == "energy")]
     text = f"DWT {band} {how} of {kind}_<ACT>_{side} over the {motion} step [{unit}] (5.3.3)."
 
-    @register(f"dwt_{signal}_{motion}_{band}_{how}_{suffix}", "actuator", unit, "wavelet",
-              (f"{kind}_{{act}}_{side}",), description=text)
+    @register(
+        f"dwt_{signal}_{motion}_{band}_{how}_{suffix}",
+        "actuator",
+        unit,
+        "wavelet",
+        (f"{kind}_{{act}}_{side}",),
+        description=text,
+    )
     def feature(view: CycleView, act: str) -> float:
         return _summary(_bands(view, act, signal, motion)[band], how)
 

@@ -60,7 +60,11 @@ def fill_gaps(x: npt.ArrayLike, axis: int = -1) -> tuple[FloatArray, npt.NDArray
 
 
 def lowpass(
-    x: npt.ArrayLike, fs: float, cutoff_hz: float = DEFAULT_CUTOFF_HZ, order: int = 4, axis: int = -1
+    x: npt.ArrayLike,
+    fs: float,
+    cutoff_hz: float = DEFAULT_CUTOFF_HZ,
+    order: int = 4,
+    axis: int = -1,
 ) -> FloatArray:
     """Zero-phase Butterworth low-pass (second-order sections, forward-backward).
 

@@ -323,7 +323,9 @@ def _edge_present(
     return np.asarray(n > 0)
 
 
-def _convention_switches(valves: Iterable[str], available: Iterable[str]) -> frozenset[tuple[str, int]]:
+def _convention_switches(
+    valves: Iterable[str], available: Iterable[str]
+) -> frozenset[tuple[str, int]]:
     have = set(available)
     out = set()
     for v in valves:
@@ -336,17 +338,19 @@ def _convention_switches(valves: Iterable[str], available: Iterable[str]) -> fro
 
 # -------------------------------------------------------------------- learning
 def _period(codes: IntArray, min_match: float) -> int:
+    """Smallest period whose repeat rate is within 2 points of the best period's."""
     n = codes.size
-    for p in range(1, n // 2 + 1):
-        if np.mean(codes[:-p] == codes[p:]) >= min_match:
-            return p
-    raise InputError(
-        describe(
-            "reference recording",
-            f"{n} steps without a repeating pattern",
-            f"at least two cycles whose step valve sets repeat (>= {min_match:.0%} of steps)",
+    periods = np.arange(1, n // 2 + 1)
+    match = np.array([np.mean(codes[:-p] == codes[p:]) for p in periods])
+    if match.size == 0 or match.max() < min_match:
+        raise InputError(
+            describe(
+                "reference recording",
+                f"{n} steps without a repeating pattern",
+                f"at least two cycles whose step valve sets repeat (>= {min_match:.0%} of steps)",
+            )
         )
-    )
+    return int(periods[np.flatnonzero(match >= max(match.max() - 0.02, min_match))[0]])
 
 
 def learn_sequence(
@@ -358,9 +362,12 @@ def learn_sequence(
 ) -> tuple[StepSpec, ...]:
     """Learn a machine's step sequence from a reference recording.
 
-    Rule: the step signatures (sets of valves firing together) form a string; the
-    cycle length is the smallest period ``p`` for which at least ``min_match`` of the
-    signatures equal the one ``p`` steps later. The reference is assumed to start at
+    Rule: the step signatures (sets of valves firing together) form a string; for
+    each period ``p`` (up to half the steps) the repeat rate is the fraction of
+    signatures equal to the one ``p`` steps later. The cycle length is the smallest
+    ``p`` whose repeat rate is at least ``min_match`` and within 0.02 of the best
+    rate (multiples of the true period repeat as well; shorter internal patterns
+    repeat less). At least two full cycles are needed. The reference is assumed to start at
     the beginning of a cycle (the machine rests at home when the recording starts),
     so step 1 is its first valve firing. The switch edges awaited in each step are
     those present in at least ``min_presence`` of the reference cycles that match
@@ -405,8 +412,12 @@ def learn_sequence(
 
 # -------------------------------------------------------------------- assembly
 def _reject_reason(
-    seg: IntArray, pattern: IntArray, specs: Sequence[StepSpec], sig: Sequence[frozenset[str]],
-    at_end: bool, at_start: bool,
+    seg: IntArray,
+    pattern: IntArray,
+    specs: Sequence[StepSpec],
+    sig: Sequence[frozenset[str]],
+    at_end: bool,
+    at_start: bool,
 ) -> str:
     p = pattern.size
     if seg.size == 0:

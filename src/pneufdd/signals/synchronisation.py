@@ -44,9 +44,7 @@ def _check(cycles: Sequence[Cycle]) -> int:
     return p
 
 
-def sample_bounds(
-    cycles: Sequence[Cycle], fs: float, t0: float = 0.0
-) -> tuple[IntArray, IntArray]:
+def sample_bounds(cycles: Sequence[Cycle], fs: float, t0: float = 0.0) -> tuple[IntArray, IntArray]:
     """Sample index of every step's start and end on a channel's time base.
 
     Step ``[start_s, end_s)`` maps to samples ``ceil((start_s - t0) fs)`` up to (not
@@ -68,7 +66,8 @@ def sample_bounds(
 def reference_lengths(cycles: Sequence[Cycle], fs: float) -> IntArray:
     """Median length of each step over the reference cycles [samples]."""
     s, e = sample_bounds(cycles, fs)
-    return np.round(np.median(e - s, axis=0)).astype(np.int64)
+    lengths: IntArray = np.asarray(np.round(np.median(e - s, axis=0)), dtype=np.int64)
+    return lengths
 
 
 def _gather(x: FloatArray, start: IntArray, length: IntArray, width: int) -> FloatArray:
@@ -79,9 +78,7 @@ def _gather(x: FloatArray, start: IntArray, length: IntArray, width: int) -> Flo
     return out
 
 
-def _resample(
-    x: FloatArray, start: IntArray, length: IntArray, n_out: int
-) -> FloatArray:
+def _resample(x: FloatArray, start: IntArray, length: IntArray, n_out: int) -> FloatArray:
     """Linear resampling of ``x[start:start+length]`` to ``n_out`` samples per row."""
     u = np.linspace(0.0, 1.0, n_out)[None, :]
     pos = u * np.maximum(length - 1, 0)[:, None]
