@@ -34,6 +34,7 @@ T_P = 0.025
 PLC_DELAY = 0.045
 PULSE = 0.06
 VAC_S = 0.12
+BUMP_TAIL = 0.03  # flow bumps end 30 ms after arrival, before the next step
 
 
 def sequence() -> list[list[tuple[str, str]]]:
@@ -181,8 +182,8 @@ def make_recording(
     q_a = np.zeros(na)
     q_b = np.zeros(na)
     for act, side, tv, t0, t1 in motions:
-        i0, i1 = np.searchsorted(ta, [tv, t1 + 0.08])
-        u = (ta[i0:i1] - tv) / (t1 + 0.08 - tv)
+        i0, i1 = np.searchsorted(ta, [tv, t1 + BUMP_TAIL])
+        u = (ta[i0:i1] - tv) / (t1 + BUMP_TAIL - tv)
         amp = (150.0 if act == "DNC" else 60.0) * SLPM
         if act == "DNC" and side == "B":
             amp *= 1 + 0.1 * leaks.get("DNC_B", 0)

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from synth import make_recording, valve_sets
 
 from pneufdd import Recording
 from pneufdd.errors import ChannelError, InputError
 from pneufdd.signals.segmentation import StepSpec, learn_sequence, segment
+from synth import make_recording, valve_sets
 
 MACHINE = [StepSpec(v) for v in valve_sets()]
 
@@ -122,7 +122,7 @@ def test_recording_starting_mid_cycle() -> None:
     channels = []
     for name in rec.channels:
         ch = rec.info(name)
-        k = int(round(t0 * ch.rate_hz))
+        k = round(t0 * ch.rate_hz)
         channels.append(type(ch)(name, ch.values[k:], ch.rate_hz, ch.unit, ch.kind))
     seg = segment(Recording(channels), MACHINE)
     assert [c.complete for c in seg.cycles] == [False, True, True]
