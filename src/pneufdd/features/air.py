@@ -22,7 +22,6 @@ from pneufdd.features.context import CycleView
 from pneufdd.features.motion import MOTIONS, exhaust_line, supply_line
 from pneufdd.features.registry import Unavailable, register
 from pneufdd.physics.constants import DISSERTATION_STANDARD
-from pneufdd.signals.filtering import fill_gaps
 
 __all__ = ["consumed", "exhausted", "kg_to_sl", "min_supply_pressure"]
 
@@ -51,11 +50,7 @@ def kg_to_sl(mass: float) -> float:
 
 
 def _integral(view: CycleView, name: str, t0: float, t1: float, sign: float) -> float:
-    q = view.window(name, t0, t1)
-    filled, _ = fill_gaps(q)
-    _, fs, _ = view.data.analog(name)
-    flow = np.maximum(sign * filled, 0.0)
-    return kg_to_sl(float(np.trapezoid(flow, dx=1.0 / fs)))
+    return kg_to_sl(view.integral(name, t0, t1, sign))
 
 
 def consumed(view: CycleView, name: str, t0: float, t1: float) -> float:

@@ -76,6 +76,7 @@ class RecordingData:
         self._kin: dict[str, Kinematics] = {}
         self._switch: dict[str, tuple[FloatArray, FloatArray]] = {}
         self._direction: dict[str, str] = {}
+        self._cumulative: dict[tuple[str, float], tuple[FloatArray, npt.NDArray[np.int64]]] = {}
 
     def has(self, name: str) -> bool:
         """Whether the recording has channel ``name``."""
@@ -94,6 +95,25 @@ class RecordingData:
         out = (np.asarray(ch.values, dtype=np.float64), ch.rate_hz, ch.t0)
         self._arrays[name] = out
         return out
+
+    def cumulative(self, name: str, sign: float) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+        """Running trapezoid integral of ``max(sign * x, 0)`` and running count of valid samples.
+
+        NaN gaps are bridged linearly for the integral; ``integral[i]`` is the
+        integral from sample 0 to sample i [unit s], ``valid[i]`` the number of finite
+        samples before sample i.
+        """
+        key = (name, sign)
+        if key not in self._cumulative:
+            from pneufdd.signals.filtering import fill_gaps
+
+            x, fs, _ = self.analog(name)
+            filled, gaps = fill_gaps(x)
+            part = np.maximum(sign * filled, 0.0)
+            integral = np.r_[0.0, np.cumsum((part[1:] + part[:-1]) * (0.5 / fs))]
+            valid = np.r_[0, np.cumsum(~gaps)].astype(np.int64)
+            self._cumulative[key] = (integral, valid)
+        return self._cumulative[key]
 
     def kinematics(self, actuator: str) -> Kinematics | None:
         """Filtered LVDT ``X_<ACT>`` of the whole recording, or None without one."""
@@ -206,6 +226,25 @@ class CycleView:
                 f"(needs {self.options.min_valid:.0%})"
             )
         return seg
+
+    def integral(self, name: str, t0: float, t1: float, sign: float = 1.0) -> float:
+        """Trapezoid integral of ``max(sign * x, 0)`` over ``[t0, t1)`` [unit s].
+
+        Raises Unavailable when fewer than ``min_valid`` of the samples are finite.
+        """
+        x, fs, c0 = self.data.analog(name)
+        i0 = max(int(np.ceil((t0 - c0) * fs - 1e-9)), 0)
+        i1 = min(int(np.ceil((t1 - c0) * fs - 1e-9)), x.size)
+        if i1 - i0 < 2:
+            raise Unavailable(f"{name}: fewer than 2 samples between {t0:.3f} s and {t1:.3f} s")
+        integral, valid = self.data.cumulative(name, sign)
+        fraction = (valid[i1] - valid[i0]) / (i1 - i0)
+        if fraction < self.options.min_valid:
+            raise Unavailable(
+                f"{name}: only {fraction:.0%} valid samples between {t0:.3f} s and {t1:.3f} s "
+                f"(needs {self.options.min_valid:.0%})"
+            )
+        return float(integral[i1 - 1] - integral[i0])
 
     def stroke(self, actuator: str, motion: str) -> Stroke:
         """The ``motion`` (``"extend"``/``"retract"``) of ``actuator`` in this cycle."""

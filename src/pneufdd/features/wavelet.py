@@ -20,6 +20,8 @@ decomposition is :func:`pywt.wavedec` (cA3, cD3..cD1) and :func:`pywt.downcoef`
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import numpy.typing as npt
 import pywt
@@ -30,7 +32,7 @@ from pneufdd.features.motion import MOTIONS
 from pneufdd.features.registry import Unavailable, register
 from pneufdd.signals.filtering import fill_gaps
 
-__all__ = ["BANDS", "LEVEL", "SIGNALS", "SUMMARIES", "decompose"]
+__all__ = ["BANDS", "LEVEL", "SIGNALS", "SUMMARIES", "check_wavelet", "decompose", "summarise"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -41,6 +43,7 @@ SIGNALS = ("P_A", "P_B", "Q_A", "Q_B")
 MODE = "symmetric"
 
 
+@functools.cache
 def check_wavelet(name: str) -> pywt.Wavelet:
     """Return the discrete PyWavelets wavelet ``name`` or raise InputError."""
     if name not in pywt.wavelist(kind="discrete"):
@@ -72,24 +75,33 @@ def decompose(x: npt.ArrayLike, wavelet: str = "db4") -> dict[str, FloatArray]:
     }
 
 
-def _summary(c: FloatArray, how: str) -> float:
-    if how == "mean":
-        return float(np.mean(c))
-    if how == "energy":
-        return float(np.mean(c**2))
-    return float(c[int(np.argmax(np.abs(c)))])
+def summarise(coefficients: npt.ArrayLike) -> dict[str, float]:
+    """The band summaries: ``mean``, ``energy`` (mean square) and signed ``peak``.
+
+    Examples
+    --------
+    >>> summarise([1.0, -3.0, 2.0])
+    {'mean': 0.0, 'energy': 4.666666666666667, 'peak': -3.0}
+    """
+    c = np.asarray(coefficients, dtype=np.float64)
+    return {
+        "mean": float(np.mean(c)),
+        "energy": float(np.dot(c, c) / c.size),
+        "peak": float(c[int(np.argmax(np.abs(c)))]),
+    }
 
 
-def _bands(view: CycleView, act: str, signal: str, motion: str) -> dict[str, FloatArray]:
+def _summaries(view: CycleView, act: str, signal: str, motion: str) -> dict[str, dict[str, float]]:
     key = ("dwt", act, signal, motion)
     if key not in view._cache:
         step = view.stroke(act, motion).step
         kind, side = signal.split("_")
         seg = view.window(f"{kind}_{act}_{side}", step.start_s, step.end_s)
         filled, _ = fill_gaps(seg)
-        view._cache[key] = decompose(filled, view.options.wavelet)
-    bands: dict[str, FloatArray] = view._cache[key]
-    return bands
+        bands = decompose(filled, view.options.wavelet)
+        view._cache[key] = {band: summarise(c) for band, c in bands.items()}
+    out: dict[str, dict[str, float]] = view._cache[key]
+    return out
 
 
 _UNITS = {
@@ -114,7 +126,7 @@ def _register(signal: str, motion: str, band: str, how: str) -> None:
         description=text,
     )
     def feature(view: CycleView, act: str) -> float:
-        return _summary(_bands(view, act, signal, motion)[band], how)
+        return _summaries(view, act, signal, motion)[band][how]
 
 
 for _s in SIGNALS:

@@ -47,8 +47,12 @@ def fill_gaps(x: npt.ArrayLike, axis: int = -1) -> tuple[FloatArray, npt.NDArray
     >>> filled.tolist(), gaps.tolist()
     ([1.0, 2.0, 3.0], [False, True, False])
     """
-    a = np.moveaxis(np.asarray(x, dtype=np.float64), axis, -1)
-    gaps = ~np.isfinite(a)
+    arr = np.asarray(x, dtype=np.float64)
+    gaps = ~np.isfinite(arr)
+    if not gaps.any():
+        return arr.copy(), gaps
+    a = np.moveaxis(arr, axis, -1)
+    gaps = np.moveaxis(gaps, axis, -1)
     out = a.copy()
     flat = out.reshape(-1, a.shape[-1])
     gflat = gaps.reshape(-1, a.shape[-1])
