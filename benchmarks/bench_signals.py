@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
-from common import BenchResult, best_time
 
+from common import BenchResult, best_time
 from pneufdd import Recording
 from pneufdd.features import feature_matrix
 from pneufdd.signals import segment
