@@ -38,7 +38,8 @@ BUMP_TAIL = 0.03  # flow bumps end 30 ms after arrival, before the next step
 
 
 def sequence() -> list[list[tuple[str, str]]]:
-    """58 steps: (actuator, 'A' extend | 'B' retract | 'V' vacuum) per parallel motion."""
+    """58 steps: (actuator, 'A' extend | 'B' retract | 'V' vacuum on (held) | 'R' its
+    release) per parallel motion."""
     steps: list[list[tuple[str, str]]] = [
         [("DRQD", "A")],
         [("DNC", "B"), ("DRQD", "B"), ("HMPL_H", "A")],
@@ -46,10 +47,10 @@ def sequence() -> list[list[tuple[str, str]]]:
         [("VAC", "V")],
         [("SLT", "B")],
     ]
-    for k in range(26):
+    for k in range(25):
         act = OTHERS[k % len(OTHERS)]
         steps += [[(act, "A")], [(act, "B")]]
-    steps.append([("DNC", "A")])
+    steps += [[("VAC", "R")], [("SLT", "A")], [("DNC", "A"), ("SLT", "B")]]
     assert len(steps) == 58
     return steps
 
@@ -57,7 +58,8 @@ def sequence() -> list[list[tuple[str, str]]]:
 def valve_sets() -> list[frozenset[str]]:
     out = []
     for step in sequence():
-        out.append(frozenset("U_VAC" if s == "V" else f"U_{a}_{s}" for a, s in step))
+        names = {"V": "U_VAC", "R": "U_VAC:off"}
+        out.append(frozenset(names.get(s, f"U_{a}_{s}") for a, s in step))
     return out
 
 
@@ -102,15 +104,20 @@ def make_recording(
     motions: list[tuple[str, str, float, float, float]] = []  # act, dir, t_valve, t0, t1
     truth = Truth()
     t = 0.3
+    vac_on = 0.0
     for _c in range(cycles):
         starts = []
         for step in sequence():
             starts.append(t)
             arrive = t
             for act, side in step:
-                name = "U_VAC" if side == "V" else f"U_{act}_{side}"
+                name = "U_VAC" if side in "VR" else f"U_{act}_{side}"
                 if side == "V":
-                    valves.setdefault(name, []).append((t, t + PULSE))
+                    vac_on = t
+                    arrive = max(arrive, t + VAC_S)
+                    continue
+                if side == "R":
+                    valves.setdefault(name, []).append((vac_on, t))
                     arrive = max(arrive, t + VAC_S)
                     continue
                 ts = STROKE_S[act] * (1 + 0.01 * rng.standard_normal())
@@ -161,7 +168,9 @@ def make_recording(
         for side in "AB":
             digital[f"U_{act}_{side}"] = square(valves.get(f"U_{act}_{side}", []))
             digital[f"S_{act}_{side}"] = square(switch_on.get(f"S_{act}_{side}", []))
-    digital["U_VAC"] = square(valves["U_VAC"])
+    digital["U_VAC"] = square(
+        valves["U_VAC"] + ([(vac_on, end + 1)] if vac_on > valves["U_VAC"][-1][0] else [])
+    )
     if bounce:
         for name in [n for n in digital if n.startswith("S_")]:
             x = digital[name]

@@ -159,3 +159,42 @@ def test_errors_name_what_is_needed() -> None:
     )
     with pytest.raises(InputError, match="repeating pattern"):
         learn_sequence(distinct)
+
+
+def test_release_of_a_held_valve_starts_a_step() -> None:
+    rec, truth = make_recording(cycles=3, seed=11)
+    from pneufdd.signals.segmentation import held_valves
+
+    assert held_valves(rec) == frozenset({"U_VAC"})
+    seg = segment(rec)
+    step = seg.complete[0].steps[55]
+    assert step.valves == ("U_VAC:off",)
+    assert step.actuators == ("VAC",)
+    assert abs(step.start_s - truth.step_starts[0][55]) <= 0.0100001
+
+
+def test_sequence_from_a_machine_description_in_metadata() -> None:
+    from pneufdd.signals.segmentation import sequence_from_machine
+
+    rec, _ = make_recording(cycles=3, seed=12)
+    raw = {"step": []}
+    for valves in valve_sets():
+        do = []
+        for v in sorted(valves):
+            if v.endswith(":off"):
+                do.append({"reset": v[:-4]})
+            elif v == "U_VAC":
+                do.append({"set": v})
+            else:
+                act, side = v[2:-2], v[-1]
+                do.append({"set": v, "until": f"S_{act}_{'B' if side == 'A' else 'A'}"})
+        raw["step"].append({"do": do})
+    seq = sequence_from_machine(raw)
+    assert [s.valves for s in seq] == valve_sets()
+    assert seq[1].switches == {("S_DNC_A", 1), ("S_DRQD_A", 1), ("S_HMPL_H_B", 1)}
+    described = rec.with_metadata({"machine": {"name": "toy", "description": raw}})
+    seg = segment(described)
+    assert seg.source == "machine"
+    assert len(seg.complete) == 3
+    with pytest.raises(InputError, match="machine"):
+        sequence_from_machine(42)

@@ -56,8 +56,9 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
         if x.size < 10 or np.isfinite(x).mean() < opts.min_valid:
             stroke.reason = f"X_{actuator}: too few valid samples in step {step.index}"
             return stroke
-        x_start = float(np.nanmedian(x[:5]))
-        x_end = float(np.nanmedian(x[-5:]))
+        finite = x[np.isfinite(x)]
+        x_start = float(np.median(finite[:5]))
+        x_end = float(np.median(finite[-5:]))
         travel = x_end - x_start
         if not np.isfinite(travel) or abs(travel) < 1e-3:
             stroke.reason = f"X_{actuator}: no travel in step {step.index}"

@@ -44,12 +44,16 @@ __all__ = [
     "Step",
     "StepSpec",
     "actuator_of",
+    "held_valves",
     "learn_sequence",
     "segment",
+    "sequence_from_machine",
+    "sequence_from_metadata",
 ]
 
 VALVE_PREFIX = "U_"
 SWITCH_PREFIX = "S_"
+RELEASE = ":off"
 DEFAULT_VALVE_DWELL_S = 0.015
 DEFAULT_SWITCH_DWELL_S = 0.025
 
@@ -64,10 +68,11 @@ def actuator_of(valve: str) -> str:
     --------
     >>> actuator_of("U_HMPL_V_B")
     'HMPL_V'
-    >>> actuator_of("U_VAC")
+    >>> actuator_of("U_VAC:off")
     'VAC'
     """
-    name = valve[len(VALVE_PREFIX) :] if valve.startswith(VALVE_PREFIX) else valve
+    name = valve.removesuffix(RELEASE)
+    name = name[len(VALVE_PREFIX) :] if name.startswith(VALVE_PREFIX) else name
     if name.endswith(("_A", "_B")):
         return name[:-2]
     return name
@@ -75,6 +80,8 @@ def actuator_of(valve: str) -> str:
 
 def direction_of(valve: str) -> str:
     """``"extend"`` for an ``_A`` solenoid, ``"retract"`` for ``_B``, else ``"other"``."""
+    if valve.endswith(RELEASE):
+        return "other"
     if valve.endswith("_A"):
         return "extend"
     if valve.endswith("_B"):
@@ -89,7 +96,9 @@ class StepSpec:
     Attributes
     ----------
     valves : frozenset of str
-        Solenoid channels that fire at the step's start (parallel motions).
+        Solenoid events at the step's start (parallel motions): a channel name for
+        energising (``"U_DNC_B"``), the name with ``":off"`` for the release of a held
+        solenoid (``"U_VAC:off"``).
     switches : frozenset of (str, int)
         Switch edges the step awaits: ``(channel, new_state)``, e.g.
         ``("S_DNC_A", 1)`` for DNC arriving home. Empty: derive from the naming
@@ -258,26 +267,71 @@ def _digital(recording: Recording, prefix: str) -> list[str]:
     return [n for n in recording.digital_channels if n.startswith(prefix)]
 
 
-def _events(recording: Recording, valve_min_dwell_s: float, switch_min_dwell_s: float) -> _Events:
+def _valve_edges(
+    recording: Recording, valve_min_dwell_s: float
+) -> tuple[list[str], dict[str, tuple[FloatArray, FloatArray]], float, float]:
     valves = _digital(recording, VALVE_PREFIX)
     if not valves:
         raise ChannelError(
             "segmentation needs digital valve-solenoid channels named 'U_<ACT>_A/B'; "
             f"the recording has: {list(recording.channels)}"
         )
+    out: dict[str, tuple[FloatArray, FloatArray]] = {}
+    period, end_s = 0.0, 0.0
+    for name in valves:
+        ch = recording.info(name)
+        e = edges(debounce(ch.values, ch.rate_hz, valve_min_dwell_s))
+        out[name] = (ch.t0 + e.rising / ch.rate_hz, ch.t0 + e.falling / ch.rate_hz)
+        period = max(period, 1.0 / ch.rate_hz)
+        end_s = max(end_s, ch.t0 + ch.duration)
+    return valves, out, period, end_s
+
+
+def held_valves(
+    recording: Recording, valve_min_dwell_s: float = DEFAULT_VALVE_DWELL_S
+) -> frozenset[str]:
+    """Solenoids held energised across steps, whose release starts a step.
+
+    Rule (learned mode): a solenoid is *held* when most of its energised periods
+    contain a firing of another solenoid, i.e. it stays on while later steps start
+    (a ``hold`` command released by a ``reset`` in a later step, like the vacuum
+    generator). Solenoids released by their own switch or after a pulse are off
+    before the next step starts.
+    """
+    valves, e, period, _ = _valve_edges(recording, valve_min_dwell_s)
+    held = set()
+    for name in valves:
+        rise, fall = e[name]
+        if rise.size == 0 or fall.size == 0:
+            continue
+        fall = fall[np.searchsorted(fall, rise[0]) :]
+        n = min(rise.size, fall.size)
+        if n == 0:
+            continue
+        others = np.sort(np.concatenate([e[v][0] for v in valves if v != name] or [np.empty(0)]))
+        lo, hi = rise[:n] + period * 1.001, fall[:n] - period * 1.001
+        inside = np.searchsorted(others, hi, side="right") - np.searchsorted(others, lo)
+        if np.mean(inside > 0) > 0.5:
+            held.add(name)
+    return frozenset(held)
+
+
+def _events(
+    recording: Recording,
+    valve_min_dwell_s: float,
+    switch_min_dwell_s: float,
+    release: frozenset[str] = frozenset(),
+) -> _Events:
+    valves, e, period, end_s = _valve_edges(recording, valve_min_dwell_s)
+    names = [*valves, *(v + RELEASE for v in valves)]
     all_t: list[FloatArray] = []
     all_id: list[IntArray] = []
-    periods = []
-    end_s = 0.0
     for i, name in enumerate(valves):
-        ch = recording.info(name)
-        clean = debounce(ch.values, ch.rate_hz, valve_min_dwell_s)
-        k = edges(clean).rising
-        all_t.append(ch.t0 + k / ch.rate_hz)
-        all_id.append(np.full(k.size, i, dtype=np.int64))
-        periods.append(1.0 / ch.rate_hz)
-        end_s = max(end_s, ch.t0 + ch.duration)
-    period = max(periods)
+        all_t.append(e[name][0])
+        all_id.append(np.full(e[name][0].size, i, dtype=np.int64))
+        if name in release:
+            all_t.append(e[name][1])
+            all_id.append(np.full(e[name][1].size, len(valves) + i, dtype=np.int64))
     t = np.concatenate(all_t)
     ids = np.concatenate(all_id)
     order = np.argsort(t, kind="stable")
@@ -290,7 +344,7 @@ def _events(recording: Recording, valve_min_dwell_s: float, switch_min_dwell_s: 
     starts = t[new_group]
     bounds = np.r_[np.flatnonzero(new_group), t.size]
     signatures = tuple(
-        frozenset(valves[j] for j in ids[bounds[g] : bounds[g + 1]]) for g in range(starts.size)
+        frozenset(names[j] for j in ids[bounds[g] : bounds[g + 1]]) for g in range(starts.size)
     )
     rise: dict[str, FloatArray] = {}
     fall: dict[str, FloatArray] = {}
@@ -298,9 +352,9 @@ def _events(recording: Recording, valve_min_dwell_s: float, switch_min_dwell_s: 
     for name in _digital(recording, SWITCH_PREFIX):
         ch = recording.info(name)
         clean = debounce(ch.values, ch.rate_hz, switch_min_dwell_s)
-        e = edges(clean)
-        rise[name] = ch.t0 + e.rising / ch.rate_hz
-        fall[name] = ch.t0 + e.falling / ch.rate_hz
+        sw = edges(clean)
+        rise[name] = ch.t0 + sw.rising / ch.rate_hz
+        fall[name] = ch.t0 + sw.falling / ch.rate_hz
         state[name] = (ch.t0, ch.rate_hz, clean)
         end_s = max(end_s, ch.t0 + ch.duration)
     return _Events(starts, signatures, end_s, period, rise, fall, state)
@@ -334,6 +388,77 @@ def _convention_switches(
         if target is not None and target in have:
             out.add((target, 1))
     return frozenset(out)
+
+
+# ------------------------------------------------------------ machine sequence
+def _spec_from_actions(
+    actions: Iterable[tuple[str, str, str]], wait: Iterable[str], wait_off: Iterable[str]
+) -> StepSpec:
+    valves = set()
+    for solenoid, mode, _switch in actions:
+        valves.add(solenoid + RELEASE if mode == "reset" else solenoid)
+    switches = {(w, 1) for w in wait} | {(w, 0) for w in wait_off}
+    return StepSpec(frozenset(valves), frozenset(switches))
+
+
+def sequence_from_machine(machine: Any) -> tuple[StepSpec, ...]:
+    """The step sequence of a machine description.
+
+    Accepts a :class:`pneufdd.sim.MachineDescription` (its ``steps``, each with
+    ``actions`` of ``solenoid``/``mode``/``switch``, ``wait`` and ``wait_off``) or
+    the raw TOML mapping (``{"step": [{"do": [{"set": ..., "until": ...} |
+    {"reset": ...}], "wait": [...], "wait_off": [...]}]}``). Each step's valve
+    events are its ``set`` solenoids and the releases (``":off"``) of its
+    ``reset`` solenoids; it awaits its ``wait`` switches rising (by default its
+    ``until`` switches) and its ``wait_off`` switches falling.
+
+    Examples
+    --------
+    >>> raw = {"step": [{"do": [{"set": "U_DNC_B", "until": "S_DNC_A"}]},
+    ...                 {"do": [{"reset": "U_VAC"}], "wait_off": ["S_VAC"]}]}
+    >>> [sorted(s.valves) for s in sequence_from_machine(raw)]
+    [['U_DNC_B'], ['U_VAC:off']]
+    >>> sorted(sequence_from_machine(raw)[0].switches)
+    [('S_DNC_A', 1)]
+    """
+    specs = []
+    if isinstance(machine, dict):
+        steps = machine.get("step")
+        if not isinstance(steps, list) or not steps:
+            raise InputError(describe("machine description 'step'", steps, "a list of steps"))
+        for step in steps:
+            actions = []
+            for a in step.get("do", []):
+                if "reset" in a:
+                    actions.append((str(a["reset"]), "reset", ""))
+                else:
+                    actions.append((str(a["set"]), "set", str(a.get("until", ""))))
+            wait = step.get("wait", [a[2] for a in actions if a[2]])
+            specs.append(_spec_from_actions(actions, wait, step.get("wait_off", [])))
+        return tuple(specs)
+    steps = getattr(machine, "steps", None)
+    if steps is None:
+        raise InputError(
+            describe("machine", type(machine).__name__, "a MachineDescription or its TOML mapping")
+        )
+    for step in steps:
+        actions = [(a.solenoid, a.mode, a.switch) for a in step.actions]
+        specs.append(_spec_from_actions(actions, step.wait, step.wait_off))
+    return tuple(specs)
+
+
+def sequence_from_metadata(metadata: dict[str, Any]) -> tuple[StepSpec, ...] | None:
+    """The sequence of the machine description stored in a recording's metadata.
+
+    Looks for ``metadata["machine"]["description"]`` (the raw TOML mapping the
+    simulator stores); None when there is none.
+    """
+    machine = metadata.get("machine")
+    if isinstance(machine, dict):
+        raw = machine.get("description")
+        if isinstance(raw, dict) and raw.get("step"):
+            return sequence_from_machine(raw)
+    return None
 
 
 # -------------------------------------------------------------------- learning
@@ -388,7 +513,9 @@ def learn_sequence(
     -------
     tuple of StepSpec
     """
-    ev = _events(reference, valve_min_dwell_s, switch_min_dwell_s)
+    ev = _events(
+        reference, valve_min_dwell_s, switch_min_dwell_s, held_valves(reference, valve_min_dwell_s)
+    )
     table: dict[frozenset[str], int] = {}
     codes = np.array([table.setdefault(s, len(table)) for s in ev.signatures], dtype=np.int64)
     p = _period(codes, min_match)
@@ -457,9 +584,11 @@ def segment(
     recording : Recording
         Needs ``U_*`` valve channels; ``S_*`` switch channels are used to validate.
     sequence : sequence of StepSpec, optional
-        The machine's PLC sequence (from its description, or :func:`learn_sequence`
-        on a reference recording). When omitted it is learned from ``recording``
-        itself with the rule of :func:`learn_sequence`.
+        The machine's PLC sequence (:func:`sequence_from_machine`, or
+        :func:`learn_sequence` on a reference recording). When omitted, the machine
+        description in the recording's metadata is used if there is one
+        (:func:`sequence_from_metadata`), else the sequence is learned from
+        ``recording`` itself with the rule of :func:`learn_sequence`.
     valve_min_dwell_s : float
         Debounce dwell of the valve channels [s] (default 15 ms: one 100 Hz glitch).
     switch_min_dwell_s : float
@@ -472,13 +601,17 @@ def segment(
     """
     source = "machine"
     if sequence is None:
+        sequence = sequence_from_metadata(recording.metadata)
+    if sequence is None:
         sequence = learn_sequence(recording, valve_min_dwell_s, switch_min_dwell_s)
         source = "learned"
     specs = tuple(sequence)
     if not specs:
         raise InputError(describe("sequence", "an empty sequence", "at least one step"))
-    recording.require(sorted(set().union(*(s.valves for s in specs))), "the machine's sequence")
-    ev = _events(recording, valve_min_dwell_s, switch_min_dwell_s)
+    used = set().union(*(s.valves for s in specs))
+    recording.require(sorted({v.removesuffix(RELEASE) for v in used}), "the machine's sequence")
+    release = frozenset(v.removesuffix(RELEASE) for v in used if v.endswith(RELEASE))
+    ev = _events(recording, valve_min_dwell_s, switch_min_dwell_s, release)
     specs = tuple(
         s if s.switches else replace(s, switches=_convention_switches(s.valves, ev.switch_rise))
         for s in specs
