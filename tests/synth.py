@@ -72,11 +72,12 @@ class Truth:
 
 
 def _profile(u: np.ndarray) -> np.ndarray:
-    """Travelled fraction of a stroke at time fraction u: a quick linear speed-up over
-    10 %, constant speed, cushioning to 40 % speed over the last 20 %, then the stop."""
-    v = np.interp(u, [0.0, 0.1, 0.8, 1.0], [0.0, 1.0, 1.0, 0.4])
+    """Travelled fraction of a stroke at time fraction u: a linear speed-up over 30 %
+    (constant acceleration), constant speed, cushioning to 40 % speed over the last
+    20 %, then the stop. The area under the speed curve is 0.79."""
+    v = np.interp(u, [0.0, 0.3, 0.8, 1.0], [0.0, 1.0, 1.0, 0.4])
     dist = np.concatenate([[0.0], np.cumsum((v[1:] + v[:-1]) / 2 * np.diff(u))])
-    return dist / 0.89
+    return dist / 0.79
 
 
 def make_recording(

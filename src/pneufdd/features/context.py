@@ -7,10 +7,12 @@ recording (:func:`pneufdd.signals.filtering.kinematics`) and debounces the switc
 Conventions (see ``docs/signals.md``):
 
 * flow sign: positive towards the actuator (supply into a chamber), negative out
-  of it (exhaust). A meter that measures one direction only (section 3.4.1) is
-  declared in ``metadata["flow_meter_direction"]`` (``"forward"``, ``"reverse"`` or
-  ``"both"``, for all meters or as ``{channel: direction}``); without it the direction
-  is inferred: a channel that never shows flow of one sign cannot measure it.
+  of it (exhaust). What a meter can measure (section 3.4.1: one direction only) is
+  taken from ``metadata["flow_meter_direction"]`` (``"forward"``, ``"reverse"`` or
+  ``"both"``, for all meters or as ``{channel: direction}``), else from the sensor's
+  ``direction`` in a machine description stored in the metadata
+  (``metadata["machine"]["description"]["sensor"]``, ``"bidirectional"`` = both),
+  else it is inferred: a channel that never shows flow of one sign cannot measure it.
 * a signal window with less than ``min_valid`` finite samples gives NaN.
 """
 
@@ -139,8 +141,13 @@ class RecordingData:
         """``"both"``, ``"forward"`` or ``"reverse"``: what the flow meter can measure."""
         if name in self._direction:
             return self._direction[name]
-        meta: Any = self.recording.metadata.get("flow_meter_direction")
+        metadata = self.recording.metadata
+        meta: Any = metadata.get("flow_meter_direction")
         declared = meta.get(name) if isinstance(meta, dict) else meta
+        if declared is None:
+            declared = _described_direction(metadata, name)
+        if declared == "bidirectional":
+            declared = "both"
         if declared is not None:
             if declared not in DIRECTIONS:
                 raise InputError(
@@ -157,6 +164,18 @@ class RecordingData:
             direction = "both" if pos == neg else ("forward" if pos else "reverse")
         self._direction[name] = direction
         return direction
+
+
+def _described_direction(metadata: dict[str, Any], name: str) -> str | None:
+    """Direction of meter ``name`` in a machine description stored in the metadata."""
+    machine = metadata.get("machine")
+    raw = machine.get("description") if isinstance(machine, dict) else None
+    sensors = raw.get("sensor") if isinstance(raw, dict) else None
+    for sensor in sensors if isinstance(sensors, list) else []:
+        if isinstance(sensor, dict) and sensor.get("channel") == name:
+            direction = sensor.get("direction")
+            return str(direction) if direction is not None else "forward"
+    return None
 
 
 @dataclass

@@ -1,8 +1,9 @@
 """Feature-matrix builder: recordings -> a (cycles x features) pandas DataFrame.
 
 Each recording is segmented (:func:`pneufdd.signals.segmentation.segment`) against
-one sequence - the machine's when given, otherwise the one learned from the first
-recording (the reference), so that step numbers mean the same in every row. Every
+one sequence - the machine's when given (or stored in the first recording's
+metadata), otherwise the one learned from the first recording (the reference), so
+that step numbers mean the same in every row. Every
 complete cycle becomes a row; rejected cycles are skipped (their reasons are in
 ``df.attrs["rejected"]``). Columns: the registered features of the chosen groups
 (:mod:`pneufdd.features.registry` names), then the labels from each recording's
@@ -29,7 +30,13 @@ from pneufdd.features import air, motion, table44, wavelet  # noqa: F401 - regis
 from pneufdd.features.context import CycleView, Options, RecordingData
 from pneufdd.features.registry import REGISTRY, Feature, Unavailable, column_name
 from pneufdd.recording.model import Recording
-from pneufdd.signals.segmentation import Segmentation, StepSpec, learn_sequence, segment
+from pneufdd.signals.segmentation import (
+    Segmentation,
+    StepSpec,
+    learn_sequence,
+    segment,
+    sequence_from_metadata,
+)
 
 __all__ = ["GROUPS", "feature_matrix", "features_of", "labels_of"]
 
@@ -111,7 +118,7 @@ def feature_matrix(
     wavelet.check_wavelet(opts.wavelet)
     feats = features_of(groups)
     if sequence is None:
-        sequence = learn_sequence(recs[0])
+        sequence = sequence_from_metadata(recs[0].metadata) or learn_sequence(recs[0])
     specs = tuple(sequence)
     rows: list[dict[str, Any]] = []
     index: list[tuple[int, int]] = []

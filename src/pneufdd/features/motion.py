@@ -3,9 +3,12 @@
 With an LVDT (``X_<ACT>``), times come from the zero-phase filtered displacement
 (section 3.2.4) at the analog rate:
 
-* motion start: the last sample before the velocity peak at which the speed is
-  below ``start_fraction`` (5 %) of the peak - the start-up of the motion, which
-  section 3.3 judges on the acceleration curve;
+* motion start (breakaway): the travel from rest grows as ``(t - t0)^2`` while
+  the acceleration is nearly constant, so ``sqrt(travel)`` over 2-12 % of the
+  stroke is fitted with a straight line and extrapolated to zero travel - the
+  start-up of the acceleration that section 3.3 judges by eye; a speed threshold
+  (the last sample before the peak below ``start_fraction`` = 5 % of the peak
+  speed) is the fallback and an upper bound;
 * arrival: the first sample after the peak within ``end_tolerance`` (0.5 %) of the
   stroke from the final position;
 * t_p = start - valve firing, t_s = arrival - start, t_o = t_p + t_s (section 3.3);
@@ -22,6 +25,7 @@ releases a few mm into the travel, so t_p is then an upper bound.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from pneufdd.features.context import CycleView, Stroke
 from pneufdd.features.registry import Unavailable, register
@@ -69,6 +73,9 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
         v_max = float(speed[peak])
         slow = np.flatnonzero(speed[:peak] < opts.start_fraction * v_max)
         i_start = int(slow[-1]) + 1 if slow.size else 0
+        t_fit = _breakaway((x[: peak + 1] - x_start) / travel, fs)
+        if t_fit is not None:
+            i_start = min(max(round(t_fit * fs), 0), i_start)
         reached = np.flatnonzero(sign * (x[peak:] - x_end) >= -opts.end_tolerance * abs(travel))
         if reached.size == 0:
             stroke.reason = f"X_{actuator}: the stroke does not reach its end in step {step.index}"
@@ -98,6 +105,30 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
     if not (falls.size and rises.size):
         stroke.reason = f"{leave} or {reach} did not switch in step {step.index}"
     return stroke
+
+
+def _breakaway(progress: npt.NDArray[np.float64], fs: float) -> float | None:
+    """Breakaway time [s from window start] from the first 2-12 % of the travel.
+
+    Starting from rest under a nearly constant net force, the travel grows as
+    ``(t - t0)^2``, so ``sqrt(progress)`` is linear in time; a straight-line fit
+    over 2-12 % of the stroke, extrapolated to zero, gives ``t0`` without the
+    noise-dependent lag of a speed threshold. None when the fit is not usable.
+    """
+    above = np.flatnonzero(progress >= 0.12)
+    if above.size == 0:
+        return None
+    end = int(above[0])
+    below = np.flatnonzero(progress[:end] < 0.02)
+    begin = int(below[-1]) + 1 if below.size else 0
+    if end - begin < 4:
+        return None
+    t = np.arange(begin, end) / fs
+    root = np.sqrt(np.clip(progress[begin:end], 0.0, None))
+    slope, intercept = np.polyfit(t, root, 1)
+    if not np.isfinite(slope) or slope <= 0:
+        return None
+    return float(-intercept / slope)
 
 
 def _times(view: CycleView, actuator: str, motion: str) -> Stroke:

@@ -2,10 +2,10 @@
 
 Valve solenoid and proximity-switch channels are sampled at 100 Hz on the
 dissertation's rig (section 3.2.4). Reed switches chatter when the piston magnet
-arrives (section 3.2.4, SME-8 reed principle), so a state is accepted only after it
-has lasted a minimum dwell time. Everything here is vectorised with numpy: the
-run-length encoding of a channel is computed once and short runs are absorbed into
-the preceding accepted state.
+arrives (section 3.2.4, SME-8 reed principle), so a state is accepted only when it
+lasts a minimum dwell time, and a bouncing transition is dated at its first contact.
+Everything here is vectorised with numpy: the run-length encoding of a channel is
+computed once and short runs are absorbed into the next accepted state.
 """
 
 from __future__ import annotations
@@ -25,9 +25,12 @@ IntArray = npt.NDArray[np.int64]
 def debounce(values: npt.ArrayLike, fs: float, min_dwell_s: float) -> npt.NDArray[np.uint8]:
     """Remove states that last less than a minimum dwell time.
 
-    A run of equal samples shorter than ``min_dwell_s`` is replaced by the state
-    before it (the first run is kept whatever its length, as nothing precedes it).
-    A run is measured in samples: it is dropped when ``run_length / fs < min_dwell_s``.
+    A run of equal samples shorter than ``min_dwell_s`` (``run_length / fs <
+    min_dwell_s``) is chatter: it takes the state of the next accepted run, so a
+    bouncing transition is dated at its first contact (a reed switch closes when the
+    magnet arrives and then bounces); short runs at the end of the data take the
+    state before them. The first run is kept whatever its length, as the recording's
+    start cuts it.
 
     Parameters
     ----------
@@ -45,8 +48,8 @@ def debounce(values: npt.ArrayLike, fs: float, min_dwell_s: float) -> npt.NDArra
 
     Examples
     --------
-    >>> debounce([0, 0, 1, 0, 0, 1, 1, 1, 0, 1, 1, 1], fs=100.0, min_dwell_s=0.025)
-    array([0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1], dtype=uint8)
+    >>> debounce([0, 0, 0, 1, 0, 1, 1, 1, 0, 1, 1, 1], fs=100.0, min_dwell_s=0.025)
+    array([0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1], dtype=uint8)
     """
     x = np.asarray(values).astype(np.uint8)
     if fs <= 0 or not np.isfinite(fs):
@@ -59,9 +62,12 @@ def debounce(values: npt.ArrayLike, fs: float, min_dwell_s: float) -> npt.NDArra
     lengths = np.diff(np.r_[starts, x.size])
     keep = lengths / fs >= min_dwell_s - 1e-12
     keep[0] = True
-    # Index of the latest accepted run at or before each run.
-    source = np.where(keep, np.arange(starts.size), 0)
-    source = np.maximum.accumulate(source)
+    runs = np.arange(starts.size)
+    # Index of the next accepted run (backward fill); none after: the previous one.
+    following = np.where(keep, runs, starts.size)
+    following = np.minimum.accumulate(following[::-1])[::-1]
+    previous = np.maximum.accumulate(np.where(keep, runs, 0))
+    source = np.where(following < starts.size, following, previous)
     run_values = x[starts][source]
     return np.repeat(run_values, lengths).astype(np.uint8)
 

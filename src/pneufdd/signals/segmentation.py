@@ -10,8 +10,10 @@ not a full, valid repetition of the machine's sequence.
 Rules (also in ``docs/signals.md``):
 
 * **Step start**: the rising edge of any ``U_*`` (valve solenoid) channel after
-  debouncing. Rising edges no more than one digital sample period apart (chained)
-  belong to the same step: parallel motions.
+  debouncing (a solenoid on at the first sample counts as firing there), or the
+  falling edge of a solenoid held across steps and released by a later step
+  (:func:`held_valves`, e.g. vacuum off). Edges no more than one digital sample
+  period apart (chained) belong to the same step: parallel motions.
 * **Step end**: the start of the next step (of any cycle); the last step of a
   recording ends with the digital data.
 * **Moving actuators**: those whose solenoid fired (``U_<ACT>_A`` extends,
@@ -280,8 +282,12 @@ def _valve_edges(
     period, end_s = 0.0, 0.0
     for name in valves:
         ch = recording.info(name)
-        e = edges(debounce(ch.values, ch.rate_hz, valve_min_dwell_s))
-        out[name] = (ch.t0 + e.rising / ch.rate_hz, ch.t0 + e.falling / ch.rate_hz)
+        clean = debounce(ch.values, ch.rate_hz, valve_min_dwell_s)
+        e = edges(clean)
+        # A solenoid already energised at the first sample fired there (a run that
+        # starts with its first step, like a simulation started at t = 0).
+        rising = np.r_[0, e.rising] if clean.size and clean[0] == 1 else e.rising
+        out[name] = (ch.t0 + rising / ch.rate_hz, ch.t0 + e.falling / ch.rate_hz)
         period = max(period, 1.0 / ch.rate_hz)
         end_s = max(end_s, ch.t0 + ch.duration)
     return valves, out, period, end_s
@@ -368,12 +374,19 @@ def _windows(ev: _Events) -> tuple[FloatArray, FloatArray]:
 def _edge_present(
     ev: _Events, switch: str, state: int, lo: FloatArray, hi: FloatArray
 ) -> npt.NDArray[np.bool_]:
-    """Whether ``switch`` reaches ``state`` inside each closed window ``[lo, hi]``."""
+    """Whether ``switch`` reaches ``state`` inside each window ``(lo, hi]``.
+
+    An edge at the very sample a step starts belongs to the step before; one at
+    the sample the next step starts still belongs to this step (the PLC fired the
+    next step on seeing it).
+    """
     times = (ev.switch_rise if state == 1 else ev.switch_fall).get(switch)
     if times is None:
         return np.ones(lo.shape, dtype=bool)
     tol = 1e-9
-    n = np.searchsorted(times, hi + tol, side="right") - np.searchsorted(times, lo - tol)
+    n = np.searchsorted(times, hi + tol, side="right") - np.searchsorted(
+        times, lo + tol, side="right"
+    )
     return np.asarray(n > 0)
 
 
@@ -495,8 +508,10 @@ def learn_sequence(
     repeat less). At least two full cycles are needed. The reference is assumed to start at
     the beginning of a cycle (the machine rests at home when the recording starts),
     so step 1 is its first valve firing. The switch edges awaited in each step are
-    those present in at least ``min_presence`` of the reference cycles that match
-    the learned valve pattern.
+    the edges of the switches of the actuators moving in it (``S_<ACT>_*``) that
+    occur, after the step's first sample and up to the next step's start, in at
+    least ``min_presence`` of the reference cycles that match the learned valve
+    pattern.
 
     Parameters
     ----------
@@ -529,7 +544,10 @@ def learn_sequence(
     specs = []
     for j in range(p):
         awaited = set()
+        moving = {actuator_of(v) for v in ev.signatures[j]}
         for name in ev.switch_rise:
+            if actuator_of(name.replace(SWITCH_PREFIX, VALVE_PREFIX, 1)) not in moving:
+                continue
             for state in (0, 1):
                 if np.mean(_edge_present(ev, name, state, lo[:, j], hi[:, j])) >= min_presence:
                     awaited.add((name, state))
