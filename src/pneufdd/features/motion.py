@@ -3,14 +3,14 @@
 With an LVDT (``X_<ACT>``), times come from the zero-phase filtered displacement
 (section 3.2.4) at the analog rate:
 
-* motion start (breakaway): the travel from rest grows as ``(t - t0)^2`` while
-  the acceleration is nearly constant, so ``sqrt(travel)`` over 2-12 % of the
-  stroke is fitted with a straight line and extrapolated to zero travel - the
-  start-up of the acceleration that section 3.3 judges by eye; a speed threshold
-  (the last sample before the peak below ``start_fraction`` = 5 % of the peak
-  speed) is the fallback and an upper bound;
+* motion start (breakaway): the start-up of the acceleration that section 3.3
+  judges by eye, found by fitting "at rest until t0, then ``a (t - t0)^2 + b (t -
+  t0)^3``" to the raw displacement over the first 40 % of the travel (least squares,
+  t0 on the sample grid); a speed threshold (the last sample before the peak below
+  ``start_fraction`` = 5 % of the peak speed) is the fallback and an upper bound;
 * arrival: the first sample after the peak within ``end_tolerance`` (0.5 %) of the
-  stroke from the final position;
+  stroke from the final position, plus the time the remaining distance takes at
+  the speed there (at most 5 samples);
 * t_p = start - valve firing, t_s = arrival - start, t_o = t_p + t_s (section 3.3);
 * balancing velocity: median speed over 50-90 % of the travel (the uniform
   latter half of a meter-out stroke, before cushioning);
@@ -73,7 +73,8 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
         v_max = float(speed[peak])
         slow = np.flatnonzero(speed[:peak] < opts.start_fraction * v_max)
         i_start = int(slow[-1]) + 1 if slow.size else 0
-        t_fit = _breakaway((x[: peak + 1] - x_start) / travel, fs)
+        raw, _, _ = view.data.analog(f"X_{actuator}")
+        t_fit = _breakaway((raw[i0 : i0 + peak + 1] - x_start) / travel, fs)
         if t_fit is not None:
             i_start = min(max(round(t_fit * fs), 0), i_start)
         reached = np.flatnonzero(sign * (x[peak:] - x_end) >= -opts.end_tolerance * abs(travel))
@@ -84,7 +85,9 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
         progress = (x[i_start : i_end + 1] - x_start) / travel
         middle = speed[i_start : i_end + 1][(progress >= 0.5) & (progress <= 0.9)]
         stroke.t_start = c0 + (i0 + i_start) / fs
-        stroke.t_end = c0 + (i0 + i_end) / fs
+        # The last `end_tolerance` of the travel is covered at the arrival speed.
+        left = abs(x_end - x[i_end]) / max(float(speed[i_end]), 0.05 * v_max)
+        stroke.t_end = c0 + (i0 + i_end) / fs + min(left, 5.0 / fs)
         stroke.source = "lvdt"
         stroke.v_max = v_max
         stroke.v_balance = float(np.median(middle)) if middle.size else float("nan")
@@ -108,27 +111,28 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
 
 
 def _breakaway(progress: npt.NDArray[np.float64], fs: float) -> float | None:
-    """Breakaway time [s from window start] from the first 2-12 % of the travel.
+    """Breakaway time [s from the window start] from the first 40 % of the travel.
 
-    Starting from rest under a nearly constant net force, the travel grows as
-    ``(t - t0)^2``, so ``sqrt(progress)`` is linear in time; a straight-line fit
-    over 2-12 % of the stroke, extrapolated to zero, gives ``t0`` without the
-    noise-dependent lag of a speed threshold. None when the fit is not usable.
+    A piston starting from rest travels ``a (t - t0)^2 + b (t - t0)^3`` (the
+    acceleration builds up as the chamber fills) and is at rest before ``t0``. For
+    every candidate ``t0`` on the sample grid the linear least-squares fit of
+    ``(a, b)`` to the raw progress is computed; the ``t0`` of the smallest residual
+    is the breakaway. Using every sample up to 40 % of the travel, not a threshold,
+    averages the LVDT noise out. None when fewer than 8 samples are available.
     """
-    above = np.flatnonzero(progress >= 0.12)
-    if above.size == 0:
+    finite = np.isfinite(progress)
+    above = np.flatnonzero(finite & (progress >= 0.4))
+    if above.size == 0 or above[0] < 8:
         return None
-    end = int(above[0])
-    below = np.flatnonzero(progress[:end] < 0.02)
-    begin = int(below[-1]) + 1 if below.size else 0
-    if end - begin < 4:
-        return None
-    t = np.arange(begin, end) / fs
-    root = np.sqrt(np.clip(progress[begin:end], 0.0, None))
-    slope, intercept = np.polyfit(t, root, 1)
-    if not np.isfinite(slope) or slope <= 0:
-        return None
-    return float(-intercept / slope)
+    y = np.where(finite[: above[0]], progress[: above[0]], 0.0)
+    w = finite[: above[0]].astype(np.float64)
+    t = np.arange(y.size) / fs
+    u = np.clip(t[None, :] - t[:, None], 0.0, None)
+    basis = np.stack([u**2, u**3], axis=-1) * w[None, :, None]
+    gram = np.einsum("csk,csl->ckl", basis, basis) + 1e-18 * np.eye(2)
+    coef = np.linalg.solve(gram, np.einsum("csk,s->ck", basis, y * w)[..., None])[..., 0]
+    misfit = np.sum((y * w - np.einsum("csk,ck->cs", basis, coef)) ** 2, axis=1)
+    return float(t[int(np.argmin(misfit))])
 
 
 def _times(view: CycleView, actuator: str, motion: str) -> Stroke:
