@@ -11,9 +11,11 @@ from collections.abc import Iterable
 
 __all__ = [
     "ChannelError",
+    "FileExistsInputError",
     "FileFormatError",
     "InputError",
     "MachineError",
+    "MissingFileError",
     "PneufddError",
     "UnitError",
     "describe",
@@ -30,6 +32,14 @@ class InputError(PneufddError, ValueError):
 
 class FileFormatError(InputError):
     """A file that cannot be read: missing, truncated, corrupted or of the wrong kind."""
+
+
+class MissingFileError(FileFormatError, FileNotFoundError):
+    """The file to read does not exist (also a :class:`FileNotFoundError`)."""
+
+
+class FileExistsInputError(InputError, FileExistsError):
+    """The file to write exists and overwrite was not asked for (a :class:`FileExistsError`)."""
 
 
 class ChannelError(InputError):

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -63,7 +63,6 @@ class Channel:
     unit: str
     kind: ChannelKind = ANALOG
     t0: float = 0.0
-    _validated: bool = field(default=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         where = f"channel {self.name!r}"
@@ -95,6 +94,8 @@ class Channel:
                     describe(f"values of digital {where}", "values other than 0 and 1", "0 or 1")
                 )
             values = values.astype(np.uint8)
+        elif values.dtype.kind == "f" and values.dtype.itemsize in (4, 8):
+            values = values.astype(values.dtype.newbyteorder("="), copy=False)
         elif values.dtype not in (np.float32, np.float64):
             if values.dtype.kind not in "iuf":
                 raise ChannelError(describe(f"dtype of {where}", str(values.dtype), "numeric"))
@@ -189,6 +190,9 @@ class Recording:
             start_time = datetime(1970, 1, 1, tzinfo=UTC)
         if not isinstance(start_time, datetime):
             raise InputError(describe("start_time", start_time, "a datetime"))
+        to_pydatetime = getattr(start_time, "to_pydatetime", None)
+        if callable(to_pydatetime):  # a pandas Timestamp: keep a plain datetime (microseconds)
+            start_time = to_pydatetime(warn=False)
         if start_time.tzinfo is None:
             start_time = start_time.replace(tzinfo=UTC)
         self._start_time = start_time
