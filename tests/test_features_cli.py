@@ -35,3 +35,18 @@ def test_features_command_refuses_existing_output(tmp_path) -> None:
     out.write_text("keep me")
     assert main(["features", str(tmp_path / "run.parquet"), "--out", str(out)]) == 2
     assert out.read_text() == "keep me"
+
+
+def test_features_command_on_parquet_files(tmp_path, capsys) -> None:
+    ref, _ = make_recording(cycles=3, seed=1)
+    leak, _ = make_recording(cycles=3, seed=2, leaks={"supply": 2})
+    paths = [ref.write(tmp_path / "ref.parquet"), leak.write(tmp_path / "leak.parquet")]
+    out = tmp_path / "features.csv"
+    args = ["features", *map(str, paths), "--out", str(out), "--group", "table44"]
+    assert main(args) == 0
+    df = pd.read_csv(out, index_col=[0, 1])
+    assert df.shape == (6, 13 + 2)
+    assert df["leak_class"].tolist() == ["none"] * 3 + ["supply"] * 3
+    assert "wrote 6 cycles" in capsys.readouterr().out
+    assert main(args) == 2  # exists: refused
+    assert main([*args, "--overwrite", "--group", "motion"]) == 0

@@ -48,3 +48,15 @@ def test_steps_tables_list_cycles_and_reasons() -> None:
 
 def test_steps_command_reports_unreadable_file(tmp_path) -> None:
     assert main(["steps", str(tmp_path / "missing.parquet")]) == 2
+
+
+def test_steps_command_on_a_parquet_file(tmp_path, capsys) -> None:
+    rec, truth = make_recording(cycles=3, seed=4)
+    path = rec.write(tmp_path / "run.parquet")
+    assert main(["steps", str(path), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [len(c["steps"]) for c in d["cycles"]] == [58, 58, 58]
+    assert d["rejected"] == []
+    assert abs(d["cycles"][2]["steps"][57]["start_s"] - truth.step_starts[2][57]) <= 0.0100001
+    assert main(["steps", str(path)]) == 0
+    assert "3 complete, 0 rejected" in capsys.readouterr().out

@@ -11,7 +11,7 @@ from typing import Annotated
 import pandas as pd
 import typer
 
-from pneufdd.errors import InputError, describe
+from pneufdd.errors import FileExistsInputError, describe
 from pneufdd.features.context import Options
 from pneufdd.features.matrix import GROUPS, feature_matrix
 from pneufdd.recording.model import Recording
@@ -34,7 +34,7 @@ def write_features(
     """
     out = Path(out)
     if out.exists() and not overwrite:
-        raise InputError(
+        raise FileExistsInputError(
             describe(f"output file {str(out)!r}", "an existing file", "a new path, or --overwrite")
         )
     df = feature_matrix(
@@ -68,7 +68,7 @@ def features(
 ) -> None:
     """Write the (cycles x features) matrix of RUNS, with leak labels, to OUT."""
     if out.exists() and not overwrite:
-        raise InputError(
+        raise FileExistsInputError(
             describe(f"output file {str(out)!r}", "an existing file", "a new path, or --overwrite")
         )
     recordings = [Recording.read(r) for r in runs]

@@ -74,7 +74,7 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
         slow = np.flatnonzero(speed[:peak] < opts.start_fraction * v_max)
         i_start = int(slow[-1]) + 1 if slow.size else 0
         raw, _, _ = view.data.analog(f"X_{actuator}")
-        t_fit = _breakaway((raw[i0 : i0 + peak + 1] - x_start) / travel, fs)
+        t_fit = _breakaway((raw[i0 : i0 + peak + 1] - x_start) / travel, fs, i_start)
         if t_fit is not None:
             i_start = min(max(round(t_fit * fs), 0), i_start)
         reached = np.flatnonzero(sign * (x[peak:] - x_end) >= -opts.end_tolerance * abs(travel))
@@ -110,12 +110,15 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
     return stroke
 
 
-def _breakaway(progress: npt.NDArray[np.float64], fs: float) -> float | None:
+def _breakaway(
+    progress: npt.NDArray[np.float64], fs: float, latest: int, span_s: float = 0.1
+) -> float | None:
     """Breakaway time [s from the window start] from the first 40 % of the travel.
 
     A piston starting from rest travels ``a (t - t0)^2 + b (t - t0)^3`` (the
     acceleration builds up as the chamber fills) and is at rest before ``t0``. For
-    every candidate ``t0`` on the sample grid the linear least-squares fit of
+    every candidate ``t0`` on the sample grid within ``span_s`` before ``latest``
+    (the speed-threshold start, an upper bound) the linear least-squares fit of
     ``(a, b)`` to the raw progress is computed; the ``t0`` of the smallest residual
     is the breakaway. Using every sample up to 40 % of the travel, not a threshold,
     averages the LVDT noise out. None when fewer than 8 samples are available.
@@ -124,15 +127,18 @@ def _breakaway(progress: npt.NDArray[np.float64], fs: float) -> float | None:
     above = np.flatnonzero(finite & (progress >= 0.4))
     if above.size == 0 or above[0] < 8:
         return None
-    y = np.where(finite[: above[0]], progress[: above[0]], 0.0)
-    w = finite[: above[0]].astype(np.float64)
+    first = max(min(latest, int(above[0]) - 1) - round(span_s * fs), 0)
+    stop = int(above[0])
+    y = np.where(finite[first:stop], progress[first:stop], 0.0)
+    w = finite[first:stop].astype(np.float64)
     t = np.arange(y.size) / fs
-    u = np.clip(t[None, :] - t[:, None], 0.0, None)
+    cand = t[: max(min(latest, stop - 1) - first, 0) + 1]
+    u = np.clip(t[None, :] - cand[:, None], 0.0, None)
     basis = np.stack([u**2, u**3], axis=-1) * w[None, :, None]
     gram = np.einsum("csk,csl->ckl", basis, basis) + 1e-18 * np.eye(2)
     coef = np.linalg.solve(gram, np.einsum("csk,s->ck", basis, y * w)[..., None])[..., 0]
     misfit = np.sum((y * w - np.einsum("csk,ck->cs", basis, coef)) ** 2, axis=1)
-    return float(t[int(np.argmin(misfit))])
+    return float((first + int(np.argmin(misfit))) / fs)
 
 
 def _times(view: CycleView, actuator: str, motion: str) -> Stroke:
