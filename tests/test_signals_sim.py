@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 pytest.importorskip("pneufdd.sim")
 
@@ -72,3 +74,21 @@ def test_fig_5_6_raw_step_3_difference_negative_and_fig_5_7_synchronised_not() -
     n = min(ref3.size, leak3.size)
     synced = kg_s_to_slpm(leak3[:n] - ref3[:n])
     assert np.nanmin(synced) > 0.0  # Fig. 5.7
+
+
+@settings(max_examples=10)
+@given(
+    seed=st.integers(0, 10_000),
+    bounce=st.booleans(),
+    nan_fraction=st.sampled_from([0.0, 0.01]),
+    cut_step=st.integers(1, 57),
+)
+def test_segmentation_property_on_simulated_data(
+    seed: int, bounce: bool, nan_fraction: float, cut_step: int
+) -> None:
+    res = run(100)
+    cut = float(res.step_start[-1, cut_step]) + 0.005
+    rec = damage(res.recording, seed, bounce, nan_fraction, cut)
+    seg = segment(rec)
+    _check_100(seg, res.step_start, 99)
+    assert [c.complete for c in seg.cycles] == [True] * 99 + [False]
