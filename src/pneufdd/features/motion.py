@@ -133,11 +133,18 @@ def _breakaway(
     w = finite[first:stop].astype(np.float64)
     t = np.arange(y.size) / fs
     cand = t[: max(min(latest, stop - 1) - first, 0) + 1]
-    u = np.clip(t[None, :] - cand[:, None], 0.0, None)
-    basis = np.stack([u**2, u**3], axis=-1) * w[None, :, None]
-    gram = np.einsum("csk,csl->ckl", basis, basis) + 1e-18 * np.eye(2)
-    coef = np.linalg.solve(gram, np.einsum("csk,s->ck", basis, y * w)[..., None])[..., 0]
-    misfit = np.sum((y * w - np.einsum("csk,ck->cs", basis, coef)) ** 2, axis=1)
+    u2 = np.clip(t[None, :] - cand[:, None], 0.0, None) ** 2
+    u3 = u2 * np.sqrt(u2)
+    wy = w * y
+    # Normal equations of the fit of (a, b) for every candidate at once.
+    g22, g23, g33 = (u2 * u2) @ w, (u2 * u3) @ w, (u3 * u3) @ w
+    r2, r3 = u2 @ wy, u3 @ wy
+    det = g22 * g33 - g23 * g23
+    ok = det > 1e-30 * np.maximum(g22 * g33, 1e-300)
+    safe = np.where(ok, det, 1.0)
+    a = (g33 * r2 - g23 * r3) / safe
+    b = (g22 * r3 - g23 * r2) / safe
+    misfit = np.where(ok, float(wy @ y) - (a * r2 + b * r3), np.inf)
     return float((first + int(np.argmin(misfit))) / fs)
 
 

@@ -646,10 +646,12 @@ def segment(
     inside = idx < n
     full = np.all(inside & (codes[np.minimum(idx, n - 1)] == pattern[None, :]), axis=1)
 
+    ordered = {sig: tuple(sorted(sig)) for sig in set(ev.signatures)}
+    lo_list, hi_list = lo_all.tolist(), hi_all.tolist()
+
     def steps_of(a: int, b: int) -> tuple[Step, ...]:
         return tuple(
-            Step(i - a + 1, float(lo_all[i]), float(hi_all[i]), tuple(sorted(ev.signatures[i])))
-            for i in range(a, b)
+            Step(i - a + 1, lo_list[i], hi_list[i], ordered[ev.signatures[i]]) for i in range(a, b)
         )
 
     # Switch validation of every full candidate at once.
