@@ -92,3 +92,18 @@ def test_segmentation_property_on_simulated_data(
     seg = segment(rec)
     _check_100(seg, res.step_start, 99)
     assert [c.complete for c in seg.cycles] == [True] * 99 + [False]
+
+
+def test_steps_command_on_a_simulated_parquet_file(tmp_path, capsys) -> None:
+    import json
+
+    from pneufdd.cli.app import main
+
+    res = run(3, (("supply", 2.0),), seed=5)
+    path = res.recording.write(tmp_path / "run.parquet")
+    assert main(["steps", str(path), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [len(c["steps"]) for c in d["cycles"]] == [58, 58, 58]
+    assert [c["complete"] for c in d["cycles"]] == [True, True, False]
+    assert d["rejected"][0]["reason"] == END_REASON
+    assert d["cycles"][0]["steps"][1]["actuators"] == ["DNC", "DRQD", "HMPL_H"]

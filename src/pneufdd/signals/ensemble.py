@@ -130,7 +130,23 @@ def step_ensembles(
 ) -> list[Ensemble]:
     """Eq. 5.21 for every step of ``channel`` over the synchronised ``cycles``.
 
-    ``lengths`` enables time normalisation (see
-    :func:`pneufdd.signals.synchronisation.synchronise`).
+    Parameters
+    ----------
+    recording : Recording
+        The recording the cycles were found in.
+    channel : str
+        Analog channel.
+    cycles : sequence of Cycle
+        Complete cycles (e.g. :func:`select_window` of ``Segmentation.complete``).
+    lengths : array_like of int, optional
+        Time normalisation to these step lengths [samples] (see
+        :func:`pneufdd.signals.synchronisation.synchronise`).
+    ddof : int
+        Delta degrees of freedom of the standard deviation.
+
+    Returns
+    -------
+    list of Ensemble
+        One per step, in the channel's unit.
     """
     return [ensemble(s, ddof) for s in synchronise(recording, channel, cycles, lengths)]
