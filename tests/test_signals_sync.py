@@ -111,3 +111,21 @@ def test_missing_channel_is_named(runs) -> None:
     bare = Recording([ref.info(n) for n in ref.digital_channels])
     with pytest.raises(InputError, match=r"Q_In.*U_DNC_A"):
         synchronise(bare, "Q_In", sref.complete)
+
+
+def test_reference_averages_use_the_window_and_every_channel(runs) -> None:
+    from pneufdd.signals import reference_averages
+
+    ref, sref, _, _ = runs
+    cycles = sref.complete
+    total = cycles[-1].end_s - cycles[0].start_s
+    avg = reference_averages(ref, ["Q_In", "P_In"], cycles, window_s=total / 2)
+    assert set(avg) == {"Q_In", "P_In"}
+    assert len(avg["Q_In"]) == 58
+    n_last = len(select_window(cycles, total / 2))
+    assert avg["Q_In"][2].count.max() == n_last < len(cycles)
+    # Equal to eq. 5.21 computed directly on the same synchronised cycles.
+    direct = step_ensembles(ref, "P_In", select_window(cycles, total / 2))[10]
+    assert np.array_equal(avg["P_In"][10].mean, direct.mean, equal_nan=True)
+    with pytest.raises(InputError, match="averaging window"):
+        reference_averages(ref, ["Q_In"], cycles, window_s=1e-3)

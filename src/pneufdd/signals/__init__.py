@@ -5,7 +5,13 @@ ensemble statistics and filtering (section 5.3.1 and section 3.2.4 of the disser
 from __future__ import annotations
 
 from pneufdd.signals.digital import debounce, edges
-from pneufdd.signals.ensemble import Ensemble, ensemble, select_window, step_ensembles
+from pneufdd.signals.ensemble import (
+    Ensemble,
+    ensemble,
+    reference_averages,
+    select_window,
+    step_ensembles,
+)
 from pneufdd.signals.filtering import Kinematics, fill_gaps, kinematics, lowpass
 from pneufdd.signals.segmentation import (
     Cycle,
@@ -39,6 +45,7 @@ __all__ = [
     "kinematics",
     "learn_sequence",
     "lowpass",
+    "reference_averages",
     "reference_lengths",
     "sample_bounds",
     "segment",

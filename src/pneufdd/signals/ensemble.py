@@ -27,7 +27,14 @@ from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import Cycle
 from pneufdd.signals.synchronisation import synchronise
 
-__all__ = ["DEFAULT_WINDOW_S", "Ensemble", "ensemble", "select_window", "step_ensembles"]
+__all__ = [
+    "DEFAULT_WINDOW_S",
+    "Ensemble",
+    "ensemble",
+    "reference_averages",
+    "select_window",
+    "step_ensembles",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -150,3 +157,45 @@ def step_ensembles(
         One per step, in the channel's unit.
     """
     return [ensemble(s, ddof) for s in synchronise(recording, channel, cycles, lengths)]
+
+
+def reference_averages(
+    recording: Recording,
+    channels: Sequence[str],
+    cycles: Sequence[Cycle],
+    window_s: float | None = DEFAULT_WINDOW_S,
+    lengths: npt.ArrayLike | None = None,
+    ddof: int = 0,
+) -> dict[str, list[Ensemble]]:
+    """Reference averages of section 5.3.1: per channel and step, eq. 5.21 over cycles.
+
+    The cycles are first restricted to the averaging window of section 4.4.1 (the
+    last ``window_s`` of the run; None keeps all), then synchronised step by step.
+
+    Parameters
+    ----------
+    recording : Recording
+        The reference (leak-free) run.
+    channels : sequence of str
+        Analog channels, e.g. the six signal types of eq. 5.21 (``P_DNC_A``,
+        ``P_DNC_B``, ``Q_DNC_A``, ``Q_DNC_B``, ``Q_In``, ``P_In``).
+    cycles : sequence of Cycle
+        Complete cycles of the run.
+    window_s : float or None
+        Averaging window [s].
+    lengths : array_like of int, optional
+        Time normalisation to these step lengths [samples].
+    ddof : int
+        Delta degrees of freedom of the standard deviation.
+
+    Returns
+    -------
+    dict of str to list of Ensemble
+        Per channel, one :class:`Ensemble` per step.
+    """
+    chosen = select_window(cycles, window_s)
+    if not chosen:
+        raise InputError(
+            describe("cycles in the averaging window", 0, f"at least one in the last {window_s} s")
+        )
+    return {ch: step_ensembles(recording, ch, chosen, lengths, ddof) for ch in channels}
