@@ -1,0 +1,35 @@
+"""The digital twin: machine description (TOML), PLC sequence, compiled integrator, sensors.
+
+>>> from pneufdd.sim import builtin_machines
+>>> builtin_machines()
+('festo-dsd',)
+"""
+
+from __future__ import annotations
+
+from pneufdd.sim.description import MachineDescription, parse_description
+from pneufdd.sim.leaks import Leak, LeakSpec, parse_leak_size
+from pneufdd.sim.loading import builtin_machines, load_machine
+from pneufdd.sim.result import SimulationResult, Stroke
+from pneufdd.sim.simulate import (
+    SIMULATOR_VERSION,
+    MachineStalledError,
+    run_simulation,
+    simulate,
+)
+
+__all__ = [
+    "SIMULATOR_VERSION",
+    "Leak",
+    "LeakSpec",
+    "MachineDescription",
+    "MachineStalledError",
+    "SimulationResult",
+    "Stroke",
+    "builtin_machines",
+    "load_machine",
+    "parse_description",
+    "parse_leak_size",
+    "run_simulation",
+    "simulate",
+]

@@ -1,0 +1,538 @@
+"""Machine description: the typed, validated form of a machine TOML file.
+
+The format is documented in ``docs/machine-format.md``. Every field is checked when a
+description is parsed; an invalid one raises :class:`~pneufdd.errors.MachineError`
+naming the file, the key path, the value received and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from pneufdd.errors import MachineError, describe
+
+__all__ = [
+    "ACTUATOR_KINDS",
+    "SENSOR_KINDS",
+    "VALVE_KINDS",
+    "Action",
+    "Actuator",
+    "MachineDescription",
+    "Sensor",
+    "Step",
+    "Supply",
+    "Vacuum",
+    "Valve",
+    "parse_description",
+]
+
+ACTUATOR_KINDS = ("linear", "rodless", "slide", "rotary", "gripper")
+VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre")
+SENSOR_KINDS = ("pressure", "flow", "position")
+SENSOR_UNITS = {"pressure": "bar(g)", "flow": "SLPM", "position": "mm"}
+METER_DIRECTIONS = ("forward", "bidirectional")
+
+
+class _Reader:
+    """Typed access to one TOML table, building error messages with the key path."""
+
+    def __init__(self, data: Mapping[str, Any], path: str, source: str) -> None:
+        if not isinstance(data, Mapping):
+            raise MachineError(describe(f"{source}: {path}", data, "a table"))
+        self.data = data
+        self.path = path
+        self.source = source
+        self.used: set[str] = set()
+
+    def where(self, key: str) -> str:
+        return f"{self.source}: {self.path}.{key}" if self.path else f"{self.source}: {key}"
+
+    def fail(self, key: str, value: object, allowed: object) -> MachineError:
+        return MachineError(describe(self.where(key), value, allowed))  # type: ignore[arg-type]
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def raw(self, key: str, default: object = ...) -> Any:
+        self.used.add(key)
+        if key not in self.data:
+            if default is ...:
+                raise MachineError(describe(self.where(key), None, "a value (key is required)"))
+            return default
+        return self.data[key]
+
+    def number(
+        self,
+        key: str,
+        default: float | None = None,
+        low: float = -math.inf,
+        high: float = math.inf,
+        low_open: bool = False,
+    ) -> float:
+        value = self.raw(key, ... if default is None else default)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(key, value, "a number")
+        v = float(value)
+        bad_low = v <= low if low_open else v < low
+        if not math.isfinite(v) or bad_low or v > high:
+            lo = f"> {low}" if low_open else f">= {low}"
+            raise self.fail(key, value, f"a finite number {lo} and <= {high}")
+        return v
+
+    def text(self, key: str, default: str | None = None, choices: Sequence[str] = ()) -> str:
+        value = self.raw(key, ... if default is None else default)
+        if not isinstance(value, str) or not value:
+            raise self.fail(key, value, list(choices) if choices else "a non-empty string")
+        if choices and value not in choices:
+            raise self.fail(key, value, list(choices))
+        return value
+
+    def table(self, key: str, default: Mapping[str, Any] | None = None) -> _Reader:
+        value = self.raw(key, ... if default is None else default)
+        sub = f"{self.path}.{key}" if self.path else key
+        return _Reader(value, sub, self.source)
+
+    def tables(self, key: str) -> list[_Reader]:
+        value = self.raw(key, [])
+        if not isinstance(value, list):
+            raise self.fail(key, value, "an array of tables ([[...]])")
+        sub = f"{self.path}.{key}" if self.path else key
+        return [_Reader(v, f"{sub}[{i}]", self.source) for i, v in enumerate(value)]
+
+    def strings(self, key: str, default: Sequence[str] = ()) -> list[str]:
+        value = self.raw(key, list(default))
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise self.fail(key, value, "a list of strings")
+        return list(value)
+
+    def finish(self) -> None:
+        extra = sorted(set(self.data) - self.used)
+        if extra:
+            raise MachineError(
+                describe(
+                    f"{self.source}: unknown key in {self.path or 'top level'}",
+                    extra[0],
+                    sorted(self.used),
+                )
+            )
+
+
+@dataclass(frozen=True)
+class Supply:
+    """House air, filter-regulator, reservoir and supply line (Fig. 4.13, section 4.4.1).
+
+    Pressures are gauge [psig], volumes [l], times [s]; conversion to SI happens in
+    :mod:`pneufdd.sim.compile`.
+    """
+
+    house_psig: float
+    house_drift_psi: float
+    house_drift_time_s: float
+    compressor_band_psi: float
+    compressor_period_s: float
+    regulator_set_psig: float
+    regulator_cv: float
+    regulator_xt: float
+    regulator_supply_effect: float
+    reservoir_volume_l: float
+    line_cv: float
+    line_xt: float
+    manifold_volume_l: float
+    thermal_time_s: float
+
+
+@dataclass(frozen=True)
+class Valve:
+    """Directional valve of one actuator (section 4.2.1, Fig. 4.3, eq. 4.6)."""
+
+    kind: str
+    cv: float
+    xt: float
+    on_delay_s: float
+    off_delay_s: float
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """One double-acting actuator, reduced to an equivalent linear piston (eq. 4.11-4.14)."""
+
+    id: str
+    kind: str
+    model: str
+    bore_mm: float
+    rod_mm: float
+    stroke_mm: float
+    moving_mass_kg: float
+    static_friction_n: float
+    coulomb_friction_n: float
+    viscous_friction_n_s_m: float
+    dead_volume_a_cm3: float
+    dead_volume_b_cm3: float
+    thermal_time_s: float
+    tube_length_m: float
+    tube_inner_diameter_mm: float
+    meter_out_cv_a: float
+    meter_out_cv_b: float
+    initial: str
+    valve: Valve
+
+
+@dataclass(frozen=True)
+class Vacuum:
+    """Vacuum ejector with its monostable valve and vacuum switch."""
+
+    id: str
+    nozzle_diameter_mm: float
+    nozzle_cd: float
+    evacuation_time_s: float
+    release_time_s: float
+    switch_level: float
+    on_delay_s: float
+    off_delay_s: float
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """One analog sensor channel (Table 3.2; section 3.4.1)."""
+
+    channel: str
+    kind: str
+    location: str
+    range_low: float
+    range_high: float
+    noise: float
+    bits: int
+    time_constant_s: float
+    direction: str
+
+
+@dataclass(frozen=True)
+class Action:
+    """One PLC output command at the start of a step.
+
+    ``mode`` is ``"until"`` (energise, release when ``switch`` reads 1), ``"pulse"``
+    (energise for ``duration_s``), ``"hold"`` (energise until a later ``reset``) or
+    ``"reset"`` (de-energise).
+    """
+
+    solenoid: str
+    mode: str
+    switch: str = ""
+    duration_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Step:
+    """One PLC step: commands, then wait for switches (on/off) and a dwell timer."""
+
+    name: str
+    actions: tuple[Action, ...]
+    wait: tuple[str, ...]
+    wait_off: tuple[str, ...]
+    dwell_s: float
+
+
+@dataclass(frozen=True)
+class MachineDescription:
+    """A complete, validated machine description."""
+
+    name: str
+    title: str
+    scan_time_s: float
+    switch_window_mm: float
+    temperature_c: float
+    friction_scatter: float
+    supply: Supply
+    actuators: tuple[Actuator, ...]
+    vacuum: Vacuum | None
+    sensors: tuple[Sensor, ...]
+    steps: tuple[Step, ...]
+    raw: dict[str, Any]
+    source: str
+
+    @property
+    def actuator_ids(self) -> tuple[str, ...]:
+        """Actuator ids in description order."""
+        return tuple(a.id for a in self.actuators)
+
+    @property
+    def leak_locations(self) -> tuple[str, ...]:
+        """Every place a leak may be injected: ``supply``, ``<ACT>_A``, ``<ACT>_B``."""
+        locs = ["supply"]
+        for a in self.actuators:
+            locs += [f"{a.id}_A", f"{a.id}_B"]
+        return tuple(locs)
+
+    @property
+    def solenoids(self) -> tuple[str, ...]:
+        """Digital valve outputs ``U_<ACT>_A/B`` (and ``U_<VAC>``)."""
+        names = [f"U_{a.id}_{s}" for a in self.actuators for s in "AB"]
+        if self.vacuum is not None:
+            names.append(f"U_{self.vacuum.id}")
+        return tuple(names)
+
+    @property
+    def switches(self) -> tuple[str, ...]:
+        """Digital inputs ``S_<ACT>_A/B`` (and ``S_<VAC>``)."""
+        names = [f"S_{a.id}_{s}" for a in self.actuators for s in "AB"]
+        if self.vacuum is not None:
+            names.append(f"S_{self.vacuum.id}")
+        return tuple(names)
+
+    @property
+    def nominal_supply_psig(self) -> float:
+        """Nominal supply pressure: the regulator set point [psig]."""
+        return self.supply.regulator_set_psig
+
+
+def _supply(r: _Reader) -> Supply:
+    s = Supply(
+        house_psig=r.number("house_psig", low=0.0, high=250.0),
+        house_drift_psi=r.number("house_drift_psi", 0.0, low=0.0, high=50.0),
+        house_drift_time_s=r.number("house_drift_time_s", 60.0, low=0.0, low_open=True),
+        compressor_band_psi=r.number("compressor_band_psi", 0.0, low=0.0, high=100.0),
+        compressor_period_s=r.number("compressor_period_s", 60.0, low=0.0, low_open=True),
+        regulator_set_psig=r.number("regulator_set_psig", low=0.0, high=116.0),
+        regulator_cv=r.number("regulator_cv", low=0.0, low_open=True, high=50.0),
+        regulator_xt=r.number("regulator_xt", 0.7, low=0.0, low_open=True, high=1.0),
+        regulator_supply_effect=r.number("regulator_supply_effect", 0.0, low=0.0, high=1.0),
+        reservoir_volume_l=r.number("reservoir_volume_l", low=0.0, low_open=True),
+        line_cv=r.number("line_cv", low=0.0, low_open=True, high=50.0),
+        line_xt=r.number("line_xt", 1.0, low=0.0, low_open=True, high=1.0),
+        manifold_volume_l=r.number("manifold_volume_l", low=0.0, low_open=True),
+        thermal_time_s=r.number("thermal_time_s", 1.0, low=0.0, low_open=True),
+    )
+    if s.regulator_set_psig >= 80.0:
+        raise r.fail("regulator_set_psig", s.regulator_set_psig, "< 80 (section 3.2.1)")
+    r.finish()
+    return s
+
+
+def _valve(r: _Reader) -> Valve:
+    v = Valve(
+        kind=r.text("kind", choices=VALVE_KINDS),
+        cv=r.number("cv", low=0.0, low_open=True, high=50.0),
+        xt=r.number("xt", 1.0, low=0.0, low_open=True, high=1.0),
+        on_delay_s=r.number("on_delay_s", 0.020, low=0.0, high=1.0),
+        off_delay_s=r.number("off_delay_s", 0.042, low=0.0, high=1.0),
+    )
+    r.finish()
+    return v
+
+
+def _actuator(r: _Reader) -> Actuator:
+    ident = r.text("id")
+    if not ident.replace("_", "").isalnum() or not ident[0].isalpha() or ident != ident.upper():
+        raise r.fail("id", ident, "upper-case letters, digits and '_', starting with a letter")
+    kind = r.text("kind", choices=ACTUATOR_KINDS)
+    bore = r.number("bore_mm", low=0.0, low_open=True, high=1000.0)
+    rod = r.number("rod_mm", 0.0, low=0.0, high=1000.0)
+    if rod >= bore:
+        raise r.fail("rod_mm", rod, f"< bore_mm ({bore})")
+    if r.has("angle_deg"):
+        angle = r.number("angle_deg", low=0.0, low_open=True, high=360.0)
+        lever = r.number("lever_mm", low=0.0, low_open=True)
+        stroke = math.radians(angle) * lever
+    else:
+        stroke = r.number("stroke_mm", low=0.0, low_open=True, high=10_000.0)
+    window = 0.5
+    if stroke <= 2 * window:
+        raise r.fail("stroke_mm", stroke, "> 1 mm")
+    meter_out = r.number("meter_out_cv", 0.0, low=0.0, high=50.0)
+    act = Actuator(
+        id=ident,
+        kind=kind,
+        model=r.text("model", "unspecified"),
+        bore_mm=bore,
+        rod_mm=rod,
+        stroke_mm=stroke,
+        moving_mass_kg=r.number("moving_mass_kg", low=0.0, low_open=True),
+        static_friction_n=r.number("static_friction_n", low=0.0),
+        coulomb_friction_n=r.number("coulomb_friction_n", low=0.0),
+        viscous_friction_n_s_m=r.number("viscous_friction_n_s_m", low=0.0),
+        dead_volume_a_cm3=r.number("dead_volume_a_cm3", low=0.0, low_open=True),
+        dead_volume_b_cm3=r.number("dead_volume_b_cm3", low=0.0, low_open=True),
+        thermal_time_s=r.number("thermal_time_s", 0.5, low=0.0, low_open=True),
+        tube_length_m=r.number("tube_length_m", low=0.0, low_open=True, high=100.0),
+        tube_inner_diameter_mm=r.number(
+            "tube_inner_diameter_mm", low=0.0, low_open=True, high=50.0
+        ),
+        meter_out_cv_a=r.number("meter_out_cv_a", meter_out or 50.0, low=0.0, low_open=True),
+        meter_out_cv_b=r.number("meter_out_cv_b", meter_out or 50.0, low=0.0, low_open=True),
+        initial=r.text("initial", "retracted", choices=("retracted", "extended")),
+        valve=_valve(r.table("valve")),
+    )
+    r.finish()
+    return act
+
+
+def _vacuum(r: _Reader) -> Vacuum:
+    v = Vacuum(
+        id=r.text("id"),
+        nozzle_diameter_mm=r.number("nozzle_diameter_mm", low=0.0, low_open=True, high=20.0),
+        nozzle_cd=r.number("nozzle_cd", 0.8, low=0.0, low_open=True, high=1.0),
+        evacuation_time_s=r.number("evacuation_time_s", low=0.0, low_open=True),
+        release_time_s=r.number("release_time_s", low=0.0, low_open=True),
+        switch_level=r.number("switch_level", 0.6, low=0.0, low_open=True, high=0.99),
+        on_delay_s=r.number("on_delay_s", 0.020, low=0.0, high=1.0),
+        off_delay_s=r.number("off_delay_s", 0.042, low=0.0, high=1.0),
+    )
+    r.finish()
+    return v
+
+
+def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> Sensor:
+    channel = r.text("channel")
+    kind = r.text("kind", choices=SENSOR_KINDS)
+    allowed = list(actuators) if kind == "position" else list(locations)
+    location = r.text("location", choices=allowed)
+    unit = r.text("unit", SENSOR_UNITS[kind], choices=(SENSOR_UNITS[kind],))
+    del unit
+    rng = r.raw("range")
+    if (
+        not isinstance(rng, list)
+        or len(rng) != 2
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in rng)
+        or not rng[0] < rng[1]
+    ):
+        raise r.fail("range", rng, "[low, high] with low < high")
+    s = Sensor(
+        channel=channel,
+        kind=kind,
+        location=location,
+        range_low=float(rng[0]),
+        range_high=float(rng[1]),
+        noise=r.number("noise", 0.0, low=0.0),
+        bits=int(r.number("bits", 12, low=1, high=24)),
+        time_constant_s=r.number("time_constant_s", 0.0, low=0.0, high=10.0),
+        direction=r.text("direction", "forward", choices=METER_DIRECTIONS),
+    )
+    r.finish()
+    return s
+
+
+def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: int) -> Step:
+    actions: list[Action] = []
+    for a in r.tables("do"):
+        if a.has("reset"):
+            sol = a.text("reset", choices=solenoids)
+            actions.append(Action(sol, "reset"))
+        else:
+            sol = a.text("set", choices=solenoids)
+            if a.has("until"):
+                actions.append(Action(sol, "until", switch=a.text("until", choices=switches)))
+            elif a.has("for_s"):
+                dur = a.number("for_s", low=0.0, low_open=True, high=60.0)
+                actions.append(Action(sol, "pulse", duration_s=dur))
+            else:
+                actions.append(Action(sol, "hold"))
+        a.finish()
+    default_wait = [a.switch for a in actions if a.mode == "until"]
+    wait = r.strings("wait", default_wait)
+    for w in wait:
+        if w not in switches:
+            raise r.fail("wait", w, list(switches))
+    wait_off = r.strings("wait_off")
+    for w in wait_off:
+        if w not in switches:
+            raise r.fail("wait_off", w, list(switches))
+    step = Step(
+        name=r.text("name", f"step {index + 1}"),
+        actions=tuple(actions),
+        wait=tuple(wait),
+        wait_off=tuple(wait_off),
+        dwell_s=r.number("dwell_s", 0.0, low=0.0, high=600.0),
+    )
+    if not step.actions and not step.wait and not step.wait_off and step.dwell_s == 0.0:
+        raise r.fail("do", [], "at least one action, wait or dwell_s")
+    r.finish()
+    return step
+
+
+def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> MachineDescription:
+    """Validate a parsed TOML mapping and return a :class:`MachineDescription`.
+
+    Parameters
+    ----------
+    data : mapping
+        The parsed TOML document.
+    source : str
+        File name (or other origin) used in error messages.
+
+    Returns
+    -------
+    MachineDescription
+
+    Raises
+    ------
+    MachineError
+        On any invalid field, naming ``source``, the key path, the value and what is allowed.
+    """
+    top = _Reader(data, "", source)
+    m = top.table("machine")
+    name = m.text("name")
+    title = m.text("title", name)
+    scan = m.number("scan_time_s", 0.005, low=0.0, high=1.0)
+    window = m.number("switch_window_mm", 1.0, low=0.0, low_open=True, high=50.0)
+    temp = m.number("temperature_c", 20.0, low=-40.0, high=80.0)
+    scatter = m.number("friction_scatter", 0.02, low=0.0, high=0.5)
+    m.finish()
+    supply = _supply(top.table("supply"))
+    actuators = tuple(_actuator(a) for a in top.tables("actuator"))
+    if not actuators:
+        raise MachineError(describe(f"{source}: actuator", [], "at least one [[actuator]]"))
+    ids = [a.id for a in actuators]
+    dup = {i for i in ids if ids.count(i) > 1}
+    if dup:
+        raise MachineError(describe(f"{source}: actuator id", sorted(dup)[0], "unique ids"))
+    vacuum = _vacuum(top.table("vacuum")) if top.has("vacuum") else None
+    if vacuum is not None and vacuum.id in ids:
+        raise MachineError(describe(f"{source}: vacuum.id", vacuum.id, "an id no actuator has"))
+    locations = ["supply"] + [f"{i}_{s}" for i in ids for s in "AB"]
+    sensors = tuple(_sensor(s, locations, ids) for s in top.tables("sensor"))
+    chans = [s.channel for s in sensors]
+    dupc = {c for c in chans if chans.count(c) > 1}
+    if dupc:
+        raise MachineError(describe(f"{source}: sensor channel", sorted(dupc)[0], "unique"))
+    solenoids = [f"U_{i}_{s}" for i in ids for s in "AB"]
+    switches = [f"S_{i}_{s}" for i in ids for s in "AB"]
+    if vacuum is not None:
+        solenoids.append(f"U_{vacuum.id}")
+        switches.append(f"S_{vacuum.id}")
+    steps = tuple(_step(s, solenoids, switches, i) for i, s in enumerate(top.tables("step")))
+    for k, step in enumerate(steps):
+        for a, act in enumerate(step.actions):
+            ident, _, side = act.solenoid[2:].rpartition("_")
+            if act.mode != "until" or ident not in ids:
+                continue
+            expected = f"S_{ident}_{'B' if side == 'A' else 'A'}"
+            if act.switch != expected:
+                raise MachineError(
+                    describe(
+                        f"{source}: step[{k}].do[{a}].until (for {act.solenoid})",
+                        act.switch,
+                        [expected],
+                    )
+                    + "; a solenoid is released at the end its actuator moves to"
+                )
+    if not steps:
+        raise MachineError(describe(f"{source}: step", [], "at least one [[step]]"))
+    top.finish()
+    return MachineDescription(
+        name=name,
+        title=title,
+        scan_time_s=scan,
+        switch_window_mm=window,
+        temperature_c=temp,
+        friction_scatter=scatter,
+        supply=supply,
+        actuators=actuators,
+        vacuum=vacuum,
+        sensors=sensors,
+        steps=steps,
+        raw=dict(data),
+        source=source,
+    )

@@ -1,0 +1,92 @@
+"""Column indices of the parameter and state arrays shared by compile and kernel.
+
+The compiled integrator takes plain numpy arrays; these constants name their columns.
+"""
+
+from __future__ import annotations
+
+# supply parameters (float array)
+SP_P_HOUSE = 0  # nominal house pressure [Pa abs]
+SP_DRIFT_STD = 1  # OU standard deviation [Pa]
+SP_COMP_BAND = 2  # compressor load/unload band, peak to peak [Pa]
+SP_COMP_PERIOD = 3  # compressor cycle period [s]
+SP_COMP_PHASE = 4  # phase at t = 0 [-], 0..1
+SP_P_SET = 5  # regulator set point [Pa abs]
+SP_REG_CV = 6
+SP_REG_XT = 7
+SP_REG_EFFECT = 8  # supply-pressure effect of the regulator [-]
+SP_V_RES = 9  # reservoir volume [m^3]
+SP_LINE_CV = 10
+SP_LINE_XT = 11
+SP_V_MAN = 12  # manifold volume [m^3]
+SP_TAU_TH = 13  # thermal time constant of reservoir/manifold [s]
+SP_T_WALL = 14  # wall/ambient temperature [K]
+SP_SUPPLY_LEAK = 15  # effective area of the supply leak [m^2]
+SP_SCAN = 16  # PLC scan time [s]
+SP_WINDOW = 17  # proximity switch window [m]
+SP_NOZZLE = 18  # vacuum nozzle effective area [m^2]
+SP_VAC_TAU_ON = 19
+SP_VAC_TAU_OFF = 20
+SP_VAC_LEVEL = 21
+SP_VAC_ON_DELAY = 22
+SP_VAC_OFF_DELAY = 23
+SP_OU_DT = 24  # grid of the house-pressure drift array [s]
+SP_N_MOVE = 25  # minimum sub-steps per ms while a piston moves [-]
+SP_DP_TOL = 26  # target pressure change per sub-step [Pa]
+SP_N_MAX = 27  # maximum sub-steps per ms [-]
+SP_SIZE = 28
+
+# actuator parameters (float array, one row per actuator)
+AP_STROKE = 0  # [m]
+AP_MASS = 1  # [kg]
+AP_FS = 2  # static (stick-slip) friction [N]
+AP_FC = 3  # Coulomb friction [N]
+AP_CVF = 4  # viscous friction [N s/m]
+AP_AROD = 5  # rod area exposed to atmosphere [m^2]
+AP_ON_DELAY = 6  # [s]
+AP_OFF_DELAY = 7  # [s]
+AP_SIZE = 8
+
+# actuator valve kinds (int)
+VK_BISTABLE = 0
+VK_MONOSTABLE = 1
+VK_CLOSED_CENTRE = 2
+
+# chamber parameters (float array, row 2*i + side)
+CP_AREA = 0  # piston area [m^2]
+CP_DEAD = 1  # dead volume incl. tube [m^3]
+CP_CV_FILL = 2  # valve + tube, series [-]
+CP_CV_EXH = 3  # valve + tube + meter-out throttle, series [-]
+CP_XT = 4
+CP_LEAK = 5  # effective leak area [m^2]
+CP_TAU_TH = 6  # thermal time constant [s]
+CP_SIZE = 7
+
+# scalar float state
+SS_TIME = 0  # simulated time [s]
+SS_PHASE_END = 1  # end of the current step's dwell [s]
+SS_VAC = 2  # vacuum level 0..1 [-]
+SS_OU = 3  # current house-pressure drift [Pa]
+SS_SIZE = 4
+
+# scalar int state
+IS_SAMPLE = 0  # global sample counter (1 kHz)
+IS_STEP = 1  # current step index
+IS_PHASE = 2  # 0 = waiting for switches, 1 = dwell/scan
+IS_CYCLE_DONE = 3
+IS_SIZE = 4
+
+# per-sample flow record columns (besides the per-chamber ones)
+FR_REG = 0  # regulator -> reservoir [kg/s]
+FR_LINE = 1  # reservoir -> manifold, through Q_In [kg/s]
+FR_SUPPLY_LEAK = 2  # manifold -> atmosphere [kg/s]
+FR_VAC = 3  # manifold -> ejector nozzle [kg/s]
+FR_SIZE = 4
+
+# cumulative masses
+CM_REG = 0
+CM_LINE = 1
+CM_EXHAUST = 2
+CM_LEAK = 3
+CM_VAC = 4
+CM_SIZE = 5

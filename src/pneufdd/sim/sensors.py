@@ -1,0 +1,72 @@
+"""Sensor models: what the DAQ of the rig records (Table 3.2, sections 3.2.4 and 3.4.1).
+
+* Pressure: SDE1-D10, 0-10 bar(g), white noise, clipped to range, 12-bit quantised
+  over the range (NI 6025E, 0-10 V input), stored as absolute pressure [Pa].
+* Flow: SFE1-LF-F200 thermal mass-flow meter, 0-200 SLPM, first-order response,
+  measures ONE direction only (``forward`` = towards the actuator or the manifold;
+  reverse flow reads zero), saturates at full scale, noise, 12-bit; stored in kg/s via
+  the dissertation basis (1.294 kg/m^3). ``bidirectional`` is an idealised research
+  meter, not a real SFE1.
+* Position: LVDT on the DNC rod with noticeable noise (Fig. 3.6).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+from scipy.signal import lfilter
+
+from pneufdd.physics.constants import P_ATM
+from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
+from pneufdd.sim.description import Sensor
+
+__all__ = ["SENSOR_SI_UNIT", "apply_sensor"]
+
+F64 = npt.NDArray[np.float64]
+SENSOR_SI_UNIT = {"pressure": "Pa", "flow": "kg/s", "position": "m"}
+
+
+def _quantise(values: F64, low: float, high: float, bits: int) -> F64:
+    step = (high - low) / (2**bits - 1)
+    clipped = np.clip(values, low, high)
+    return np.asarray(low + np.round((clipped - low) / step) * step, dtype=np.float64)
+
+
+def apply_sensor(sensor: Sensor, truth: F64, rng: np.random.Generator, rate_hz: float) -> F64:
+    """Return what ``sensor`` records for the true signal ``truth`` (SI in, SI out).
+
+    Parameters
+    ----------
+    sensor : Sensor
+        The sensor description.
+    truth : ndarray
+        True signal: absolute pressure [Pa], signed mass flow towards the actuator or
+        manifold [kg/s], or position [m].
+    rng : numpy.random.Generator
+        Source of the noise.
+    rate_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    ndarray
+        The recorded signal in SI units [Pa], [kg/s] or [m].
+    """
+    n = truth.size
+    if sensor.kind == "pressure":
+        bar_g = (truth - P_ATM) / 1e5 + sensor.noise * rng.standard_normal(n)
+        q = _quantise(bar_g, sensor.range_low, sensor.range_high, sensor.bits)
+        return q * 1e5 + P_ATM
+    if sensor.kind == "flow":
+        slpm = np.asarray(kg_s_to_slpm(truth), dtype=np.float64)
+        if sensor.direction == "forward":
+            slpm = np.maximum(slpm, 0.0)
+        if sensor.time_constant_s > 0.0:
+            a = float(np.exp(-1.0 / (rate_hz * sensor.time_constant_s)))
+            slpm = lfilter([1.0 - a], [1.0, -a], slpm)
+        slpm = slpm + sensor.noise * rng.standard_normal(n)
+        low = sensor.range_low if sensor.direction == "forward" else -sensor.range_high
+        q = _quantise(slpm, low, sensor.range_high, sensor.bits)
+        return np.asarray(slpm_to_kg_s(q), dtype=np.float64)
+    mm = truth * 1e3 + sensor.noise * rng.standard_normal(n)
+    return _quantise(mm, sensor.range_low, sensor.range_high, sensor.bits) * 1e-3

@@ -1,0 +1,384 @@
+"""``simulate``: run the digital twin for a number of cycles and record it like the rig."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy.signal import lfilter
+
+from pneufdd import __version__
+from pneufdd.errors import InputError, PneufddError, describe
+from pneufdd.recording import Recording
+from pneufdd.sim import layout as lay
+from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
+from pneufdd.sim.description import MachineDescription
+from pneufdd.sim.kernel import SAMPLE_DT, run_cycle
+from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
+from pneufdd.sim.loading import load_machine
+from pneufdd.sim.result import SimulationResult, Stroke
+from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor
+
+__all__ = ["SIMULATOR_VERSION", "MachineStalledError", "run_simulation", "simulate"]
+
+SIMULATOR_VERSION = f"pneufdd.sim {__version__} (twin model 1)"
+ANALOG_RATE_HZ = 1000.0
+DIGITAL_RATE_HZ = 100.0
+_DIGITAL_EVERY = round(ANALOG_RATE_HZ / DIGITAL_RATE_HZ)
+
+MachineLike = str | Path | MachineDescription | dict[str, Any]
+LeaksLike = Mapping[str, Any] | Iterable[Leak] | None
+
+
+class MachineStalledError(PneufddError):
+    """The machine stopped progressing: a step waited longer than ``max_cycle_s``."""
+
+
+class _Buffers:
+    def __init__(self, n: int, nn: int, na: int, ns: int, nsw: int, nsteps: int) -> None:
+        nc = 2 * na
+        self.p = np.zeros((n, nn))
+        self.x = np.zeros((n, na))
+        self.vac = np.zeros(n)
+        self.fch = np.zeros((n, nc))
+        self.fexh = np.zeros((n, nc))
+        self.fleak = np.zeros((n, nc))
+        self.fr = np.zeros((n, lay.FR_SIZE))
+        self.cum = np.zeros((n, lay.CM_SIZE))
+        self.mass = np.zeros(n)
+        self.cmd = np.zeros((n, ns), dtype=np.uint8)
+        self.sw = np.zeros((n, nsw), dtype=np.uint8)
+        self.step = np.zeros(n, dtype=np.int64)
+        self.step_t = np.zeros(nsteps)
+        n_ev = 8 * nsteps + 8 * na
+        self.ev_act = np.zeros(n_ev, dtype=np.int64)
+        self.ev_dir = np.zeros(n_ev, dtype=np.int64)
+        self.ev_t0 = np.zeros(n_ev)
+        self.ev_t1 = np.zeros(n_ev)
+
+
+def _ou_grid(rng: np.random.Generator, start: float, std: float, tau: float, n: int) -> Any:
+    """Ornstein-Uhlenbeck drift of the house pressure on a 0.1 s grid, from ``start`` [Pa]."""
+    a = math.exp(-0.1 / tau)
+    b = std * math.sqrt(1.0 - a * a)
+    drive = np.empty(n)
+    drive[0] = start
+    drive[1:] = rng.standard_normal(n - 1) * b
+    return lfilter([1.0], [1.0, -a], drive)
+
+
+def _stall_message(machine: MachineDescription, cycle: int, step: int) -> str:
+    st = machine.steps[min(step, len(machine.steps) - 1)]
+    return (
+        f"machine {machine.name!r} stalled in cycle {cycle + 1}, step {step + 1} "
+        f"({st.name!r}) waiting for {list(st.wait) + ['not ' + w for w in st.wait_off]}; "
+        "a leak this large keeps an actuator from reaching its switch, or max_cycle_s is "
+        "too short"
+    )
+
+
+def _check_args(cycles: int, seed: int | None, max_cycle_s: float) -> None:
+    if isinstance(cycles, bool) or not isinstance(cycles, int | np.integer) or cycles < 1:
+        raise InputError(describe("cycles", cycles, "an integer >= 1"))
+    if seed is not None and (
+        isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0
+    ):
+        raise InputError(describe("seed", seed, "a non-negative integer or None"))
+    if not (math.isfinite(max_cycle_s) and max_cycle_s > 0):
+        raise InputError(describe("max_cycle_s", max_cycle_s, "> 0 [s]"))
+
+
+def run_simulation(
+    machine: MachineLike,
+    cycles: int = 1,
+    leaks: LeaksLike = None,
+    seed: int | None = 0,
+    progress: Callable[[int, int], None] | None = None,
+    keep_outputs: bool = True,
+    max_cycle_s: float = 120.0,
+    resolution: Resolution = DEFAULT_RESOLUTION,
+) -> SimulationResult:
+    """Simulate ``cycles`` machine cycles and return true states plus the recording.
+
+    Parameters
+    ----------
+    machine : str, Path, MachineDescription or dict
+        A built-in name (``"festo-dsd"``), a TOML path or a description.
+    cycles : int
+        Number of complete PLC cycles.
+    leaks : mapping or iterable of Leak, optional
+        ``{"DNC_B": 4, "supply": "30slpm"}``: location -> size (number = turns of the
+        GR-3/8B leak valve, ``"2.5mm"`` orifice diameter, ``"30slpm"`` flow at the
+        nominal supply pressure), or a list of :class:`Leak`.
+    seed : int, optional
+        Seed of the one ``numpy.random.Generator`` behind every random quantity.
+    progress : callable, optional
+        Called as ``progress(cycles_done, cycles)`` after each cycle.
+    keep_outputs : bool
+        Keep the internal states (``outputs``); False saves memory for long runs.
+    max_cycle_s : float
+        A cycle longer than this is a stalled machine [s].
+    resolution : Resolution
+        Sub-step settings of the integrator (defaults are those benchmarked).
+
+    Returns
+    -------
+    SimulationResult
+    """
+    _check_args(cycles, seed, max_cycle_s)
+    desc = load_machine(machine)
+    specs = resolve_leaks(desc, leaks)
+    plant = compile_plant(desc, specs, resolution)
+    rng = np.random.default_rng(seed)
+    state = initial_state(desc, plant)
+    plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
+    na = len(desc.actuators)
+    nn = 2 + 2 * na
+    nsteps = len(desc.steps)
+    n_buf = int(max_cycle_s / SAMPLE_DT) + 2
+    buf = _Buffers(n_buf, nn, na, plant.n_solenoids, plant.n_switches, nsteps)
+    n_ou = int(max_cycle_s / 0.1) + 4
+    ou_now = rng.normal(0.0, plant.sp[lay.SP_DRIFT_STD]) if plant.sp[lay.SP_DRIFT_STD] > 0 else 0.0
+    chunks: list[dict[str, npt.NDArray[Any]]] = []
+    step_start = np.zeros((cycles, nsteps))
+    strokes: list[Stroke] = []
+    total_sub = 0
+    for cyc in range(cycles):
+        jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], nsteps)
+        fric = np.clip(1.0 + desc.friction_scatter * rng.standard_normal(na), 0.5, 1.5)
+        tau = desc.supply.house_drift_time_s
+        ou = _ou_grid(rng, ou_now, plant.sp[lay.SP_DRIFT_STD], tau, n_ou)
+        t_start = float(state["ss"][lay.SS_TIME])
+        k_start = int(state["istate"][lay.IS_SAMPLE])
+        n, status, n_ev, nsub = run_cycle(
+            plant.sp, plant.ap, plant.vkind, plant.cp,
+            plant.act_start, plant.act_sol, plant.act_mode, plant.act_sw, plant.act_dur,
+            plant.wait_start, plant.wait_sw, plant.wait_val, plant.dwell,
+            jitter, fric, ou,
+            state["m"], state["temp"], state["x"], state["v"], state["stuck"],
+            state["spool"], state["cmd"], state["eff"], state["chg"], state["rel_sw"],
+            state["rel_t"], state["ss"], state["istate"], state["cum"],
+            buf.p, buf.x, buf.vac, buf.fch, buf.fexh, buf.fleak, buf.fr, buf.cum,
+            buf.mass, buf.cmd, buf.sw, buf.step, buf.step_t,
+            buf.ev_act, buf.ev_dir, buf.ev_t0, buf.ev_t1, state["mv_t0"], state["mv_dir"],
+        )  # fmt: skip
+        total_sub += nsub
+        if status != 0:
+            raise MachineStalledError(_stall_message(desc, cyc, int(state["istate"][lay.IS_STEP])))
+        elapsed = float(state["ss"][lay.SS_TIME]) - t_start
+        ou_now = float(np.interp(elapsed / 0.1, np.arange(n_ou), ou))
+        step_start[cyc] = buf.step_t
+        for e in range(n_ev):
+            strokes.append(
+                Stroke(
+                    desc.actuators[int(buf.ev_act[e])].id,
+                    int(buf.ev_dir[e]),
+                    float(buf.ev_t0[e]),
+                    float(buf.ev_t1[e]),
+                    int(np.searchsorted(step_start[: cyc + 1, 0], buf.ev_t0[e], "right")) - 1,
+                )
+            )
+        chunks.append(_take(desc, buf, n, k_start, keep_outputs))
+        if progress is not None:
+            progress(cyc + 1, cycles)
+    return _assemble(desc, plant, specs, chunks, step_start, strokes, rng, seed, cycles, total_sub)
+
+
+def _take(
+    desc: MachineDescription, buf: _Buffers, n: int, k0: int, keep: bool
+) -> dict[str, npt.NDArray[Any]]:
+    """Copy what one cycle produced out of the reusable buffers.
+
+    Only the sensors' true signals and the digital samples are kept unless ``keep``
+    asks for every internal state (memory grows with cycles x samples x states).
+    """
+    p, x, fch, fexh, fr = buf.p[:n], buf.x[:n], buf.fch[:n], buf.fexh[:n], buf.fr[:n]
+    chunk: dict[str, npt.NDArray[Any]] = {}
+    for sensor in desc.sensors:
+        chunk["truth:" + sensor.channel] = _truth_for(
+            desc, sensor.kind, sensor.location, p, x, fch, fexh, fr
+        ).copy()
+    first = (-k0) % _DIGITAL_EVERY  # digital samples fall on every 10th global sample
+    chunk["cmd"] = buf.cmd[first:n:_DIGITAL_EVERY].copy()
+    chunk["sw"] = buf.sw[first:n:_DIGITAL_EVERY].copy()
+    if keep:
+        for k in ("p", "x", "fch", "fexh", "fr", "vac", "fleak", "cum", "mass", "step"):
+            chunk[k] = getattr(buf, k)[:n].copy()
+    return chunk
+
+
+def _cat(chunks: list[dict[str, npt.NDArray[Any]]], key: str) -> npt.NDArray[Any]:
+    if len(chunks) == 1:
+        return chunks[0][key]
+    return np.concatenate([c[key] for c in chunks], axis=0)
+
+
+def _truth_for(
+    desc: MachineDescription, kind: str, location: str, p: Any, x: Any, fch: Any, fexh: Any, fr: Any
+) -> npt.NDArray[np.float64]:
+    ids = desc.actuator_ids
+    if kind == "position":
+        return np.asarray(x[:, ids.index(location)], dtype=np.float64)
+    if location == "supply":
+        if kind == "pressure":
+            return np.asarray(p[:, 1], dtype=np.float64)
+        return np.asarray(fr[:, lay.FR_LINE], dtype=np.float64)
+    act, side = location.rsplit("_", 1)
+    c = 2 * ids.index(act) + (0 if side == "A" else 1)
+    if kind == "pressure":
+        return np.asarray(p[:, 2 + c], dtype=np.float64)
+    return np.asarray(fch[:, c] - fexh[:, c], dtype=np.float64)
+
+
+def _assemble(
+    desc: MachineDescription,
+    plant: Plant,
+    specs: list[LeakSpec],
+    chunks: list[dict[str, npt.NDArray[Any]]],
+    step_start: npt.NDArray[np.float64],
+    strokes: list[Stroke],
+    rng: np.random.Generator,
+    seed: int | None,
+    cycles: int,
+    total_sub: int,
+) -> SimulationResult:
+    n = sum(c["truth:" + desc.sensors[0].channel].size for c in chunks) if desc.sensors else 0
+    if not desc.sensors:
+        n = sum(c["cmd"].shape[0] for c in chunks) * _DIGITAL_EVERY
+    time = np.arange(n, dtype=np.float64) * SAMPLE_DT
+    analog: dict[str, npt.NDArray[np.float64]] = {}
+    units: dict[str, str] = {}
+    for sensor in desc.sensors:
+        truth = _cat(chunks, "truth:" + sensor.channel)
+        analog[sensor.channel] = apply_sensor(sensor, truth, rng, ANALOG_RATE_HZ)
+        units[sensor.channel] = SENSOR_SI_UNIT[sensor.kind]
+    cmd = _cat(chunks, "cmd")
+    sw = _cat(chunks, "sw")
+    digital: dict[str, npt.NDArray[np.uint8]] = {}
+    for j, name in enumerate(desc.solenoids):
+        digital[name] = cmd[:, j]
+    for j, name in enumerate(desc.switches):
+        digital[name] = sw[:, j]
+    metadata = {
+        "machine": {"name": desc.name, "title": desc.title, "description": desc.raw},
+        "leaks": [s.as_metadata() for s in specs],
+        "seed": seed,
+        "cycles": cycles,
+        "simulator": SIMULATOR_VERSION,
+        "cycle_start_s": [float(t) for t in step_start[:, 0]],
+        "step_names": [s.name for s in desc.steps],
+    }
+    recording = Recording.from_arrays(
+        analog=analog,
+        analog_rate_hz=ANALOG_RATE_HZ,
+        digital=digital,
+        digital_rate_hz=DIGITAL_RATE_HZ,
+        units=units,
+        metadata=metadata,
+    )
+    outputs: dict[str, npt.NDArray[Any]] = {}
+    if "cum" in chunks[0]:
+        p, x, fch, fexh, fr = (_cat(chunks, k) for k in ("p", "x", "fch", "fexh", "fr"))
+        outputs = _outputs(desc, chunks, p, x, fch, fexh, fr)
+        outputs["step_start"] = step_start
+        for a in desc.actuators:
+            mine = [s for s in strokes if s.actuator == a.id]
+            outputs[f"stroke_start_{a.id}"] = np.array([s.start for s in mine])
+            outputs[f"stroke_end_{a.id}"] = np.array([s.end for s in mine])
+            outputs[f"stroke_direction_{a.id}"] = np.array([s.direction for s in mine])
+    return SimulationResult(
+        time=time,
+        outputs=outputs,
+        step_start=step_start,
+        strokes=strokes,
+        recording=recording,
+        machine=desc,
+        leaks=specs,
+        substeps=total_sub,
+    )
+
+
+def _outputs(
+    desc: MachineDescription,
+    chunks: list[dict[str, npt.NDArray[Any]]],
+    p: Any,
+    x: Any,
+    fch: Any,
+    fexh: Any,
+    fr: Any,
+) -> dict[str, npt.NDArray[Any]]:
+    out: dict[str, npt.NDArray[Any]] = {
+        "p_reservoir": p[:, 0],
+        "p_manifold": p[:, 1],
+    }
+    fleak = _cat(chunks, "fleak")
+    for i, a in enumerate(desc.actuators):
+        out[f"x_{a.id}"] = x[:, i]
+        for s, side in enumerate("AB"):
+            c = 2 * i + s
+            out[f"p_{a.id}_{side}"] = p[:, 2 + c]
+            out[f"mdot_in_{a.id}_{side}"] = fch[:, c]
+            out[f"mdot_exhaust_{a.id}_{side}"] = fexh[:, c]
+            out[f"mdot_leak_{a.id}_{side}"] = fleak[:, c]
+    out["mdot_leak_supply"] = fr[:, lay.FR_SUPPLY_LEAK]
+    out["mdot_supply_line"] = fr[:, lay.FR_LINE]
+    out["mdot_regulator"] = fr[:, lay.FR_REG]
+    out["mdot_vacuum"] = fr[:, lay.FR_VAC]
+    out["stored_mass"] = _cat(chunks, "mass")
+    cum = _cat(chunks, "cum")
+    out["mass_regulator"] = cum[:, lay.CM_REG]
+    out["mass_supplied"] = cum[:, lay.CM_LINE]
+    out["mass_exhausted"] = cum[:, lay.CM_EXHAUST]
+    out["mass_leaked"] = cum[:, lay.CM_LEAK]
+    out["mass_vacuum"] = cum[:, lay.CM_VAC]
+    out["vacuum_level"] = _cat(chunks, "vac")
+    out["step"] = _cat(chunks, "step")
+    return out
+
+
+def simulate(
+    machine: MachineLike,
+    cycles: int = 1,
+    leaks: LeaksLike = None,
+    seed: int | None = 0,
+    progress: Callable[[int, int], None] | None = None,
+    max_cycle_s: float = 120.0,
+) -> Recording:
+    """Simulate the machine and return what its sensors and PLC I/O record.
+
+    Parameters
+    ----------
+    machine : str, Path, MachineDescription or dict
+        A built-in name (``"festo-dsd"``), a TOML path or a description.
+    cycles : int
+        Number of complete PLC cycles.
+    leaks : mapping or iterable of Leak, optional
+        Location -> size; a number is turns of the GR-3/8B valve, ``"2.5mm"`` an
+        orifice diameter, ``"30slpm"`` the flow at the nominal supply pressure.
+    seed : int, optional
+        Seed; the same seed gives identical output.
+    progress : callable, optional
+        ``progress(cycles_done, cycles)`` after each cycle.
+    max_cycle_s : float
+        A cycle longer than this is a stalled machine [s].
+
+    Returns
+    -------
+    Recording
+        Analog channels at 1 kHz (SI: Pa absolute, kg/s, m), digital ``U_*``/``S_*`` at
+        100 Hz; metadata holds the machine, the leaks (ground truth), seed, cycles and
+        the simulator version.
+
+    Examples
+    --------
+    >>> rec = simulate("festo-dsd", cycles=1, leaks={"supply": 2}, seed=1)
+    >>> rec.metadata["leaks"][0]["location"], rec.metadata["seed"]
+    ('supply', 1)
+    """
+    return run_simulation(
+        machine, cycles, leaks, seed, progress, keep_outputs=False, max_cycle_s=max_cycle_s
+    ).recording

@@ -1,0 +1,45 @@
+"""The compiled integrator against scipy's BDF on the same equations (oracle test)."""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from pneufdd.sim import parse_description, run_simulation
+from pneufdd.sim.compile import compile_plant, initial_state
+from pneufdd.sim.rhs import plant_derivatives, solve_segment
+
+
+def _segment() -> object:
+    raw = tomllib.loads(
+        (resources.files("pneufdd.sim") / "machines" / "festo-dsd.toml").read_text("utf-8")
+    )
+    raw["machine"].update(friction_scatter=0.0, scan_time_s=0.0)
+    raw["supply"].update(house_drift_psi=0.0, compressor_band_psi=0.0)
+    raw["actuator"][0]["initial"] = "retracted"
+    raw["step"] = [{"do": [{"set": "U_DNC_A", "until": "S_DNC_B"}], "dwell_s": 0.1}]
+    return parse_description(raw, "segment")
+
+
+def test_dnc_extension_matches_bdf() -> None:
+    desc = _segment()
+    res = run_simulation(desc, cycles=1, seed=0)
+    t_compiled = res.strokes_of("DNC", +1)[0].end - 0.020  # valve on-delay
+    plant = compile_plant(desc, [])  # type: ignore[arg-type]
+    st = initial_state(desc, plant)  # type: ignore[arg-type]
+    na = plant.ap.shape[0]
+    conn = np.zeros(2 * na, dtype=np.int64)
+    for i in range(na):
+        spool = 1 if i == 0 else int(st["spool"][i])
+        conn[2 * i : 2 * i + 2] = (1, 2) if spool == 1 else ((2, 1) if spool == -1 else (0, 0))
+    y0 = np.concatenate([st["m"], st["temp"], st["x"], st["v"]])
+    # at rest and in equilibrium, nothing but the DNC changes
+    dy = plant_derivatives(y0, plant.sp, plant.ap, plant.cp, conn, plant.sp[5], np.ones(na))
+    nn = 2 + 2 * na
+    assert np.all(np.abs(dy[nn + 4 : 2 * nn]) < 1e-6)
+    assert dy[2] > 0.0  # chamber A of the DNC fills
+    sol = solve_segment(plant, y0, conn, 0, 1.0, method="BDF", rtol=1e-5)
+    assert sol.t_end == pytest.approx(t_compiled, rel=0.02)

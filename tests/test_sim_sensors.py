@@ -1,0 +1,38 @@
+"""Property tests of the sensor models (Table 3.2, section 3.4.1)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from pneufdd.physics.units import kg_s_to_slpm
+from pneufdd.sim.description import Sensor
+from pneufdd.sim.sensors import apply_sensor
+
+FLOW = Sensor("Q", "flow", "supply", 0.0, 200.0, 0.4, 12, 0.015, "forward")
+PRESSURE = Sensor("P", "pressure", "supply", 0.0, 10.0, 0.006, 12, 0.0, "forward")
+
+flows = arrays(np.float64, st.integers(1, 300), elements=st.floats(-0.01, 0.01))
+pressures = arrays(np.float64, st.integers(1, 300), elements=st.floats(5e4, 1.5e6))
+
+
+@given(flows, st.integers(0, 2**32 - 1))
+def test_forward_meter_reads_in_range_on_its_grid(truth: np.ndarray, seed: int) -> None:
+    out = kg_s_to_slpm(apply_sensor(FLOW, truth, np.random.default_rng(seed), 1000.0))
+    assert np.all(out >= 0.0)
+    assert np.all(out <= 200.0 + 1e-9)
+    codes = out / (200.0 / 4095)
+    np.testing.assert_allclose(codes, np.round(codes), atol=1e-6)
+
+
+@given(pressures, st.integers(0, 2**32 - 1))
+def test_pressure_sensor_clips_to_0_10_bar_gauge(truth: np.ndarray, seed: int) -> None:
+    out = apply_sensor(PRESSURE, truth, np.random.default_rng(seed), 1000.0)
+    gauge = (out - 101_325.0) / 1e5
+    assert np.all(gauge >= -1e-9)
+    assert np.all(gauge <= 10.0 + 1e-9)
+    inside = ((truth - 101_325.0) / 1e5 > 0.1) & ((truth - 101_325.0) / 1e5 < 9.9)
+    # noise 0.006 bar + half a 2.44 mbar step: 8 sigma bound
+    assert np.all(np.abs(gauge[inside] - (truth[inside] - 101_325.0) / 1e5) < 0.05)
