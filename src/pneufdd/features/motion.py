@@ -5,7 +5,7 @@ With an LVDT (``X_<ACT>``), times come from the zero-phase filtered displacement
 
 * motion start (breakaway): the start-up of the acceleration that section 3.3
   judges by eye, found by fitting "at rest until t0, then ``a (t - t0)^2 + b (t -
-  t0)^3``" to the raw displacement over the first 40 % of the travel (least squares,
+  t0)^3``" to the raw displacement over the first 35 % of the travel (least squares,
   t0 on the sample grid); a speed threshold (the last sample before the peak below
   ``start_fraction`` = 5 % of the peak speed) is the fallback and an upper bound;
 * arrival: the first sample after the peak within ``end_tolerance`` (0.5 %) of the
@@ -113,18 +113,18 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
 def _breakaway(
     progress: npt.NDArray[np.float64], fs: float, latest: int, span_s: float = 0.1
 ) -> float | None:
-    """Breakaway time [s from the window start] from the first 40 % of the travel.
+    """Breakaway time [s from the window start] from the first 35 % of the travel.
 
     A piston starting from rest travels ``a (t - t0)^2 + b (t - t0)^3`` (the
     acceleration builds up as the chamber fills) and is at rest before ``t0``. For
     every candidate ``t0`` on the sample grid within ``span_s`` before ``latest``
     (the speed-threshold start, an upper bound) the linear least-squares fit of
     ``(a, b)`` to the raw progress is computed; the ``t0`` of the smallest residual
-    is the breakaway. Using every sample up to 40 % of the travel, not a threshold,
+    is the breakaway. Using every sample up to 35 % of the travel, not a threshold,
     averages the LVDT noise out. None when fewer than 8 samples are available.
     """
     finite = np.isfinite(progress)
-    above = np.flatnonzero(finite & (progress >= 0.4))
+    above = np.flatnonzero(finite & (progress >= 0.35))
     if above.size == 0 or above[0] < 8:
         return None
     first = max(min(latest, int(above[0]) - 1) - round(span_s * fs), 0)
