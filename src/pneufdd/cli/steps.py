@@ -1,0 +1,89 @@
+"""``pneufdd steps RUN.parquet``: the cycles and steps found in a recording."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from pneufdd.recording.model import Recording
+from pneufdd.signals.segmentation import Segmentation, actuator_of, segment
+
+__all__ = ["register", "render_steps", "steps"]
+
+
+def render_steps(
+    recording: Recording,
+    as_json: bool = False,
+    all_steps: bool = False,
+    console: Console | None = None,
+) -> Segmentation:
+    """Segment ``recording`` and print the result (rich tables, or JSON when ``as_json``).
+
+    JSON: ``{"cycles": [{"index", "complete", "steps": [{"index", "start_s",
+    "duration_s", "actuators"}]}], "rejected": [{"index", "start_s", "steps_found",
+    "reason"}]}``.
+    """
+    seg = segment(recording)
+    if as_json:
+        typer.echo(json.dumps(seg.to_dict()))
+        return seg
+    out = console or Console()
+    good = seg.complete
+    seq = Table(title=f"Sequence: {len(seg.sequence)} steps ({seg.source})")
+    for col in ("step", "actuators", "median duration [s]", "min [s]", "max [s]"):
+        seq.add_column(col)
+    durations = np.array([[s.duration_s for s in c.steps] for c in good]) if good else None
+    for j, spec in enumerate(seg.sequence):
+        acts = ", ".join(sorted({actuator_of(v) for v in spec.valves}))
+        if durations is not None:
+            d = durations[:, j]
+            seq.add_row(str(j + 1), acts, f"{np.median(d):.3f}", f"{d.min():.3f}", f"{d.max():.3f}")
+        else:
+            seq.add_row(str(j + 1), acts, "-", "-", "-")
+    out.print(seq)
+    cyc = Table(title=f"Cycles: {len(good)} complete, {len(seg.rejected)} rejected")
+    for col in ("cycle", "start [s]", "duration [s]", "steps", "complete", "reason"):
+        cyc.add_column(col)
+    for c in seg.cycles:
+        cyc.add_row(
+            str(c.index),
+            f"{c.start_s:.3f}",
+            f"{c.end_s - c.start_s:.3f}",
+            str(len(c.steps)),
+            "yes" if c.complete else "[red]no[/]",
+            c.reason or "",
+        )
+    out.print(cyc)
+    if all_steps:
+        for c in seg.cycles:
+            t = Table(title=f"Cycle {c.index}")
+            for col in ("step", "start [s]", "duration [s]", "actuators"):
+                t.add_column(col)
+            for s in c.steps:
+                t.add_row(
+                    str(s.index), f"{s.start_s:.3f}", f"{s.duration_s:.3f}", ", ".join(s.actuators)
+                )
+            out.print(t)
+    return seg
+
+
+def steps(
+    run: Annotated[Path, typer.Argument(help="Recording to segment (.parquet).")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
+    all_steps: Annotated[
+        bool, typer.Option("--all-steps", help="List every step of every cycle.")
+    ] = False,
+) -> None:
+    """Show the cycles and steps found in RUN, and the cycles rejected with their reason."""
+    render_steps(Recording.read(run), as_json=as_json, all_steps=all_steps)
+
+
+def register(app: typer.Typer) -> None:
+    """Attach the ``steps`` command to ``app``."""
+    app.command("steps")(steps)

@@ -1,0 +1,56 @@
+"""Debouncing and edge detection of digital channels."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from pneufdd.errors import InputError
+from pneufdd.signals.digital import debounce, edges
+
+
+def _runs(x: np.ndarray) -> np.ndarray:
+    starts = np.flatnonzero(np.r_[True, x[1:] != x[:-1]])
+    return np.diff(np.r_[starts, x.size])
+
+
+@given(st.lists(st.integers(0, 1), min_size=1, max_size=300), st.integers(1, 5))
+def test_debounced_runs_last_at_least_the_dwell(bits: list[int], n: int) -> None:
+    fs = 100.0
+    y = debounce(bits, fs, n / fs)
+    runs = _runs(y)
+    # Every run after the first lasts at least the dwell, except a final run cut
+    # by the end of the data.
+    assert np.all(runs[1:-1] >= n)
+    assert y.size == len(bits)
+    # Debouncing is idempotent.
+    assert np.array_equal(debounce(y, fs, n / fs), y)
+
+
+def test_chatter_at_switch_arrival_is_removed() -> None:
+    clean = np.r_[np.zeros(20), np.ones(30), np.zeros(20)].astype(np.uint8)
+    noisy = clean.copy()
+    noisy[20:24] = [1, 0, 1, 0]  # reed bounce on arrival, one sample each
+    noisy[50:53] = [1, 0, 1]  # and on release
+    y = debounce(noisy, 100.0, 0.025)
+    e = edges(y)
+    # The transitions are dated at the first contact / first release.
+    assert e.rising.tolist() == [20]
+    assert e.falling.tolist() == [51]
+
+
+def test_zero_dwell_is_identity_and_bad_arguments_raise() -> None:
+    x = np.array([0, 1, 0, 1], dtype=np.uint8)
+    assert np.array_equal(debounce(x, 100.0, 0.0), x)
+    with pytest.raises(InputError, match="min_dwell_s"):
+        debounce(x, 100.0, -1.0)
+    with pytest.raises(InputError, match="fs"):
+        debounce(x, 0.0, 0.01)
+
+
+def test_edges_of_constant_signal_are_empty() -> None:
+    e = edges(np.ones(10, dtype=np.uint8))
+    assert e.rising.size == 0
+    assert e.falling.size == 0
