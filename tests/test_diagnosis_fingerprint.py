@@ -17,8 +17,8 @@ def _linear_set(matrix: np.ndarray) -> SignatureSet:
     n_loc, n_feat = matrix.shape
     return SignatureSet(
         tuple(f"L{i}" for i in range(n_loc)),
-        np.ones((n_loc, 1)),
-        matrix[:, None, :],
+        np.full((n_loc, 1), 10.0),  # linear: one simulated size well above the tests'
+        10.0 * matrix[:, None, :],
         tuple(f"f{j}" for j in range(n_feat)),
         np.full(n_loc, 6e5),
     )
@@ -78,9 +78,9 @@ def test_distinct_signatures_are_not_grouped():
 
 def test_nonlinear_signatures_are_refined_to_the_right_size():
     sig = synth_signatures()
-    # inside the simulated sizes (2e-4 ... 1.5e-3 kg/s): 2 %; extrapolated by 2/3: 10 %
+    # inside the simulated sizes (2e-4 ... 1.5e-3 kg/s): 2 %; extrapolated by 1/6: 5 %
     cases = [("supply", 4.2e-4, 0.02), ("X_B", 1.1e-3, 0.02), ("Y_A", 1.4e-3, 0.02)]
-    cases.append(("X_A", 2.5e-3, 0.10))
+    cases.append(("X_A", 1.75e-3, 0.05))
     for loc, size, tol in cases:
         i = sig.locations.index(loc)
         # the true effect of the synthetic machine at this size (not the signature's
@@ -91,6 +91,16 @@ def test_nonlinear_signatures_are_refined_to_the_right_size():
         (leak,) = locate(observed, sig, lambda d, s=scale: np.atleast_2d(d) / s).leaks
         assert leak.location == loc
         assert leak.mass_flow == pytest.approx(size, rel=tol)
+
+
+def test_sizes_beyond_the_ladder_are_capped():
+    sig = synth_signatures()  # largest simulated size 1.5e-3 kg/s
+    observed = synth_signatures(sizes=(4e-3,)).deltas[1, 0]
+    (leak,) = locate(
+        observed, sig, lambda d: np.atleast_2d(d) * 1e3, max_leaks=1, max_extrapolation=1.25
+    ).leaks
+    assert leak.location == "X_A"
+    assert leak.mass_flow == pytest.approx(1.25 * 1.5e-3)
 
 
 def test_locate_rejects_wrong_shape():

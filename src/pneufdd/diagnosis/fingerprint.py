@@ -115,7 +115,13 @@ class _PiecewiseModel:
     ``S``; all subsets and segment combinations are solved at once, vectorised.
     """
 
-    def __init__(self, signatures: SignatureSet, whiten: Whitener, target: FloatArray):
+    def __init__(
+        self,
+        signatures: SignatureSet,
+        whiten: Whitener,
+        target: FloatArray,
+        max_extrapolation: float = np.inf,
+    ):
         n_loc, n_seg = signatures.sizes.shape
         knots = np.concatenate([np.zeros((n_loc, 1)), signatures.sizes], axis=1)
         values = np.stack(
@@ -130,7 +136,7 @@ class _PiecewiseModel:
         self.target = target
         self.lo = knots[:, :-1]
         self.hi = knots[:, 1:].copy()
-        self.hi[:, -1] = np.inf
+        self.hi[:, -1] = knots[:, -1] * max_extrapolation
         Vf, Sf = V.reshape(-1, target.size), S.reshape(-1, target.size)
         shape = (n_loc, n_seg)
         yy = float(target @ target)
@@ -313,7 +319,8 @@ def locate(
     group_ratio: float = 0.05,
     collinear_cos: float = 0.995,
     min_flow: float = 4.3e-5,
-    relative_tolerance: float = 0.25,
+    relative_tolerance: float = 0.5,
+    max_extrapolation: float = 1.25,
 ) -> Localisation:
     """Decompose an observed feature change into non-negative leak contributions.
 
@@ -344,6 +351,10 @@ def locate(
         times the best join the group: the fit barely changes when they are swapped
         in, which matters when the residual is dominated by model error (effects of
         simultaneous leaks are only approximately additive) rather than noise [-].
+    max_extrapolation : float
+        Largest size considered, as a multiple of the largest simulated size: beyond
+        the ladder the effects are extrapolated linearly, and an unbounded
+        extrapolation lets one huge leak absorb a second, real one [-].
     min_flow : float
         Smallest leak reported; a model needing a smaller leak is not considered
         (2 SLPM by default, below the leak valve's first turn) [kg/s].
@@ -356,8 +367,8 @@ def locate(
     Examples
     --------
     >>> names = ("f1", "f2", "f3")
-    >>> sig = SignatureSet(("supply", "X_A"), np.array([[1.0], [1.0]]),
-    ...     np.array([[[1.0, 1.0, 1.0]], [[0.0, 2.0, 0.0]]]), names, np.array([6e5, 6e5]))
+    >>> sig = SignatureSet(("supply", "X_A"), np.array([[4.0], [4.0]]),
+    ...     np.array([[[4.0, 4.0, 4.0]], [[0.0, 8.0, 0.0]]]), names, np.array([6e5, 6e5]))
     >>> result = locate(np.array([3.0, 7.0, 3.0]), sig, lambda d: np.atleast_2d(d) * 100.0)
     >>> [(leak.location, round(leak.mass_flow, 6)) for leak in result.leaks]
     [('supply', 3.0), ('X_A', 2.0)]
@@ -375,7 +386,7 @@ def locate(
         raise InputError(describe("max_leaks", max_leaks, "1 or 2"))
     target = whiten(obs)[0]
     n_loc = len(signatures.locations)
-    model = _PiecewiseModel(signatures, whiten, target)
+    model = _PiecewiseModel(signatures, whiten, target, max_extrapolation)
 
     def column(loc: int, size: float) -> FloatArray:
         return model.column(loc, size)
