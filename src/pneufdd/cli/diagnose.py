@@ -1,0 +1,122 @@
+"""``pneufdd diagnose``: detect, locate, size and cost leaks in a run.
+
+Exit codes (see :mod:`pneufdd.cli.exit_codes`): 0 no leak, 1 leak found, 2 bad input
+(another machine, missing channels, an invalid reference...). Output files are
+rendered completely before anything is written, then written atomically, so an
+error never leaves a partial file behind.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import Progress
+from rich.table import Table
+
+from pneufdd.cli.exit_codes import ExitCode
+from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.engine import Diagnosis
+from pneufdd.diagnosis.pipeline import diagnose_recording
+from pneufdd.diagnosis.pnref import load_reference
+from pneufdd.report.html import render_report, write_text_atomic
+
+__all__ = ["LeakFound", "leak_table", "register"]
+
+
+class LeakFound(Exception):  # noqa: N818 - an outcome, not an error
+    """Raised to end ``diagnose`` with exit code 1 (a leak was found).
+
+    ``pneufdd.cli.app.main`` maps any exception carrying ``exit_code`` to that code
+    (the path click's own usage errors take); ``typer.Exit`` cannot be used because
+    click swallows it in non-standalone mode.
+    """
+
+    exit_code = int(ExitCode.LEAK_FOUND)
+
+    def show(self) -> None:
+        """Nothing to print: the result is already on the console."""
+
+
+def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first") -> Table:
+    """A rich table of the diagnosis' leaks."""
+    table = Table(title=title)
+    for name in (
+        "#",
+        "location",
+        "ambiguity group",
+        "flow [SLPM]",
+        "orifice [mm]",
+        "cost [$/yr]",
+        "confidence",
+    ):
+        table.add_column(
+            name, justify="left" if name in ("location", "ambiguity group") else "right"
+        )
+    for i, leak in enumerate(result.leaks, start=1):
+        table.add_row(
+            str(i),
+            leak.location,
+            ", ".join(leak.ambiguity_group),
+            f"{leak.flow_slpm:.1f}",
+            f"{leak.orifice_mm:.2f}",
+            f"{leak.annual_cost:,.0f}",
+            f"{100 * leak.confidence:.0f} %",
+        )
+    table.add_section()
+    table.add_row("", "total", "", "", "", f"{result.total_annual_cost:,.0f}", "")
+    return table
+
+
+def diagnose(
+    run: Annotated[Path, typer.Argument(help="Recording to diagnose (.parquet).")],
+    reference: Annotated[Path, typer.Option("--reference", help="Reference file (.pnref).")],
+    json_out: Annotated[
+        Path | None, typer.Option("--json", help="Write the result as JSON.")
+    ] = None,
+    report: Annotated[Path | None, typer.Option("--report", help="Write an HTML report.")] = None,
+    hours: Annotated[float, typer.Option(help="Operating hours per year (eq. 1.1).")] = 7000.0,
+    price: Annotated[float, typer.Option(help="Electricity price [$/kWh] (eq. 1.1).")] = 0.05,
+    kw_per_100cfm: Annotated[
+        float, typer.Option("--kw-per-100cfm", help="Compressor kW per 100 cfm (eq. 1.1).")
+    ] = 18.0,
+    max_leaks: Annotated[int, typer.Option(help="Most simultaneous leaks considered.")] = 2,
+) -> None:
+    """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
+    console = Console()
+    settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
+    model = load_reference(reference)
+    with Progress(console=Console(stderr=True), transient=True) as progress:
+        table, result = diagnose_recording(
+            model, run, settings, max_leaks=max_leaks, progress=progress
+        )
+    # render everything first, write afterwards: no partial output on error
+    outputs: list[tuple[Path, str]] = []
+    if json_out is not None:
+        data = result.to_dict()
+        data.update({"run": str(run), "reference": str(reference), "machine": model.machine})
+        outputs.append((json_out, json.dumps(data, indent=2, allow_nan=False) + "\n"))
+    if report is not None:
+        outputs.append((report, render_report(model, table, result, run_name=str(run))))
+    for path, text in outputs:
+        write_text_atomic(path, text)
+    verdict = "[bold red]leak detected[/]" if result.detected else "[bold green]no leak[/]"
+    console.print(
+        f"{run}: {verdict} ({result.cycles_analyzed} cycles; run statistic "
+        f"{result.run_score:.3g} vs threshold {result.run_threshold:.3g})",
+        highlight=False,
+    )
+    if result.leaks:
+        console.print(leak_table(result))
+    for note in result.notes:
+        console.print(f"note: {note}", highlight=False)
+    if result.detected:
+        raise LeakFound(f"{run}: leak detected")
+
+
+def register(app: typer.Typer) -> None:
+    """Attach the ``diagnose`` command to ``app``."""
+    app.command("diagnose")(diagnose)

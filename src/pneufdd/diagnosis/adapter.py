@@ -1,0 +1,227 @@
+"""Thin adapter: a :class:`~pneufdd.recording.Recording` -> a :class:`StepTable`.
+
+Segmentation into cycles and steps comes from :mod:`pneufdd.signals` (steps start at
+their valve firing, section 5.3.1.1); this module only slices each analog channel
+per step (mean, min, max over ``[start, end)``) and gathers step-aligned traces at a
+lower rate for the band method (block means, each step from its own start, NaN past
+the step's end).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.diagnosis.steps import StepTable
+from pneufdd.errors import InputError, describe
+from pneufdd.recording.model import Recording
+from pneufdd.signals.filtering import fill_gaps
+from pneufdd.signals.segmentation import (
+    Cycle,
+    StepSpec,
+    learn_sequence,
+    segment,
+    sequence_from_machine,
+    sequence_from_metadata,
+)
+from pneufdd.signals.synchronisation import sample_bounds
+
+__all__ = [
+    "machine_name",
+    "machine_sequence",
+    "segment_cycles",
+    "sequence_from_records",
+    "sequence_to_records",
+    "step_table",
+    "trace_offsets",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+def machine_name(recording: Recording, where: str = "recording") -> str:
+    """The machine named in a recording's metadata (``machine``: a name or a description)."""
+    machine = recording.metadata.get("machine")
+    if isinstance(machine, Mapping):
+        machine = machine.get("name")
+    if not isinstance(machine, str) or not machine:
+        raise InputError(describe(f"metadata 'machine' of {where}", machine, "the machine's name"))
+    return machine
+
+
+def machine_sequence(recording: Recording, machine: str) -> tuple[StepSpec, ...] | None:
+    """The PLC sequence from the machine description, when there is one.
+
+    The description stored in the recording's metadata first, else the simulator's
+    built-in machine of that name; None when neither exists (then the sequence is
+    learned). The description's sequence awaits exactly the switches the PLC waits
+    for, which a slow, leaky actuator still reaches inside its step.
+    """
+    sequence = sequence_from_metadata(recording.metadata)
+    if sequence is not None:
+        return sequence
+    from pneufdd.sim import load_machine
+
+    try:
+        return sequence_from_machine(load_machine(machine))
+    except InputError:
+        return None
+
+
+def sequence_to_records(sequence: Sequence[StepSpec]) -> list[dict[str, Any]]:
+    """JSON-compatible form of a PLC sequence (stored in the reference)."""
+    return [
+        {
+            "valves": sorted(spec.valves),
+            "switches": [[name, int(state)] for name, state in sorted(spec.switches)],
+        }
+        for spec in sequence
+    ]
+
+
+def sequence_from_records(records: Sequence[Mapping[str, Any]]) -> tuple[StepSpec, ...]:
+    """Inverse of :func:`sequence_to_records`."""
+    return tuple(
+        StepSpec(
+            frozenset(str(v) for v in rec["valves"]),
+            frozenset((str(name), int(state)) for name, state in rec.get("switches", [])),
+        )
+        for rec in records
+    )
+
+
+def segment_cycles(
+    recording: Recording, sequence: Sequence[StepSpec] | None = None, where: str = "recording"
+) -> tuple[list[Cycle], tuple[StepSpec, ...], list[str]]:
+    """Complete cycles of ``recording``, the sequence used, and why others were skipped.
+
+    Raises
+    ------
+    InputError
+        If the recording holds no complete cycle.
+    """
+    specs = tuple(sequence) if sequence else learn_sequence(recording)
+    seg = segment(recording, specs)
+    cycles = list(seg.complete)
+    reasons = [f"cycle {c.index}: {c.reason}" for c in seg.rejected]
+    if not cycles:
+        raise InputError(
+            describe(
+                f"complete machine cycles in {where}",
+                0,
+                "at least one (rejected: " + "; ".join(reasons[:3]) + ")",
+            )
+        )
+    return cycles, tuple(seg.sequence), reasons
+
+
+def trace_offsets(cycles: Sequence[Cycle], rate_hz: float) -> IntArray:
+    """Template offsets: each step gets its median length over ``cycles`` [samples]."""
+    start, end = sample_bounds(cycles, rate_hz)
+    lengths = np.maximum(np.round(np.median(end - start, axis=0)).astype(np.int64), 1)
+    return np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+
+
+def _summaries(values: FloatArray, start: IntArray, end: IntArray) -> FloatArray:
+    n = values.size
+    s = np.clip(start, 0, n - 1)
+    e = np.clip(np.maximum(end, start + 1), 1, n)
+    e = np.maximum(e, s + 1)
+    csum = np.concatenate([[0.0], np.cumsum(values)])
+    mean = (csum[e] - csum[s]) / (e - s)
+    bounds = np.stack([s.ravel(), e.ravel()], axis=1).ravel()
+    order_ok = np.all(np.diff(bounds) >= 0)
+    if order_ok and bounds[-1] <= n:
+        idx = bounds.copy()
+        idx[idx >= n] = n - 1
+        lo = np.minimum.reduceat(values, idx)[0::2].reshape(start.shape)
+        hi = np.maximum.reduceat(values, idx)[0::2].reshape(start.shape)
+    else:  # overlapping windows (never for a valid segmentation): slow path
+        lo = np.array([values[a:b].min() for a, b in zip(s.ravel(), e.ravel(), strict=True)])
+        hi = np.array([values[a:b].max() for a, b in zip(s.ravel(), e.ravel(), strict=True)])
+        lo, hi = lo.reshape(start.shape), hi.reshape(start.shape)
+    return np.stack([mean, lo, hi], axis=-1)
+
+
+def _traces(
+    values: FloatArray,
+    rate: float,
+    t0: float,
+    cycles: Sequence[Cycle],
+    offsets: IntArray,
+    trace_rate: float,
+) -> FloatArray:
+    dec = max(round(rate / trace_rate), 1)
+    n_blocks = values.size // dec
+    blocks = values[: n_blocks * dec].reshape(n_blocks, dec).mean(axis=1)
+    start, end = sample_bounds(cycles, rate / dec, t0)
+    lengths = np.diff(offsets)
+    out = np.full((len(cycles), int(offsets[-1])), np.nan)
+    for j, width in enumerate(lengths):
+        idx = start[:, j : j + 1] + np.arange(width)[None, :]
+        valid = (idx < end[:, j : j + 1]) & (idx >= 0) & (idx < n_blocks)
+        chunk = np.full(idx.shape, np.nan)
+        chunk[valid] = blocks[idx[valid]]
+        out[:, offsets[j] : offsets[j + 1]] = chunk
+    return out
+
+
+def step_table(
+    recording: Recording,
+    cycles: Sequence[Cycle],
+    machine: str,
+    channels: Sequence[str] | None = None,
+    offsets: IntArray | None = None,
+    trace_rate_hz: float = 100.0,
+) -> StepTable:
+    """Summarise ``cycles`` of ``recording`` into a :class:`StepTable`.
+
+    Parameters
+    ----------
+    recording : Recording
+        The recording the cycles were found in.
+    cycles : sequence of Cycle
+        Complete cycles (all with the same number of steps).
+    machine : str
+        Machine name.
+    channels : sequence of str, optional
+        Analog channels to summarise (all analog channels by default).
+    offsets : ndarray of int, optional
+        Template offsets (:func:`trace_offsets`); no traces when omitted.
+    trace_rate_hz : float
+        Rate of the step-aligned traces [Hz].
+
+    Returns
+    -------
+    StepTable
+    """
+    names = tuple(recording.analog_channels if channels is None else channels)
+    recording.require(names, "the diagnosis sensor set")
+    start = np.array([[s.start_s for s in c.steps] for c in cycles], dtype=np.float64)
+    end = np.array([[s.end_s for s in c.steps] for c in cycles], dtype=np.float64)
+    n_cycles, n_steps = start.shape
+    summaries = np.zeros((n_cycles, n_steps, len(names), 3))
+    traces = None if offsets is None or not names else np.zeros((n_cycles, len(names), offsets[-1]))
+    for i, name in enumerate(names):
+        info = recording.info(name)
+        values, _ = fill_gaps(np.asarray(info.values, dtype=np.float64))
+        s_idx, e_idx = sample_bounds(cycles, info.rate_hz, info.t0)
+        summaries[:, :, i, :] = _summaries(values, s_idx, e_idx)
+        if traces is not None and offsets is not None:
+            traces[:, i, :] = _traces(values, info.rate_hz, info.t0, cycles, offsets, trace_rate_hz)
+    return StepTable(
+        machine=machine,
+        step_start=start,
+        step_end=end,
+        channels=names,
+        units=tuple(recording.unit(n) for n in names),
+        summaries=summaries,
+        traces=traces,
+        trace_offsets=offsets if traces is not None else None,
+        trace_rate_hz=trace_rate_hz,
+        cycle_index=np.array([c.index for c in cycles], dtype=np.int64),
+    )

@@ -1,0 +1,208 @@
+"""What a leak costs: flow in SLPM, equivalent orifice and annual cost by eq. 1.1.
+
+.. math::
+
+    \\text{cost per year} = Q_{cfm} \\cdot \\frac{kW}{cfm} \\cdot \\text{hours}
+    \\cdot \\text{price per kWh} \\qquad (1.1)
+
+with the leak flow :math:`Q_{cfm}` in CAGI/DOE standard cubic feet per minute (the
+basis of Figure 1.2) and the compressor's specific power given as kW per 100 cfm
+(the dissertation's example: 18 kW/100 cfm, 7000 h, $0.05/kWh).
+
+The equivalent orifice is the sharp-edged orifice (discharge coefficient 0.61, the
+Figure 1.2 note) that passes the leak's mass flow from the leak's nominal absolute
+pressure to the atmosphere (eq. 4.2-4.3). Both formulas are those of
+:mod:`pneufdd.physics.economics` and :mod:`pneufdd.physics.leaks`; this module adds
+the units an engineer reads (SLPM, mm) and the ranking.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from pneufdd.errors import InputError, describe
+from pneufdd.physics.constants import P_ATM, T_ROOM
+from pneufdd.physics.economics import leak_annual_cost
+from pneufdd.physics.leaks import SHARP_EDGE_CD, equivalent_orifice_diameter
+from pneufdd.physics.units import kg_s_to_slpm
+
+__all__ = [
+    "SHARP_EDGED_CD",
+    "CostSettings",
+    "CostedLeak",
+    "annual_cost",
+    "cost_leaks",
+    "equivalent_orifice_mm",
+]
+
+SHARP_EDGED_CD: float = SHARP_EDGE_CD
+"""Discharge coefficient of a sharp-edged orifice (Figure 1.2 note) [-]."""
+
+
+@dataclass(frozen=True)
+class CostSettings:
+    """Economic inputs of eq. 1.1.
+
+    Attributes
+    ----------
+    hours : float
+        Operating hours per year [h].
+    price_per_kwh : float
+        Electricity price [$ / kWh].
+    kw_per_100_cfm : float
+        Compressor specific power [kW per 100 scfm].
+    """
+
+    hours: float = 7000.0
+    price_per_kwh: float = 0.05
+    kw_per_100_cfm: float = 18.0
+
+    def __post_init__(self) -> None:
+        for name in ("hours", "price_per_kwh", "kw_per_100_cfm"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or value < 0:
+                raise InputError(describe(name, value, ">= 0 and finite"))
+
+
+def annual_cost(mass_flow: float, settings: CostSettings) -> float:
+    """Annual cost of one leak by eq. 1.1.
+
+    Parameters
+    ----------
+    mass_flow : float
+        Leak mass flow [kg/s].
+    settings : CostSettings
+        Hours, price and specific power.
+
+    Returns
+    -------
+    float
+        Cost per year [$].
+
+    Examples
+    --------
+    One 1/4 in leak at 100 psig (Figure 1.2: 100.9 cfm, sharp-edged x 0.61) at the
+    section 1.1 settings:
+
+    >>> from pneufdd.physics.units import scfm_to_kg_s
+    >>> round(annual_cost(scfm_to_kg_s(100.9 * 0.61), CostSettings()))
+    3878
+    """
+    return float(
+        leak_annual_cost(
+            float(mass_flow),
+            hours=settings.hours,
+            energy_price=settings.price_per_kwh,
+            kw_per_100_cfm=settings.kw_per_100_cfm,
+        )
+    )
+
+
+def equivalent_orifice_mm(mass_flow: float, pressure: float, temperature: float = T_ROOM) -> float:
+    """Diameter of the sharp-edged orifice passing ``mass_flow`` from ``pressure``.
+
+    Delegates to :func:`pneufdd.physics.leaks.equivalent_orifice_diameter`
+    (eq. 4.2-4.3 with C_d = 0.61) and returns millimetres.
+
+    Parameters
+    ----------
+    mass_flow : float
+        Leak mass flow [kg/s].
+    pressure : float
+        Upstream absolute pressure [Pa].
+    temperature : float
+        Upstream temperature [K].
+
+    Returns
+    -------
+    float
+        Equivalent orifice diameter [mm].
+
+    Examples
+    --------
+    A 1/16 in (1.5875 mm) orifice at 90 psig leaks 5.72 cfm x 0.61 (Figure 1.2):
+
+    >>> from pneufdd.physics.units import psig_to_pa, scfm_to_kg_s
+    >>> round(equivalent_orifice_mm(scfm_to_kg_s(5.72 * 0.61), psig_to_pa(90.0)), 2)
+    1.56
+    """
+    if not math.isfinite(pressure) or pressure <= P_ATM:
+        raise InputError(describe("leak pressure [Pa]", pressure, "> 101325 Pa absolute"))
+    diameter = equivalent_orifice_diameter(max(float(mass_flow), 0.0), pressure, temperature)
+    return 1e3 * float(diameter)
+
+
+@dataclass(frozen=True)
+class CostedLeak:
+    """A leak with its flow, orifice and cost.
+
+    Attributes
+    ----------
+    location : str
+        Most likely location.
+    mass_flow : float
+        Leak flow [kg/s].
+    flow_slpm : float
+        Leak flow at the dissertation's standard conditions [SLPM].
+    orifice_mm : float
+        Equivalent sharp-edged orifice diameter [mm].
+    annual_cost : float
+        Cost per year by eq. 1.1 [$].
+    confidence : float
+        Confidence that a leak lies in the ambiguity group [-].
+    ambiguity_group : tuple of str
+        Locations the sensors cannot tell apart.
+    """
+
+    location: str
+    mass_flow: float
+    flow_slpm: float
+    orifice_mm: float
+    annual_cost: float
+    confidence: float
+    ambiguity_group: tuple[str, ...]
+
+
+def cost_leaks(
+    locations: Sequence[str],
+    mass_flows: Sequence[float],
+    pressures: Sequence[float],
+    confidences: Sequence[float],
+    groups: Sequence[tuple[str, ...]],
+    settings: CostSettings,
+) -> tuple[list[CostedLeak], float]:
+    """Cost each leak and rank them, largest annual cost first.
+
+    Returns
+    -------
+    leaks : list of CostedLeak
+        Ranked leaks.
+    total : float
+        Sum of the annual costs [$].
+
+    Examples
+    --------
+    >>> leaks, total = cost_leaks(["supply", "DNC_B"], [6.0e-4, 1.2e-3], [6e5, 6e5],
+    ...                           [0.9, 0.8], [("supply",), ("DNC_B",)], CostSettings())
+    >>> [leak.location for leak in leaks], round(total, 2) == round(sum(
+    ...     leak.annual_cost for leak in leaks), 2)
+    (['DNC_B', 'supply'], True)
+    """
+    rows = [
+        CostedLeak(
+            location=loc,
+            mass_flow=float(flow),
+            flow_slpm=float(kg_s_to_slpm(float(flow))),
+            orifice_mm=equivalent_orifice_mm(float(flow), float(p)),
+            annual_cost=annual_cost(float(flow), settings),
+            confidence=float(conf),
+            ambiguity_group=tuple(group),
+        )
+        for loc, flow, p, conf, group in zip(
+            locations, mass_flows, pressures, confidences, groups, strict=True
+        )
+    ]
+    rows.sort(key=lambda r: -r.annual_cost)
+    return rows, float(sum(r.annual_cost for r in rows))

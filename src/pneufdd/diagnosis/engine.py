@@ -1,0 +1,270 @@
+"""Diagnose a run against a reference: detect, locate, size and cost leaks.
+
+1. **Detect** (section 5.3.2 and 4.4.1): the per-cycle statistic of
+   :class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`, decided over the whole
+   run (mean of its cycles); the band method of eq. 5.21 is reported alongside.
+2. **Locate and size** (sections 5.3.1.2-5.3.1.5, eqs. 5.23-5.24): the run's mean
+   feature change is decomposed into non-negative leak signatures
+   (:func:`~pneufdd.diagnosis.fingerprint.locate`).
+3. **Cost** (eq. 1.1): :mod:`pneufdd.diagnosis.cost`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.diagnosis.cost import CostedLeak, CostSettings, cost_leaks
+from pneufdd.diagnosis.fingerprint import Localisation, locate
+from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.steps import StepTable
+from pneufdd.errors import ChannelError, InputError, MachineError, describe
+
+__all__ = ["Diagnosis", "diagnose"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Everything :func:`diagnose` found about one run.
+
+    Attributes
+    ----------
+    detected : bool
+        Run-level decision of the per-cycle statistic.
+    cycles_analyzed : int
+        Complete cycles of the run used.
+    cycle_scores : ndarray
+        Per-cycle statistic ``T`` [-].
+    cycle_threshold : float
+        Per-cycle threshold of ``T`` [-].
+    run_score, run_threshold : float
+        Mean ``T`` of the run and its threshold [-].
+    p_value : float
+        Probability of a leak-free run scoring at least ``run_score`` [-].
+    reference_false_alarm_rate : float
+        Cross-validated per-cycle false-alarm rate on the reference cycles [-].
+    band_fraction : ndarray
+        Per-cycle out-of-band fraction of the band method (empty without traces) [-].
+    band_alarms : int
+        Cycles flagged by the band method.
+    leaks : list of CostedLeak
+        Leaks found, largest annual cost first.
+    total_annual_cost : float
+        Sum of the leaks' annual costs [$].
+    localisation : Localisation or None
+        Fit statistics of the decomposition (None when not run).
+    observed_change : ndarray
+        Mean feature change of the run against the reference [feature unit].
+    notes : list of str
+        Plain-language remarks (missing signatures, unexplained deviations...).
+    """
+
+    detected: bool
+    cycles_analyzed: int
+    cycle_scores: FloatArray
+    cycle_threshold: float
+    run_score: float
+    run_threshold: float
+    p_value: float
+    reference_false_alarm_rate: float
+    band_fraction: FloatArray
+    band_alarms: int
+    leaks: list[CostedLeak]
+    total_annual_cost: float
+    localisation: Localisation | None
+    observed_change: FloatArray
+    settings: CostSettings
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible summary (the ``--json`` output of ``pneufdd diagnose``)."""
+
+        def num(x: float) -> float | None:
+            return None if not math.isfinite(x) else float(x)
+
+        return {
+            "detected": self.detected,
+            "cycles_analyzed": self.cycles_analyzed,
+            "leaks": [
+                {
+                    "location": leak.location,
+                    "flow_slpm": num(leak.flow_slpm),
+                    "orifice_mm": num(leak.orifice_mm),
+                    "annual_cost": num(leak.annual_cost),
+                    "confidence": num(leak.confidence),
+                    "ambiguity_group": list(leak.ambiguity_group),
+                }
+                for leak in self.leaks
+            ],
+            "total_annual_cost": num(self.total_annual_cost),
+            "detection": {
+                "statistic": "supply-fluctuation-projected standardised step distance",
+                "run_score": num(self.run_score),
+                "run_threshold": num(self.run_threshold),
+                "p_value": num(self.p_value),
+                "cycle_scores": [num(x) for x in self.cycle_scores],
+                "cycle_threshold": num(self.cycle_threshold),
+                "cycles_flagged": int(np.sum(self.cycle_scores > self.cycle_threshold)),
+                "reference_false_alarm_rate": num(self.reference_false_alarm_rate),
+                "band_cycles_flagged": self.band_alarms,
+                "band_out_of_band_fraction": [num(x) for x in self.band_fraction],
+            },
+            "fit": None
+            if self.localisation is None
+            else {
+                "explained_fraction": num(self.localisation.explained),
+                "rss": num(self.localisation.rss),
+                "rss_without_leak": num(self.localisation.rss_null),
+                "dof": self.localisation.dof,
+            },
+            "cost_settings": {
+                "hours": self.settings.hours,
+                "price_per_kwh": self.settings.price_per_kwh,
+                "kw_per_100_cfm": self.settings.kw_per_100_cfm,
+            },
+            "notes": list(self.notes),
+        }
+
+
+def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "run") -> StepTable:
+    """Check that ``run`` comes from the reference's machine and has its channels.
+
+    Returns
+    -------
+    StepTable
+        ``run`` restricted to the reference's analog channels.
+
+    Raises
+    ------
+    MachineError
+        If the machines differ.
+    ChannelError
+        If the run lacks a channel of the reference's sensor set.
+    InputError
+        If the number of steps differs or there is no complete cycle.
+    """
+    if run.machine != reference.machine:
+        raise MachineError(
+            describe(f"machine of {where}", run.machine, [reference.machine])
+            + " (the reference was built for another machine)"
+        )
+    missing = [c for c in reference.channels if c not in run.channels]
+    if missing:
+        raise ChannelError(
+            f"{where} lacks channel(s) {missing} of the reference's sensor set "
+            f"{list(reference.channels)}; it has {list(run.channels)}"
+        )
+    if run.n_steps != reference.n_steps:
+        raise InputError(describe(f"steps per cycle in {where}", run.n_steps, [reference.n_steps]))
+    if run.n_cycles < 1:
+        raise InputError(describe(f"complete cycles in {where}", 0, ">= 1"))
+    return run.select(list(reference.channels))
+
+
+def diagnose(
+    reference: ReferenceModel,
+    run: StepTable,
+    settings: CostSettings | None = None,
+    max_leaks: int = 2,
+) -> Diagnosis:
+    """Detect, locate, size and cost leaks in ``run`` against ``reference``.
+
+    Parameters
+    ----------
+    reference : ReferenceModel
+        Leak-free reference of the same machine and sensor set.
+    run : StepTable
+        Complete cycles of the run to judge (10 make a run in the acceptance tests).
+    settings : CostSettings, optional
+        Economic inputs of eq. 1.1.
+    max_leaks : int
+        Largest number of simultaneous leaks considered.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    settings = settings or CostSettings()
+    table = check_compatible(reference, run)
+    X = table.features()
+    det = reference.detector
+    scores = det.score_samples(X)
+    m = scores.size
+    run_score = float(np.mean(scores))
+    run_threshold = det.run_threshold(m)
+    detected = run_score > run_threshold
+    band = reference.band_detector()
+    band_fraction = np.zeros(0)
+    band_alarms = 0
+    if (
+        band is not None
+        and table.traces is not None
+        and table.traces[0].size == band.n_features_in_
+    ):
+        band_fraction = band.score_samples(table.traces.reshape(m, -1))
+        band_alarms = int(np.sum(band_fraction > band.alarm_fraction))
+    observed = np.asarray(np.mean(X, axis=0) - det.mean_, dtype=np.float64)
+    notes: list[str] = []
+    localisation = None
+    leaks: list[CostedLeak] = []
+    total = 0.0
+    if detected:
+        sig = reference.signatures
+        if sig is None:
+            notes.append(
+                "leak detected but the reference holds no leak signatures: location and "
+                "size cannot be estimated (rebuild the reference with signatures)"
+            )
+        else:
+            gain = 1.0 / math.sqrt(1.0 / m + 1.0 / reference.n_cycles)
+
+            def whiten(delta: FloatArray) -> FloatArray:
+                return det.project(np.atleast_2d(delta) / det.scale_) * gain
+
+            localisation = locate(observed, sig, whiten, max_leaks=max_leaks)
+            if not localisation.leaks:
+                notes.append("leak detected but no combination of leak signatures explains it")
+            pressures = []
+            for leak in localisation.leaks:
+                p = float(sig.nominal_pressure[sig.locations.index(leak.location)])
+                if not math.isfinite(p) or p <= 0:
+                    p = reference.supply_pressure
+                pressures.append(p if math.isfinite(p) and p > 0 else 6.0e5)
+            leaks, total = cost_leaks(
+                [leak.location for leak in localisation.leaks],
+                [leak.mass_flow for leak in localisation.leaks],
+                pressures,
+                [leak.confidence for leak in localisation.leaks],
+                [leak.ambiguity_group for leak in localisation.leaks],
+                settings,
+            )
+            if localisation.explained < 0.5:
+                notes.append(
+                    f"the leak model explains only {100 * localisation.explained:.0f} % of the "
+                    "deviation: another fault (or a leak outside the candidate locations) "
+                    "may be present"
+                )
+    return Diagnosis(
+        detected=bool(detected),
+        cycles_analyzed=int(m),
+        cycle_scores=scores,
+        cycle_threshold=float(det.threshold_),
+        run_score=run_score,
+        run_threshold=float(run_threshold),
+        p_value=det.run_p_value(X),
+        reference_false_alarm_rate=float(det.reference_false_alarm_rate_),
+        band_fraction=band_fraction,
+        band_alarms=band_alarms,
+        leaks=leaks,
+        total_annual_cost=total,
+        localisation=localisation,
+        observed_change=observed,
+        settings=settings,
+        notes=notes,
+    )

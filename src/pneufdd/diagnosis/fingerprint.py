@@ -1,0 +1,486 @@
+"""Locate and size leaks: a non-negative decomposition into leak signatures.
+
+The observed change of the per-step features of a run against the leak-free
+reference, :math:`\\Delta x`, is explained as the vector sum of the effects of one or
+several leaks (eqs. 5.23-5.24, generalised from the 2-D vectorized map to all
+features):
+
+.. math::
+
+    \\Delta x \\approx \\sum_{l \\in M} a_l\\, s_l(a_l), \\qquad a_l \\ge 0,
+
+where :math:`s_l(a)` is location ``l``'s signature per unit leak flow at size ``a``
+(:class:`~pneufdd.diagnosis.signatures.SignatureSet`). The fit is weighted by the
+reference noise: each feature is divided by its reference standard deviation, the
+house-air fluctuation directions are projected out (the same space as
+:class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`), and the residual
+is scaled to unit variance for a run mean of ``m`` cycles. For every subset ``M`` of
+at most ``max_leaks`` (1 or 2) locations the non-negative sizes minimise the
+weighted residual exactly: the signatures are piecewise linear in size, so on every
+combination of segments the fit is a box-constrained least-squares problem in one or
+two unknowns, solved in closed form from one Gram matrix of the whitened signature
+pieces (an exhaustive sparse subset search instead of :func:`scipy.optimize.nnls`,
+whose linear model cannot follow saturating effects such as a line pressure that
+drops to atmosphere). A larger subset is preferred only when it lowers the residual by
+an information-criterion penalty and by a minimum relative gain. When the chosen pair
+includes a supply leak and the signatures carry the supply interaction, the two sizes
+are refined with the bilinear interaction term (a supply leak lowers the pressure the
+line leak sees, so their effects are not additive).
+
+Ambiguity: for each leak of the chosen model, every other location is tried in its
+place. Alternatives whose fit is nearly as good (Akaike-type weight
+:math:`\\exp(-\\Delta RSS / 2 s^2)` at least ``group_ratio`` of the best, or a
+residual at most ``1 + relative_tolerance`` times the best) or whose weighted
+signature is nearly collinear with the chosen one form its ambiguity group;
+the sensors cannot tell them apart and they are reported together. The confidence is
+the weight of the group times the fraction of the observed deviation the model
+explains.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.errors import InputError, describe
+
+__all__ = ["LeakEstimate", "Localisation", "locate"]
+
+FloatArray = npt.NDArray[np.float64]
+Whitener = Callable[[FloatArray], FloatArray]
+
+
+@dataclass(frozen=True)
+class LeakEstimate:
+    """One leak found by the decomposition.
+
+    Attributes
+    ----------
+    location : str
+        Most likely location.
+    mass_flow : float
+        Estimated leak flow at the location's nominal pressure [kg/s].
+    ambiguity_group : tuple of str
+        Locations the sensors cannot tell apart from ``location`` (best first,
+        ``location`` included); one element when unambiguous.
+    group_mass_flows : tuple of float
+        Leak flow each group member would need to explain the data [kg/s].
+    confidence : float
+        Probability-like confidence that a leak lies in the ambiguity group [-].
+    """
+
+    location: str
+    mass_flow: float
+    ambiguity_group: tuple[str, ...]
+    group_mass_flows: tuple[float, ...]
+    confidence: float
+
+
+@dataclass(frozen=True)
+class Localisation:
+    """Result of :func:`locate`.
+
+    Attributes
+    ----------
+    leaks : tuple of LeakEstimate
+        Leaks found, largest flow first.
+    rss_null : float
+        Weighted residual sum of squares without any leak [-].
+    rss : float
+        Weighted residual sum of squares of the chosen model [-].
+    dof : int
+        Number of weighted residual components [-].
+    explained : float
+        ``1 - rss / rss_null``, the fraction of the deviation explained [-].
+    """
+
+    leaks: tuple[LeakEstimate, ...]
+    rss_null: float
+    rss: float
+    dof: int
+    explained: float
+
+
+class _PiecewiseModel:
+    """Whitened leak effects as piecewise-linear functions of size, with a Gram matrix.
+
+    On segment ``k`` of location ``l`` the whitened effect is ``V[l, k] + a S[l, k]``;
+    the last segment extends to infinity. Every residual norm of every subset of one
+    or two locations follows from inner products among the target, the ``V`` and the
+    ``S``; all subsets and segment combinations are solved at once, vectorised.
+    """
+
+    def __init__(
+        self,
+        signatures: SignatureSet,
+        whiten: Whitener,
+        target: FloatArray,
+        max_extrapolation: float = np.inf,
+    ):
+        n_loc, n_seg = signatures.sizes.shape
+        knots = np.concatenate([np.zeros((n_loc, 1)), signatures.sizes], axis=1)
+        values = np.stack(
+            [
+                np.vstack([np.zeros(target.size), whiten(signatures.deltas[loc])])
+                for loc in range(n_loc)
+            ]
+        )  # (n_loc, n_seg + 1, n)
+        S = np.diff(values, axis=1) / np.diff(knots, axis=1)[:, :, None]
+        V = values[:, :-1, :] - knots[:, :-1, None] * S
+        self.S, self.V = S, V
+        self.target = target
+        self.lo = knots[:, :-1]
+        self.hi = knots[:, 1:].copy()
+        self.hi[:, -1] = knots[:, -1] * max_extrapolation
+        Vf, Sf = V.reshape(-1, target.size), S.reshape(-1, target.size)
+        shape = (n_loc, n_seg)
+        yy = float(target @ target)
+        yV, yS = (Vf @ target).reshape(shape), (Sf @ target).reshape(shape)
+        VV = (Vf @ Vf.T).reshape(*shape, *shape)
+        VS = (Vf @ Sf.T).reshape(*shape, *shape)  # [V index, S index]
+        SS = (Sf @ Sf.T).reshape(*shape, *shape)
+        self.rss_null = yy
+        self.single_sizes, self.single_rss = self._singles(yy, yV, yS, VV, VS, SS)
+        self.pair_sizes, self.pair_rss = self._pairs(yy, yV, yS, VV, VS, SS)
+
+    def _singles(
+        self,
+        yy: float,
+        yV: FloatArray,
+        yS: FloatArray,
+        VV: FloatArray,
+        VS: FloatArray,
+        SS: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        n_loc, n_seg = yV.shape
+        li, ki = np.meshgrid(np.arange(n_loc), np.arange(n_seg), indexing="ij")
+        cc = yy - 2 * yV + VV[li, ki, li, ki]
+        b = yS - VS[li, ki, li, ki]
+        g = SS[li, ki, li, ki]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = np.where(g > 0, b / g, self.lo)
+        a = np.clip(a, self.lo, self.hi)
+        rss = cc - 2 * a * b + a * a * g
+        k = np.argmin(rss, axis=1)
+        rows = np.arange(n_loc)
+        return a[rows, k], np.maximum(rss[rows, k], 0.0)
+
+    def _pairs(
+        self,
+        yy: float,
+        yV: FloatArray,
+        yS: FloatArray,
+        VV: FloatArray,
+        VS: FloatArray,
+        SS: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        n_loc, n_seg = yV.shape
+        li, ki = np.meshgrid(np.arange(n_loc), np.arange(n_seg), indexing="ij")
+        dVV, dVS, dSS = VV[li, ki, li, ki], VS[li, ki, li, ki], SS[li, ki, li, ki]
+        # axes: (l, k1, m, k2)
+        A = (slice(None), slice(None), None, None)
+        B = (None, None, slice(None), slice(None))
+        cc = yy - 2 * yV[A] - 2 * yV[B] + dVV[A] + dVV[B] + 2 * VV
+        b1 = yS[A] - dVS[A] - np.transpose(VS, (2, 3, 0, 1))
+        b2 = yS[B] - VS - dVS[B]
+        g11, g22, g12 = dSS[A] * np.ones_like(cc), dSS[B] * np.ones_like(cc), SS
+        lo1, hi1 = self.lo[A] * np.ones_like(cc), self.hi[A] * np.ones_like(cc)
+        lo2, hi2 = self.lo[B] * np.ones_like(cc), self.hi[B] * np.ones_like(cc)
+
+        def value(a1: FloatArray, a2: FloatArray) -> FloatArray:
+            ok = np.isfinite(a1) & np.isfinite(a2)
+            x1, x2 = np.where(ok, a1, 0.0), np.where(ok, a2, 0.0)
+            out = x1 * x1 * g11 + 2 * x1 * x2 * g12 + x2 * x2 * g22 - 2 * x1 * b1 - 2 * x2 * b2
+            return np.where(ok, out, np.inf)
+
+        def clip1(g: FloatArray, b: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a = np.where(g > 0, b / g, lo)
+            return np.clip(a, lo, hi)
+
+        det = g11 * g22 - g12 * g12
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a1u = (g22 * b1 - g12 * b2) / det
+            a2u = (g11 * b2 - g12 * b1) / det
+        inside = (
+            (det > 1e-12 * np.maximum(g11 * g22, 1e-300))
+            & (a1u >= lo1)
+            & (a1u <= hi1)
+            & (a2u >= lo2)
+            & (a2u <= hi2)
+        )
+        cands = [(np.where(inside, a1u, np.inf), np.where(inside, a2u, np.inf))]
+        for fixed2 in (lo2, hi2):
+            cands.append(
+                (clip1(g11, b1 - g12 * np.where(np.isfinite(fixed2), fixed2, 0), lo1, hi1), fixed2)
+            )
+        for fixed1 in (lo1, hi1):
+            cands.append(
+                (fixed1, clip1(g22, b2 - g12 * np.where(np.isfinite(fixed1), fixed1, 0), lo2, hi2))
+            )
+        vals = np.stack([value(a1, a2) for a1, a2 in cands])
+        pick = np.argmin(vals, axis=0)
+        a1 = np.choose(pick, [c[0] for c in cands])
+        a2 = np.choose(pick, [c[1] for c in cands])
+        rss = cc + np.min(vals, axis=0)
+        flat = rss.transpose(0, 2, 1, 3).reshape(n_loc, n_loc, n_seg * n_seg)
+        best = np.argmin(flat, axis=2)
+        k1, k2 = np.divmod(best, n_seg)
+        l_idx, m_idx = np.meshgrid(np.arange(n_loc), np.arange(n_loc), indexing="ij")
+        sizes = np.stack(
+            [a1[l_idx, k1, m_idx, k2], a2[l_idx, k1, m_idx, k2]], axis=-1
+        )  # (l, m, 2): size at l, size at m
+        best_rss = np.maximum(np.take_along_axis(flat, best[..., None], axis=2)[..., 0], 0.0)
+        best_rss[np.arange(n_loc), np.arange(n_loc)] = np.inf
+        return sizes, best_rss
+
+    def fit(self, subset: tuple[int, ...]) -> tuple[FloatArray, float]:
+        """Sizes and residual of the best fit of a subset of 1 or 2 locations."""
+        if len(subset) == 1:
+            (loc,) = subset
+            return np.array([self.single_sizes[loc]]), float(self.single_rss[loc])
+        first, second = subset
+        return np.asarray(self.pair_sizes[first, second], dtype=np.float64), float(
+            self.pair_rss[first, second]
+        )
+
+    def effect(self, loc: int, size: float) -> FloatArray:
+        """Whitened effect of location ``loc`` at ``size``."""
+        seg = int(
+            np.clip(np.searchsorted(self.lo[loc], size, side="right") - 1, 0, self.lo.shape[1] - 1)
+        )
+        return np.asarray(self.V[loc, seg] + size * self.S[loc, seg], dtype=np.float64)
+
+    def _best_1d(self, loc: int, target: FloatArray, extra: FloatArray) -> tuple[float, float]:
+        best_a, best_rss = 0.0, np.inf
+        for k in range(self.lo.shape[1]):
+            c = target - self.V[loc, k]
+            slope = self.S[loc, k] + extra
+            g = float(slope @ slope)
+            a = float(
+                np.clip(
+                    (c @ slope) / g if g > 0 else self.lo[loc, k], self.lo[loc, k], self.hi[loc, k]
+                )
+            )
+            r = c - a * slope
+            rss = float(r @ r)
+            if rss < best_rss:
+                best_a, best_rss = a, rss
+        return best_a, best_rss
+
+    def refine_with_supply(
+        self,
+        line: int,
+        supply: int,
+        coupling: FloatArray,
+        sizes: tuple[float, float],
+        iterations: int = 30,
+    ) -> tuple[float, float, float]:
+        """Sizes of a line leak and a supply leak with their bilinear interaction.
+
+        Minimises ``|y - E_line(a) - E_supply(b) - a b K|`` by alternating exact
+        one-dimensional fits (each piecewise linear in its own size).
+
+        Returns
+        -------
+        a, b : float
+            Line and supply leak sizes [kg/s].
+        rss : float
+            Whitened residual [-].
+        """
+        a, b = sizes
+        rss = np.inf
+        for _ in range(iterations):
+            a, _ = self._best_1d(line, self.target - self.effect(supply, b), b * coupling)
+            b, rss = self._best_1d(supply, self.target - self.effect(line, a), a * coupling)
+        return a, b, rss
+
+    def column(self, loc: int, size: float) -> FloatArray:
+        """Whitened effect of location ``loc`` at ``size``, per unit size (secant)."""
+        seg = int(
+            np.clip(np.searchsorted(self.lo[loc], size, side="right") - 1, 0, self.lo.shape[1] - 1)
+        )
+        return np.asarray(
+            (self.V[loc, seg] + size * self.S[loc, seg]) / max(size, 1e-300), dtype=np.float64
+        )
+
+
+def locate(
+    observed: FloatArray,
+    signatures: SignatureSet,
+    whiten: Whitener,
+    max_leaks: int = 2,
+    min_relative_gain: float = 0.1,
+    group_ratio: float = 0.05,
+    collinear_cos: float = 0.995,
+    min_flow: float = 4.3e-5,
+    relative_tolerance: float = 0.5,
+    max_extrapolation: float = 1.25,
+) -> Localisation:
+    """Decompose an observed feature change into non-negative leak contributions.
+
+    Parameters
+    ----------
+    observed : ndarray, shape (n_features,)
+        Mean feature change of the run against the leak-free reference
+        [feature unit].
+    signatures : SignatureSet
+        Signatures over the same features.
+    whiten : callable
+        Maps feature-change vectors (rows, feature unit) to weighted residual
+        components of unit noise variance [-]: standardisation by the reference
+        spread, the supply-fluctuation projection and the run-length scaling.
+    max_leaks : int
+        Largest number of simultaneous leaks considered [-].
+    min_relative_gain : float
+        A model with one more leak must lower the weighted residual by at least this
+        fraction [-].
+    group_ratio : float
+        Alternatives whose Akaike-type weight is at least this fraction of the best
+        join the ambiguity group [-].
+    collinear_cos : float
+        Alternatives whose weighted signature has at least this cosine similarity
+        with the chosen one join the group [-].
+    relative_tolerance : float
+        Alternatives whose weighted residual is at most ``1 + relative_tolerance``
+        times the best join the group: the fit barely changes when they are swapped
+        in, which matters when the residual is dominated by model error (effects of
+        simultaneous leaks are only approximately additive) rather than noise [-].
+    max_extrapolation : float
+        Largest size considered, as a multiple of the largest simulated size: beyond
+        the ladder the effects are extrapolated linearly, and an unbounded
+        extrapolation lets one huge leak absorb a second, real one [-].
+    min_flow : float
+        Smallest leak reported; a model needing a smaller leak is not considered
+        (2 SLPM by default, below the leak valve's first turn) [kg/s].
+
+    Returns
+    -------
+    Localisation
+        The leaks, largest first, with ambiguity groups and confidences.
+
+    Examples
+    --------
+    >>> names = ("f1", "f2", "f3")
+    >>> sig = SignatureSet(("supply", "X_A"), np.array([[4.0], [4.0]]),
+    ...     np.array([[[4.0, 4.0, 4.0]], [[0.0, 8.0, 0.0]]]), names, np.array([6e5, 6e5]))
+    >>> result = locate(np.array([3.0, 7.0, 3.0]), sig, lambda d: np.atleast_2d(d) * 100.0)
+    >>> [(leak.location, round(leak.mass_flow, 6)) for leak in result.leaks]
+    [('supply', 3.0), ('X_A', 2.0)]
+    """
+    obs = np.asarray(observed, dtype=np.float64)
+    if obs.shape != (signatures.n_features,):
+        raise InputError(
+            describe("shape of observed feature change", obs.shape, [(signatures.n_features,)])
+        )
+    if not np.all(np.isfinite(obs)):
+        raise InputError(describe("observed feature change", "NaN or infinite", "finite"))
+    if max_leaks < 1:
+        raise InputError(describe("max_leaks", max_leaks, ">= 1"))
+    if max_leaks > 2:
+        raise InputError(describe("max_leaks", max_leaks, "1 or 2"))
+    target = whiten(obs)[0]
+    n_loc = len(signatures.locations)
+    model = _PiecewiseModel(signatures, whiten, target, max_extrapolation)
+
+    def column(loc: int, size: float) -> FloatArray:
+        return model.column(loc, size)
+
+    rss_null = float(target @ target)
+    dof = int(target.size)
+    best: dict[int, tuple[tuple[int, ...], FloatArray, float]] = {0: ((), np.zeros(0), rss_null)}
+    fits: dict[tuple[int, ...], tuple[FloatArray, float]] = {}
+    for k in range(1, min(max_leaks, n_loc) + 1):
+        for subset in itertools.combinations(range(n_loc), k):
+            coef, rss = model.fit(subset)
+            fits[subset] = (coef, rss)
+            if np.any(coef < min_flow):
+                continue
+            if k not in best or rss < best[k][2]:
+                best[k] = (subset, coef, rss)
+    chosen = 0
+    for k in range(1, min(max_leaks, n_loc) + 1):
+        if k not in best:
+            break
+        rss_prev = best[chosen][2]
+        rss_k = best[k][2]
+        s2 = max(1.0, rss_k / max(dof - k, 1))
+        penalty = 2.0 * np.log(max(dof, 2)) * s2
+        if rss_prev - rss_k > penalty and rss_k < (1.0 - min_relative_gain) * rss_prev:
+            chosen = k
+        else:
+            break
+    subset, coef, rss = best[chosen]
+    refined: dict[int, float] = {}
+    if len(subset) == 2 and "supply" in signatures.locations:
+        supply = signatures.locations.index("supply")
+        if supply in subset:
+            line = subset[0] if subset[1] == supply else subset[1]
+            slope = signatures.interaction_slope(line)
+            if slope is not None:
+                coupling = whiten(slope)[0]
+                a, b, rss_i = model.refine_with_supply(
+                    line,
+                    supply,
+                    coupling,
+                    (float(coef[subset.index(line)]), float(coef[subset.index(supply)])),
+                )
+                if rss_i < rss:
+                    refined = {line: a, supply: b}
+    s2 = max(1.0, rss / max(dof - len(subset), 1))
+    explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
+    leaks: list[LeakEstimate] = []
+    for slot, loc in enumerate(subset):
+        others = tuple(x for x in subset if x != loc)
+        alternatives: list[tuple[float, int, float]] = []
+        for alt in range(n_loc):
+            if alt in others:
+                continue
+            trial = tuple(sorted((*others, alt)))
+            if trial not in fits:
+                fits[trial] = model.fit(trial)
+            alt_coef, alt_rss = fits[trial]
+            alt_size = float(alt_coef[trial.index(alt)])
+            alternatives.append((alt_rss, alt, alt_size))
+        rss_min = min(a[0] for a in alternatives)
+        weights = {alt: np.exp(-(r - rss_min) / (2.0 * s2)) for r, alt, _ in alternatives}
+        rss_of = {alt: r for r, alt, _ in alternatives}
+        sizes = {alt: size for _, alt, size in alternatives}
+        chosen_col = column(loc, float(coef[slot]))
+        members = []
+        for alt, w in weights.items():
+            if sizes[alt] < min_flow and alt != loc:
+                continue
+            alt_col = column(alt, sizes[alt])
+            norm = float(np.linalg.norm(chosen_col) * np.linalg.norm(alt_col))
+            cos = float(chosen_col @ alt_col) / norm if norm > 0 else 0.0
+            close = rss_of[alt] <= (1.0 + relative_tolerance) * rss_min
+            if (
+                alt == loc
+                or w >= group_ratio * max(weights.values())
+                or close
+                or cos >= collinear_cos
+            ):
+                members.append(alt)
+        members.sort(key=lambda a: -weights[a])
+        total = float(sum(weights.values()))
+        mass = float(sum(weights[a] for a in members)) / total if total > 0 else 0.0
+        best_member = members[0]
+        if best_member == loc and loc in refined:
+            sizes[loc] = refined[loc]
+        leaks.append(
+            LeakEstimate(
+                location=signatures.locations[best_member],
+                mass_flow=float(sizes[best_member]),
+                ambiguity_group=tuple(signatures.locations[a] for a in members),
+                group_mass_flows=tuple(float(sizes[a]) for a in members),
+                confidence=float(np.clip(mass * explained, 0.0, 1.0)),
+            )
+        )
+    leaks.sort(key=lambda leak: -leak.mass_flow)
+    return Localisation(tuple(leaks), rss_null, float(rss), dof, float(explained))

@@ -1,0 +1,252 @@
+"""The portable ``.pnref`` reference file: one NPZ with a JSON header, no pickle.
+
+Layout (format ``pneufdd-reference``, version :data:`FORMAT_VERSION`):
+
+=====================  ===========================================================
+entry                  content
+=====================  ===========================================================
+``header``             0-d unicode array holding a JSON object: format, version,
+                       machine, machine description, channels, units, n_steps,
+                       n_cycles, feature names, detection settings, sources,
+                       supply pressure, trace rate, signature locations
+``features``           (n_cycles, n_features) float64 reference feature vectors
+``band_mean``          (n_channels, n_samples) float64, optional
+``band_std``           (n_channels, n_samples) float64, optional
+``trace_offsets``      (n_steps + 1,) int64, optional (with the band arrays)
+``sig_sizes``          (n_locations, n_sizes) float64, optional [kg/s]
+``sig_deltas``         (n_locations, n_sizes, n_features) float64, optional
+``sig_pressure``       (n_locations,) float64, optional [Pa]
+``sig_interaction``    (n_locations, n_features) float64, optional
+``sig_interaction_sizes`` (2,) float64, optional [kg/s]
+=====================  ===========================================================
+
+The file is written to a temporary name and renamed into place; it is read with
+``allow_pickle=False`` and every entry's presence, dtype and shape is checked.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.errors import (
+    FileExistsInputError,
+    FileFormatError,
+    InputError,
+    MissingFileError,
+    describe,
+)
+
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
+
+FORMAT_NAME = "pneufdd-reference"
+FORMAT_VERSION = 1
+
+
+def _header(model: ReferenceModel) -> dict[str, Any]:
+    sig = model.signatures
+    return {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "machine": model.machine,
+        "machine_description": model.machine_description,
+        "channels": list(model.channels),
+        "units": list(model.units),
+        "n_steps": model.n_steps,
+        "n_cycles": model.n_cycles,
+        "feature_names": list(model.feature_names),
+        "settings": model.settings.to_dict(),
+        "sources": list(model.sources),
+        "supply_pressure": None if math.isnan(model.supply_pressure) else model.supply_pressure,
+        "trace_rate_hz": model.trace_rate_hz,
+        "signature_locations": None if sig is None else list(sig.locations),
+        "sequence": list(model.sequence),
+    }
+
+
+def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = False) -> Path:
+    """Write ``model`` to ``path`` atomically.
+
+    Parameters
+    ----------
+    model : ReferenceModel
+        The reference.
+    path : str or Path
+        Target file, conventionally ``*.pnref``.
+    overwrite : bool
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
+    target = Path(path)
+    if target.exists() and not overwrite:
+        raise FileExistsInputError(
+            describe(f"reference file {str(target)!r}", "exists", "overwrite=True")
+        )
+    arrays: dict[str, npt.NDArray[Any]] = {
+        "header": np.array(json.dumps(_header(model), allow_nan=False)),
+        "features": model.features,
+    }
+    if model.band_mean is not None and model.band_std is not None:
+        arrays["band_mean"] = model.band_mean
+        arrays["band_std"] = model.band_std
+        arrays["trace_offsets"] = np.asarray(model.trace_offsets, dtype=np.int64)
+    if model.signatures is not None:
+        arrays["sig_sizes"] = model.signatures.sizes
+        arrays["sig_deltas"] = model.signatures.deltas
+        arrays["sig_pressure"] = model.signatures.nominal_pressure
+        if model.signatures.interaction is not None:
+            arrays["sig_interaction"] = model.signatures.interaction
+            arrays["sig_interaction_sizes"] = np.asarray(model.signatures.interaction_sizes)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        _default_mode(tmp)
+        with os.fdopen(fd, "wb") as handle:
+            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target
+
+
+def _bad(path: Path, what: str, received: object, allowed: object) -> FileFormatError:
+    return FileFormatError(
+        describe(f"reference file {str(path)!r}: {what}", received, str(allowed))
+    )
+
+
+def _array(
+    data: Any, path: Path, name: str, kind: str, shape: tuple[int | None, ...]
+) -> npt.NDArray[Any]:
+    if name not in data.files:
+        raise _bad(path, "missing entry", name, "a complete .pnref file")
+    arr = np.asarray(data[name])
+    if arr.dtype.kind != kind:
+        raise _bad(path, f"dtype of {name!r}", str(arr.dtype), f"kind {kind!r}")
+    if arr.ndim != len(shape) or any(
+        want is not None and got != want for got, want in zip(arr.shape, shape, strict=True)
+    ):
+        raise _bad(path, f"shape of {name!r}", arr.shape, shape)
+    return arr
+
+
+def load_reference(path: str | Path) -> ReferenceModel:
+    """Read and validate a ``.pnref`` reference file.
+
+    Raises
+    ------
+    FileFormatError
+        If the file is missing, not a reference file, of another version, or has a
+        missing, mistyped or misshapen entry; the message names the file.
+    """
+    source = Path(path)
+    if not source.is_file():
+        raise MissingFileError(describe("reference file", str(source), "an existing .pnref file"))
+    with open(source, "rb") as handle:
+        return _load(handle, source)
+
+
+def _load(handle: Any, source: Path) -> ReferenceModel:
+    try:
+        data = np.load(handle, allow_pickle=False)
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise _bad(source, "not readable", type(exc).__name__, "a .pnref (NPZ) file") from exc
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise _bad(source, "content", "a single array", "a .pnref (NPZ) archive")
+    try:
+        with data:
+            try:
+                header = json.loads(str(_array(data, source, "header", "U", ())))
+            except json.JSONDecodeError as exc:
+                raise _bad(source, "header", "invalid JSON", "a JSON object") from exc
+            if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
+                raise _bad(
+                    source,
+                    "format",
+                    header.get("format") if isinstance(header, dict) else header,
+                    FORMAT_NAME,
+                )
+            if header.get("version") != FORMAT_VERSION:
+                raise _bad(source, "version", header.get("version"), [FORMAT_VERSION])
+            try:
+                channels = tuple(str(c) for c in header["channels"])
+                units = tuple(str(u) for u in header["units"])
+                n_steps = int(header["n_steps"])
+                n_cycles = int(header["n_cycles"])
+                names = tuple(str(n) for n in header["feature_names"])
+                settings = DetectionSettings.from_dict(header["settings"])
+                machine = str(header["machine"])
+                rate = float(header["trace_rate_hz"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise _bad(source, "header field", str(exc), "a complete header") from exc
+            n_feat = len(names)
+            features = _array(data, source, "features", "f", (n_cycles, n_feat))
+            band_mean = band_std = offsets = None
+            if "band_mean" in data.files:
+                band_mean = _array(data, source, "band_mean", "f", (len(channels), None))
+                n_samples = band_mean.shape[1]
+                band_std = _array(data, source, "band_std", "f", (len(channels), n_samples))
+                offsets = _array(data, source, "trace_offsets", "i", (n_steps + 1,))
+                if int(offsets[-1]) != n_samples:
+                    raise _bad(source, "trace_offsets[-1]", int(offsets[-1]), n_samples)
+            signatures = None
+            locations = header.get("signature_locations")
+            if locations is not None:
+                n_loc = len(locations)
+                sizes = _array(data, source, "sig_sizes", "f", (n_loc, None))
+                deltas = _array(data, source, "sig_deltas", "f", (n_loc, sizes.shape[1], n_feat))
+                pressure = _array(data, source, "sig_pressure", "f", (n_loc,))
+                inter = inter_sizes = None
+                if "sig_interaction" in data.files:
+                    inter = _array(data, source, "sig_interaction", "f", (n_loc, n_feat))
+                    inter_sizes = _array(data, source, "sig_interaction_sizes", "f", (2,))
+                signatures = SignatureSet(
+                    tuple(locations), sizes, deltas, names, pressure, inter, inter_sizes
+                )
+            supply = header.get("supply_pressure")
+            model = ReferenceModel(
+                machine=machine,
+                machine_description=dict(header.get("machine_description") or {}),
+                channels=channels,
+                units=units,
+                n_steps=n_steps,
+                features=features,
+                band_mean=band_mean,
+                band_std=band_std,
+                trace_offsets=offsets,
+                trace_rate_hz=rate,
+                supply_pressure=float("nan") if supply is None else float(supply),
+                signatures=signatures,
+                settings=settings,
+                sources=tuple(str(s) for s in header.get("sources", [])),
+                sequence=tuple(dict(step) for step in header.get("sequence", [])),
+            )
+    except FileFormatError:
+        raise
+    except (InputError, zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise _bad(source, "content", str(exc), "a valid pneufdd reference") from exc
+    if model.feature_names != names:
+        raise _bad(source, "feature_names", "inconsistent with channels/n_steps", "consistent")
+    return model
+
+
+def _default_mode(path: str) -> None:
+    """Give a temporary file the mode a new file gets (mkstemp makes it 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, 0o666 & ~umask)

@@ -1,0 +1,308 @@
+"""The leak-free reference model of one machine and sensor set.
+
+It holds what section 5.3 compares new cycles against:
+
+- per-step, per-sample templates with their spread for the band method
+  (eq. 5.21, Fig. 5.13), per analog channel;
+- the per-cycle feature vectors of the reference cycles (step durations, mean/min/max
+  of each analog channel over each step) from which the detectors of
+  :mod:`pneufdd.diagnosis.statistic` are fitted (deterministically, so they are refit
+  on load rather than stored);
+- the machine's name and description, and the sensor set (analog channels used; the
+  PLC's digital signals are always used, for segmentation and step timing);
+- optionally the leak signatures of every candidate location
+  (:class:`~pneufdd.diagnosis.signatures.SignatureSet`), computed once per machine and
+  sensor set.
+
+It is saved to a portable ``.pnref`` file by :mod:`pneufdd.diagnosis.pnref`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.diagnosis.band import BandDetector
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.diagnosis.statistic import CycleDistanceDetector
+from pneufdd.diagnosis.steps import StepTable, feature_floor, feature_names
+from pneufdd.errors import InputError, describe
+
+__all__ = ["MIN_REFERENCE_CYCLES", "DetectionSettings", "ReferenceModel"]
+
+FloatArray = npt.NDArray[np.float64]
+
+MIN_REFERENCE_CYCLES = 10
+"""Fewest leak-free cycles a reference may be built from."""
+
+
+@dataclass(frozen=True)
+class DetectionSettings:
+    """Tuning of the detectors, stored with the reference.
+
+    Attributes
+    ----------
+    n_nuisance : int
+        Supply-fluctuation directions projected out (section 4.4.1) [-].
+    false_alarm_rate : float
+        Target false-alarm probability per leak-free cycle and per leak-free run [-].
+    band_eps : float
+        Band width of eq. 5.3 in standard deviations (2 or 3) [-].
+    band_alarm_fraction : float
+        The n % rule of section 5.3.2, as a fraction [-].
+    """
+
+    n_nuisance: int = 2
+    false_alarm_rate: float = 0.005
+    band_eps: float = 3.0
+    band_alarm_fraction: float = 0.05
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible form."""
+        return {
+            "n_nuisance": self.n_nuisance,
+            "false_alarm_rate": self.false_alarm_rate,
+            "band_eps": self.band_eps,
+            "band_alarm_fraction": self.band_alarm_fraction,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> DetectionSettings:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            n_nuisance=int(data["n_nuisance"]),
+            false_alarm_rate=float(data["false_alarm_rate"]),
+            band_eps=float(data["band_eps"]),
+            band_alarm_fraction=float(data["band_alarm_fraction"]),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceModel:
+    """Leak-free templates, feature statistics and signatures of one machine.
+
+    Attributes
+    ----------
+    machine : str
+        Machine name (from the recordings' metadata).
+    machine_description : dict
+        JSON-compatible machine description, as the recordings carry it.
+    channels : tuple of str
+        Analog channels of the sensor set (empty: digital signals only).
+    units : tuple of str
+        SI unit of each analog channel.
+    n_steps : int
+        PLC steps per cycle.
+    features : ndarray, shape (n_cycles, n_features)
+        Per-cycle feature vectors of the reference cycles [SI units].
+    band_mean, band_std : ndarray, shape (n_channels, n_samples), optional
+        Per-sample template mean and spread of eq. 5.21 [channel unit].
+    trace_offsets : ndarray of int, shape (n_steps + 1,), optional
+        Start sample of each step in the templates.
+    trace_rate_hz : float
+        Sample rate of the templates [Hz].
+    supply_pressure : float
+        Mean supply pressure ``P_In`` of the reference, NaN when not measured [Pa].
+    signatures : SignatureSet, optional
+        Leak signatures over :attr:`feature_names`.
+    settings : DetectionSettings
+        Detector tuning.
+    sources : tuple of str
+        Files the reference was built from.
+    sequence : tuple of dict
+        The machine's PLC step sequence as JSON-compatible records
+        ``{"valves": [...], "switches": [[channel, state], ...]}``, used to segment runs
+        exactly as the reference was segmented (empty: learn it from each run).
+    """
+
+    machine: str
+    machine_description: dict[str, Any]
+    channels: tuple[str, ...]
+    units: tuple[str, ...]
+    n_steps: int
+    features: FloatArray
+    band_mean: FloatArray | None = None
+    band_std: FloatArray | None = None
+    trace_offsets: npt.NDArray[np.int64] | None = None
+    trace_rate_hz: float = 100.0
+    supply_pressure: float = float("nan")
+    signatures: SignatureSet | None = None
+    settings: DetectionSettings = field(default_factory=DetectionSettings)
+    sources: tuple[str, ...] = ()
+    sequence: tuple[dict[str, Any], ...] = ()
+
+    def __post_init__(self) -> None:
+        feats = np.asarray(self.features, dtype=np.float64)
+        if feats.ndim != 2 or feats.shape[1] != len(self.feature_names):
+            raise InputError(
+                describe(
+                    "shape of reference features", feats.shape, f"(n, {len(self.feature_names)})"
+                )
+            )
+        if feats.shape[0] < MIN_REFERENCE_CYCLES:
+            raise InputError(
+                describe(
+                    "number of complete leak-free reference cycles",
+                    feats.shape[0],
+                    f">= {MIN_REFERENCE_CYCLES}",
+                )
+            )
+        if not np.all(np.isfinite(feats)):
+            raise InputError(describe("reference features", "NaN or infinite", "finite"))
+        if len(self.units) != len(self.channels):
+            raise InputError(describe("number of units", len(self.units), [len(self.channels)]))
+        if self.signatures is not None and self.signatures.feature_names != self.feature_names:
+            raise InputError(
+                describe("signature features", "a different feature set", "the reference's")
+            )
+        object.__setattr__(self, "features", feats)
+        object.__setattr__(self, "channels", tuple(self.channels))
+        object.__setattr__(self, "units", tuple(self.units))
+
+    # --------------------------------------------------------------- build
+    @classmethod
+    def build(
+        cls,
+        table: StepTable,
+        machine_description: Mapping[str, Any] | None = None,
+        channels: Sequence[str] | None = None,
+        signatures: SignatureSet | None = None,
+        settings: DetectionSettings | None = None,
+        sources: Sequence[str] = (),
+        sequence: Sequence[Mapping[str, Any]] = (),
+    ) -> ReferenceModel:
+        """Build a reference from the step table of leak-free cycles.
+
+        Parameters
+        ----------
+        table : StepTable
+            Leak-free cycles; at least :data:`MIN_REFERENCE_CYCLES`.
+        machine_description : mapping, optional
+            JSON-compatible description of the machine.
+        channels : sequence of str, optional
+            Analog channels to keep (all of the table's by default; empty for the
+            PLC's digital signals only).
+        signatures : SignatureSet, optional
+            Leak signatures; restricted to this reference's features.
+        settings : DetectionSettings, optional
+            Detector tuning.
+        sources : sequence of str
+            Names of the recordings used.
+        sequence : sequence of mapping
+            The PLC step sequence (see :attr:`sequence`).
+
+        Returns
+        -------
+        ReferenceModel
+        """
+        if table.n_cycles < MIN_REFERENCE_CYCLES:
+            raise InputError(
+                describe(
+                    "number of complete leak-free reference cycles",
+                    table.n_cycles,
+                    f">= {MIN_REFERENCE_CYCLES}",
+                )
+            )
+        if channels is not None:
+            table = table.select(list(channels))
+        band_mean = band_std = None
+        if table.traces is not None and table.channels:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # samples no cycle reaches
+                band_mean = np.nanmean(table.traces, axis=0)
+                band_std = np.nanstd(table.traces, axis=0, ddof=1)
+        supply = float("nan")
+        if "P_In" in table.channels:
+            supply = float(np.mean(table.summaries[:, :, table.channels.index("P_In"), 0]))
+        names = table.feature_names()
+        return cls(
+            machine=table.machine,
+            machine_description=dict(machine_description or {}),
+            channels=table.channels,
+            units=table.units,
+            n_steps=table.n_steps,
+            features=table.features(),
+            band_mean=band_mean,
+            band_std=band_std,
+            trace_offsets=table.trace_offsets if band_mean is not None else None,
+            trace_rate_hz=table.trace_rate_hz,
+            supply_pressure=supply,
+            signatures=None if signatures is None else signatures.select(names),
+            settings=settings or DetectionSettings(),
+            sources=tuple(sources),
+            sequence=tuple(dict(step) for step in sequence),
+        )
+
+    # ----------------------------------------------------------- derived
+    @property
+    def n_cycles(self) -> int:
+        """Number of reference cycles."""
+        return int(self.features.shape[0])
+
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        """Names of the per-cycle features."""
+        return feature_names(self.channels, self.n_steps)
+
+    @property
+    def feature_units(self) -> tuple[str, ...]:
+        """SI unit of each feature."""
+        units = ["s"] * self.n_steps
+        for unit in self.units:
+            units.extend([unit] * (3 * self.n_steps))
+        return tuple(units)
+
+    @cached_property
+    def detector(self) -> CycleDistanceDetector:
+        """The per-cycle statistic fitted on the reference cycles (deterministic)."""
+        floor = np.array([feature_floor(u) for u in self.feature_units])
+        return CycleDistanceDetector(
+            n_nuisance=self.settings.n_nuisance,
+            false_alarm_rate=self.settings.false_alarm_rate,
+            scale_floor=floor,
+        ).fit(self.features)
+
+    def band_detector(self, channel: str | None = None) -> BandDetector | None:
+        """The band detector of eq. 5.21 over all channels, or over one channel."""
+        if self.band_mean is None or self.band_std is None:
+            return None
+        floor = np.array([feature_floor(u) for u in self.units])[:, None]
+        floored = np.maximum(self.band_std, floor)
+        if channel is None:
+            mean, std = self.band_mean.ravel(), floored.ravel()
+        else:
+            i = self.channels.index(channel)
+            mean, std = self.band_mean[i], floored[i]
+        return BandDetector.from_statistics(
+            mean,
+            std,
+            eps=self.settings.band_eps,
+            alarm_fraction=self.settings.band_alarm_fraction,
+            min_std=0.0,
+        )
+
+    def with_signatures(self, signatures: SignatureSet | None) -> ReferenceModel:
+        """A copy with ``signatures`` (restricted to this reference's features)."""
+        return ReferenceModel(
+            machine=self.machine,
+            machine_description=self.machine_description,
+            channels=self.channels,
+            units=self.units,
+            n_steps=self.n_steps,
+            features=self.features,
+            band_mean=self.band_mean,
+            band_std=self.band_std,
+            trace_offsets=self.trace_offsets,
+            trace_rate_hz=self.trace_rate_hz,
+            supply_pressure=self.supply_pressure,
+            signatures=None if signatures is None else signatures.select(self.feature_names),
+            settings=self.settings,
+            sources=self.sources,
+            sequence=self.sequence,
+        )

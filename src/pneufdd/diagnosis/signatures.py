@@ -1,0 +1,189 @@
+"""Leak signatures: the per-step fingerprint of a leak at each candidate location.
+
+Section 5.3.1 reads the location of a leak from *which* steps its flow difference
+shows in (a supply leak: a constant offset in all 58 steps, Fig. 5.8; a DNC_B leak:
+a distinct pattern in steps 2 and 58, Fig. 5.9) and its size from *how much*
+(5.3.1.5). A :class:`SignatureSet` makes that knowledge explicit and machine
+independent: for every candidate location (``supply``, ``<ACT>_A``, ``<ACT>_B``) and a
+few leak sizes it stores the change of every per-step feature (durations, mean/min/max
+of flow and pressure) against the leak-free machine. The effects are not exactly
+linear in the size (the flow meters saturate, leaks slow actuators), so the effect of
+any size is interpolated piecewise linearly through the computed sizes and the origin.
+
+Signatures are computed once per machine and sensor set, with the simulator (see
+:mod:`pneufdd.diagnosis.simulated`), and stored in the reference file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.errors import InputError, describe
+
+__all__ = ["SignatureSet"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class SignatureSet:
+    """Feature changes caused by leaks of known size at each candidate location.
+
+    Attributes
+    ----------
+    locations : tuple of str
+        Candidate locations: ``supply``, ``<ACT>_A``, ``<ACT>_B``.
+    sizes : ndarray, shape (n_locations, n_sizes)
+        Leak sizes simulated, as the leak's mass flow at its nominal pressure,
+        increasing along each row [kg/s].
+    deltas : ndarray, shape (n_locations, n_sizes, n_features)
+        Mean feature change (leak minus leak-free) at each size [feature unit].
+    feature_names : tuple of str
+        Names of the features (columns of :meth:`StepTable.features`).
+    nominal_pressure : ndarray, shape (n_locations,)
+        Absolute pressure at which each location's size is stated [Pa].
+    interaction : ndarray, shape (n_locations, n_features), optional
+        Non-additive part of the effect of a leak at each location together with a
+        supply leak: ``effect(l + supply) - effect(l) - effect(supply)`` at the sizes
+        ``interaction_sizes`` [feature unit]. A supply leak lowers the pressure every
+        line sees, so line leaks act differently with it; the term is modelled as
+        bilinear in the two sizes. Zero for ``supply`` itself.
+    interaction_sizes : ndarray, shape (2,), optional
+        Line and supply leak sizes at which ``interaction`` was simulated [kg/s].
+
+    Examples
+    --------
+    >>> s = SignatureSet(("supply",), np.array([[1.0, 2.0]]),
+    ...                  np.array([[[1.0, 10.0], [3.0, 20.0]]]), ("a", "b"),
+    ...                  np.array([6e5]))
+    >>> s.effect(0, 1.5).tolist()       # halfway between the two sizes
+    [2.0, 15.0]
+    >>> s.effect(0, 0.5).tolist()       # between the origin and the first size
+    [0.5, 5.0]
+    >>> s.effect(0, 4.0).tolist()       # beyond the last size: the last segment extended
+    [7.0, 40.0]
+    """
+
+    locations: tuple[str, ...]
+    sizes: FloatArray
+    deltas: FloatArray
+    feature_names: tuple[str, ...]
+    nominal_pressure: FloatArray
+    interaction: FloatArray | None = None
+    interaction_sizes: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        locations = tuple(self.locations)
+        sizes = np.asarray(self.sizes, dtype=np.float64)
+        deltas = np.asarray(self.deltas, dtype=np.float64)
+        pressure = np.asarray(self.nominal_pressure, dtype=np.float64)
+        names = tuple(self.feature_names)
+        n_loc = len(locations)
+        if len(set(locations)) != n_loc or n_loc == 0:
+            raise InputError(describe("signature locations", locations, "unique, at least one"))
+        if sizes.ndim != 2 or sizes.shape[0] != n_loc or sizes.shape[1] < 1:
+            raise InputError(describe("shape of signature sizes", sizes.shape, f"({n_loc}, >=1)"))
+        if not np.all(np.isfinite(sizes)) or np.any(sizes <= 0) or np.any(np.diff(sizes) <= 0):
+            raise InputError(
+                describe("signature sizes [kg/s]", sizes.tolist(), "positive, increasing")
+            )
+        expected = (n_loc, sizes.shape[1], len(names))
+        if deltas.shape != expected:
+            raise InputError(describe("shape of signature deltas", deltas.shape, [expected]))
+        if not np.all(np.isfinite(deltas)):
+            raise InputError(describe("signature deltas", "NaN or infinite", "finite values"))
+        if pressure.shape != (n_loc,):
+            raise InputError(describe("shape of nominal_pressure", pressure.shape, [(n_loc,)]))
+        if (self.interaction is None) != (self.interaction_sizes is None):
+            raise InputError(
+                describe("interaction and interaction_sizes", "only one", "both or neither")
+            )
+        if self.interaction is not None and self.interaction_sizes is not None:
+            inter = np.asarray(self.interaction, dtype=np.float64)
+            isz = np.asarray(self.interaction_sizes, dtype=np.float64)
+            if inter.shape != (n_loc, len(names)) or not np.all(np.isfinite(inter)):
+                raise InputError(
+                    describe("shape of interaction", inter.shape, [(n_loc, len(names))])
+                )
+            if isz.shape != (2,) or np.any(isz <= 0):
+                raise InputError(describe("interaction_sizes [kg/s]", isz.tolist(), "2 sizes > 0"))
+            object.__setattr__(self, "interaction", inter)
+            object.__setattr__(self, "interaction_sizes", isz)
+        object.__setattr__(self, "locations", locations)
+        object.__setattr__(self, "sizes", sizes)
+        object.__setattr__(self, "deltas", deltas)
+        object.__setattr__(self, "feature_names", names)
+        object.__setattr__(self, "nominal_pressure", pressure)
+
+    @property
+    def n_features(self) -> int:
+        """Number of features per signature."""
+        return len(self.feature_names)
+
+    def effect(self, location: int, size: float) -> FloatArray:
+        """Feature change of a leak of ``size`` at location index ``location``.
+
+        Piecewise linear through the origin and the simulated sizes; beyond the
+        largest size the last segment is extended linearly.
+
+        Parameters
+        ----------
+        location : int
+            Index into :attr:`locations`.
+        size : float
+            Leak mass flow at nominal pressure [kg/s].
+
+        Returns
+        -------
+        ndarray, shape (n_features,)
+            Feature change [feature unit].
+        """
+        size = max(float(size), 0.0)
+        knots = np.concatenate([[0.0], self.sizes[location]])
+        values = np.concatenate([np.zeros((1, self.n_features)), self.deltas[location]])
+        k = min(int(np.searchsorted(knots, size, side="right")) - 1, knots.size - 2)
+        w = (size - knots[k]) / (knots[k + 1] - knots[k])
+        return np.asarray((1.0 - w) * values[k] + w * values[k + 1], dtype=np.float64)
+
+    def slope(self, location: int, size: float | None = None) -> FloatArray:
+        """Secant signature per unit size, ``effect(size) / size`` [feature unit per kg/s].
+
+        With ``size`` None (or not positive), the slope of the smallest simulated size.
+        """
+        if size is None or size <= 0:
+            size = float(self.sizes[location, 0])
+        return self.effect(location, size) / size
+
+    def select(self, names: Sequence[str]) -> SignatureSet:
+        """Restrict the signatures to the features ``names`` (a sensor subset)."""
+        index = {n: i for i, n in enumerate(self.feature_names)}
+        missing = [n for n in names if n not in index]
+        if missing:
+            raise InputError(
+                describe("features without a signature", missing[:5], "features of the signatures")
+            )
+        cols = [index[n] for n in names]
+        return SignatureSet(
+            self.locations,
+            self.sizes,
+            self.deltas[:, :, cols],
+            tuple(names),
+            self.nominal_pressure,
+            None if self.interaction is None else self.interaction[:, cols],
+            self.interaction_sizes,
+        )
+
+    def interaction_slope(self, location: int) -> FloatArray | None:
+        """Bilinear interaction with a supply leak per unit of both sizes.
+
+        Returns ``interaction[location] / (line size * supply size)``
+        [feature unit per (kg/s)^2], or None when not available.
+        """
+        if self.interaction is None or self.interaction_sizes is None:
+            return None
+        line, supply = self.interaction_sizes
+        return np.asarray(self.interaction[location] / (line * supply), dtype=np.float64)

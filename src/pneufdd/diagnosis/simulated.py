@@ -1,0 +1,238 @@
+"""Leak signatures computed with the digital twin (:mod:`pneufdd.sim`).
+
+For every candidate location of the machine (``supply`` and both lines of every
+actuator) and a ladder of leak sizes, the machine is simulated with that single leak
+and, with the same seed, without it (common random numbers: the house-air
+fluctuation and sensor noise are the same in both, so their difference is mostly the
+leak's effect). The runs are segmented with the reference's PLC sequence and
+summarised per step exactly like measured runs; the mean feature change is the
+signature point. Sizes are given as the leak's flow at the machine's nominal supply
+pressure (the ground-truth convention of :mod:`pneufdd.sim`); the stored size is the
+simulator's resolved nominal mass flow.
+
+A leak so large that the machine stalls is retried at a smaller size.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from rich.progress import Progress
+
+from pneufdd.diagnosis.adapter import segment_cycles, step_table
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.errors import InputError, describe
+from pneufdd.physics.units import slpm_to_kg_s
+from pneufdd.signals.segmentation import StepSpec
+from pneufdd.sim import MachineStalledError, load_machine, simulate
+
+__all__ = ["SIGNATURE_SEED", "SIGNATURE_SIZES_SLPM", "candidate_locations", "compute_signatures"]
+
+SIGNATURE_SIZES_SLPM: tuple[float, ...] = (3.0, 8.0, 15.0, 30.0, 50.0, 80.0, 120.0, 170.0, 230.0)
+"""Leak sizes simulated per location, as flow at nominal supply pressure [SLPM]."""
+
+INTERACTION_SIZES_SLPM: tuple[float, float] = (50.0, 30.0)
+"""Line and supply leak sizes at which the supply interaction is simulated [SLPM]."""
+
+SIGNATURE_SEED = 5_300_001
+"""Seed of the signature simulations (section number 5.3 + 1; never used elsewhere)."""
+
+
+def candidate_locations(machine: str) -> tuple[str, ...]:
+    """``supply`` and both lines of every actuator of ``machine``."""
+    desc = load_machine(machine)
+    return ("supply", *[f"{a}_{side}" for a in desc.actuator_ids for side in ("A", "B")])
+
+
+def _mean_features(
+    machine: str,
+    leaks: dict[str, str],
+    cycles: int,
+    seed: int,
+    sequence: Sequence[StepSpec],
+    channels: Sequence[str],
+) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...]]:
+    # the first simulated cycle starts from rest and the last one has no successor to
+    # end its last step: segmentation keeps the cycles in between
+    rec = simulate(machine, cycles=cycles + 2, leaks=leaks, seed=seed)
+    found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {leaks}")
+    table = step_table(rec, found, machine, channels)
+    return np.mean(table.features(), axis=0), rec.metadata["leaks"], table.feature_names()
+
+
+def _location_ladder(
+    job: tuple[str, str, tuple[float, ...], int, int, tuple[StepSpec, ...], tuple[str, ...]],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float, npt.NDArray[np.float64]]:
+    """Mean features of one location at every size of the ladder (one worker's job).
+
+    Also returns ``M(loc + supply) - M(loc)`` at :data:`INTERACTION_SIZES_SLPM` (NaN
+    for the supply itself), from which the supply interaction is formed.
+    """
+    machine, loc, ladder, cycles, seed, sequence, channels = job
+    sizes = np.zeros(len(ladder))
+    means: list[npt.NDArray[np.float64]] = []
+    pressure = float("nan")
+    previous = 0.0
+    for k, slpm in enumerate(ladder):
+        trial = float(slpm)
+        for _ in range(6):
+            try:
+                mean, truth, _ = _mean_features(
+                    machine, {loc: f"{trial}slpm"}, cycles, seed, sequence, channels
+                )
+                break
+            except (MachineStalledError, InputError):
+                trial = previous + 0.6 * (trial - previous)
+        else:
+            raise InputError(
+                describe(f"leak signature at {loc}", f"{slpm} SLPM", "a size the machine runs")
+            )
+        sizes[k] = float(truth[0]["mass_flow_kg_s"])
+        pressure = float(truth[0]["at_pressure_pa"])
+        means.append(mean)
+        previous = trial
+    pair = np.full_like(means[0], np.nan)
+    if loc != "supply":
+        line, supply = INTERACTION_SIZES_SLPM
+        both, _, _ = _mean_features(
+            machine,
+            {loc: f"{line}slpm", "supply": f"{supply}slpm"},
+            cycles,
+            seed,
+            sequence,
+            channels,
+        )
+        alone, _, _ = _mean_features(
+            machine, {loc: f"{line}slpm"}, cycles, seed, sequence, channels
+        )
+        pair = both - alone
+    return sizes, np.stack(means), pressure, pair
+
+
+def compute_signatures(
+    machine: str,
+    feature_names: Sequence[str],
+    sequence: Sequence[StepSpec],
+    cycles: int = 2,
+    channels: Sequence[str] = (),
+    sizes_slpm: Sequence[float] = SIGNATURE_SIZES_SLPM,
+    seed: int = SIGNATURE_SEED,
+    progress: Progress | None = None,
+    workers: int | None = None,
+    locations: Sequence[str] | None = None,
+) -> SignatureSet:
+    """Simulate single leaks at every candidate location and size; return the signatures.
+
+    Parameters
+    ----------
+    machine : str
+        Machine known to the simulator (``pneufdd machines``).
+    feature_names : sequence of str
+        Features of the reference the signatures must cover.
+    sequence : sequence of StepSpec
+        The reference's PLC step sequence.
+    cycles : int
+        Simulated cycles per signature point.
+    channels : sequence of str
+        Analog channels of the sensor set.
+    sizes_slpm : sequence of float
+        Leak sizes at nominal supply pressure [SLPM].
+    seed : int
+        Seed of the simulations.
+    progress : rich Progress, optional
+        Progress display.
+    workers : int, optional
+        Processes simulating in parallel (default: one per CPU).
+    locations : sequence of str, optional
+        Candidate locations (default: all of the machine's).
+
+    Returns
+    -------
+    SignatureSet
+    """
+    try:
+        known = candidate_locations(machine)
+    except InputError as exc:
+        raise InputError(
+            describe("machine for leak signatures", machine, "a machine the simulator knows")
+            + f" ({exc})"
+        ) from exc
+    if locations is None:
+        locations = known
+    unknown = [loc for loc in locations if loc not in known]
+    if unknown:
+        raise InputError(describe(f"leak locations of {machine!r}", unknown, known))
+    locations = tuple(locations)
+    if cycles < 1:
+        raise InputError(describe("signature cycles", cycles, ">= 1"))
+    task = (
+        progress.add_task("simulating leak signatures", total=1 + len(locations) * len(sizes_slpm))
+        if progress is not None
+        else None
+    )
+
+    def advance() -> None:
+        if progress is not None and task is not None:
+            progress.advance(task)
+
+    base, _, names = _mean_features(machine, {}, cycles, seed, sequence, channels)
+    advance()
+    index = {n: i for i, n in enumerate(names)}
+    missing = [n for n in feature_names if n not in index]
+    if missing:
+        raise InputError(
+            describe("reference features the simulator cannot produce", missing[:5], names[:5])
+        )
+    cols = np.array([index[n] for n in feature_names], dtype=np.int64)
+    sizes = np.zeros((len(locations), len(sizes_slpm)))
+    deltas = np.zeros((len(locations), len(sizes_slpm), len(feature_names)))
+    pressure = np.zeros(len(locations))
+    jobs = [
+        (
+            machine,
+            loc,
+            tuple(float(x) for x in sizes_slpm),
+            cycles,
+            seed,
+            tuple(sequence),
+            tuple(channels),
+        )
+        for loc in locations
+    ]
+    interaction = np.zeros((len(locations), len(feature_names)))
+    supply_alone, _, _ = _mean_features(
+        machine,
+        {"supply": f"{INTERACTION_SIZES_SLPM[1]}slpm"},
+        cycles,
+        seed,
+        sequence,
+        channels,
+    )
+    workers = max(1, min(workers or (os.cpu_count() or 1), len(jobs)))
+    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+    try:
+        results = pool.map(_location_ladder, jobs) if pool else map(_location_ladder, jobs)
+        for i, (loc_sizes, loc_means, p, pair) in enumerate(results):
+            sizes[i], deltas[i], pressure[i] = loc_sizes, loc_means[:, cols] - base[cols], p
+            if locations[i] != "supply":
+                # M(l+s) - M(l) - M(s) + M(0)
+                interaction[i] = (pair - supply_alone + base)[cols]
+            for _ in sizes_slpm:
+                advance()
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    return SignatureSet(
+        locations,
+        sizes,
+        deltas,
+        tuple(feature_names),
+        pressure,
+        interaction,
+        np.asarray(slpm_to_kg_s(np.asarray(INTERACTION_SIZES_SLPM, dtype=np.float64))),
+    )

@@ -1,0 +1,265 @@
+"""A per-cycle distance that stays quiet under house-air fluctuation (section 4.4.1).
+
+Each cycle is summarised by its per-step feature vector (step durations and the
+mean/min/max of each analog channel over each step, see
+:class:`~pneufdd.diagnosis.steps.StepTable`). The vector is standardised with the
+leak-free reference (eq. 5.1-5.2: :math:`z = (x - \\bar S) / \\bar\\sigma`).
+
+The house-air supply of section 4.4.1 fluctuates slowly; it moves all pressures and
+flows of a cycle together, in one or two fixed directions of feature space. Those
+directions are learned as the leading principal components ``V`` of the standardised
+reference cycles and projected out; a leak adds flow in a step-specific pattern that
+mostly lies outside them. The statistic is the mean squared residual
+
+.. math::
+
+    T = \\frac{1}{p - k} \\left\\| (I - V V^T) z \\right\\|^2 ,
+
+a squared prediction error as in PCA process monitoring. Its leak-free distribution
+is measured by cross-validation on the reference (each reference cycle scored by a
+model fitted without it, so the estimate is honest) and approximated by a scaled
+chi-square :math:`g \\chi^2_h` matched in mean and variance (Box, 1954). The
+per-cycle threshold is its ``1 - alpha`` quantile; a run of ``m`` cycles is judged on
+the mean statistic against :math:`(g/m) \\chi^2_{m h}`, which averages out noise as
+the dissertation recommends ("take the average of some coming cycles", section 5.3.2).
+
+References
+----------
+.. [1] Box, G. E. P. (1954). Some theorems on quadratic forms applied in the study
+   of analysis of variance problems. Ann. Math. Statist. 25(2), 290-302.
+.. [2] Jackson, J. E., Mudholkar, G. S. (1979). Control procedures for residuals
+   associated with principal component analysis. Technometrics 21(3), 341-349.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy import stats
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+__all__ = ["CycleDistanceDetector", "scaled_chi2_fit"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def scaled_chi2_fit(values: npt.ArrayLike) -> tuple[float, float]:
+    """Fit ``g * chi2(h)`` to positive values by matching mean and variance (Box, 1954).
+
+    Parameters
+    ----------
+    values : array_like
+        Samples of a non-negative statistic.
+
+    Returns
+    -------
+    g : float
+        Scale [unit of values].
+    h : float
+        Degrees of freedom [-].
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> g, h = scaled_chi2_fit(3.0 * rng.chisquare(5.0, size=200_000))
+    >>> round(g, 1), round(h, 1)
+    (3.0, 5.0)
+    """
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    mean = float(np.mean(v)) if v.size else 0.0
+    var = float(np.var(v, ddof=1)) if v.size > 1 else 0.0
+    if mean <= 0.0:
+        return 1e-12, 1.0
+    if var <= 1e-12 * mean**2:
+        h = 1e6
+        return mean / h, h
+    return var / (2.0 * mean), 2.0 * mean**2 / var
+
+
+def _fit_space(
+    data: FloatArray, floor: FloatArray, n_nuisance: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    mean = np.mean(data, axis=0)
+    std = np.std(data, axis=0, ddof=1) if data.shape[0] > 1 else np.zeros(data.shape[1])
+    scale = np.maximum(std, floor)
+    scale = np.where(scale > 0, scale, 1.0)
+    z = (data - mean) / scale
+    k = max(0, min(n_nuisance, data.shape[0] - 2, data.shape[1] - 1))
+    if k == 0:
+        return mean, scale, np.zeros((0, data.shape[1]))
+    _, _, vt = np.linalg.svd(z, full_matrices=False)
+    return mean, scale, vt[:k]
+
+
+def _residual_stat(z: FloatArray, components: FloatArray) -> FloatArray:
+    resid = z - (z @ components.T) @ components
+    dof = max(z.shape[1] - components.shape[0], 1)
+    return np.asarray(np.sum(resid**2, axis=1) / dof, dtype=np.float64)
+
+
+class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
+    """Standardised per-step-feature distance with the supply fluctuation projected out.
+
+    Parameters
+    ----------
+    n_nuisance : int
+        Number of leading principal directions of the leak-free reference treated as
+        supply fluctuation and projected out (section 4.4.1) [-].
+    false_alarm_rate : float
+        Target probability that a leak-free cycle, or a leak-free run, is flagged [-].
+    scale_floor : float or array_like
+        Floor of each feature's standard deviation: the sensor resolution, so that a
+        feature that never varies in the reference does not dominate [feature unit].
+    n_folds : int
+        Cross-validation folds used to measure the leak-free distribution of the
+        statistic (leave-one-out when there are no more cycles than folds) [-].
+
+    Attributes
+    ----------
+    mean_ : ndarray, shape (n_features,)
+        Reference mean of each feature, eq. 5.1.
+    scale_ : ndarray, shape (n_features,)
+        Reference standard deviation of each feature, floored.
+    components_ : ndarray, shape (k, n_features)
+        Orthonormal supply-fluctuation directions in standardised space.
+    reference_scores_ : ndarray, shape (n_cycles,)
+        Cross-validated statistic of each reference cycle.
+    chi2_scale_, chi2_dof_ : float
+        Box fit ``g``, ``h`` of the leak-free distribution.
+    threshold_ : float
+        Per-cycle alarm threshold, the ``1 - false_alarm_rate`` quantile.
+    reference_false_alarm_rate_ : float
+        Fraction of the cross-validated reference cycles above ``threshold_``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> supply = rng.normal(size=(60, 1))                     # common fluctuation
+    >>> X = supply * np.linspace(1, 2, 40) + 0.1 * rng.normal(size=(60, 40))
+    >>> det = CycleDistanceDetector(n_nuisance=1).fit(X)
+    >>> fluct = 3.0 * np.linspace(1, 2, 40) + 0.1 * rng.normal(size=(1, 40))
+    >>> int(det.predict(fluct)[0])                            # big fluctuation: quiet
+    0
+    >>> leak = 0.3 * (np.arange(40) % 2) + 0.1 * rng.normal(size=(1, 40))
+    >>> int(det.predict(leak)[0])                             # step pattern: alarm
+    1
+    """
+
+    def __init__(
+        self,
+        n_nuisance: int = 2,
+        false_alarm_rate: float = 0.005,
+        scale_floor: float | npt.ArrayLike = 0.0,
+        n_folds: int = 20,
+    ):
+        self.n_nuisance = n_nuisance
+        self.false_alarm_rate = false_alarm_rate
+        self.scale_floor = scale_floor
+        self.n_folds = n_folds
+
+    def _floor(self, n_features: int) -> FloatArray:
+        floor = np.asarray(self.scale_floor, dtype=np.float64)
+        if floor.ndim == 0:
+            floor = np.full(n_features, float(floor))
+        if floor.shape != (n_features,) or np.any(~np.isfinite(floor)) or np.any(floor < 0):
+            raise ValueError(
+                f"scale_floor: received shape {floor.shape}; allowed: a non-negative scalar "
+                f"or one value per feature ({n_features})"
+            )
+        return floor
+
+    def fit(self, X: npt.ArrayLike, y: object = None) -> CycleDistanceDetector:
+        """Learn reference statistics, fluctuation directions and the threshold.
+
+        Parameters
+        ----------
+        X : array_like, shape (n_cycles, n_features)
+            Per-cycle feature vectors of leak-free cycles.
+        y : None
+            Ignored.
+
+        Returns
+        -------
+        CycleDistanceDetector
+            The fitted detector.
+        """
+        if not isinstance(self.n_nuisance, int | np.integer) or self.n_nuisance < 0:
+            raise ValueError(f"n_nuisance: received {self.n_nuisance!r}; allowed: int >= 0")
+        if not 0.0 < self.false_alarm_rate < 1.0:
+            raise ValueError(
+                f"false_alarm_rate: received {self.false_alarm_rate!r}; allowed: (0, 1)"
+            )
+        if not isinstance(self.n_folds, int | np.integer) or self.n_folds < 2:
+            raise ValueError(f"n_folds: received {self.n_folds!r}; allowed: int >= 2")
+        data = validate_data(self, X, dtype=np.float64)
+        n = data.shape[0]
+        if n < 3:
+            raise ValueError(
+                f"CycleDistanceDetector needs at least 3 samples (cycles); got {n} sample(s)"
+            )
+        floor = self._floor(data.shape[1])
+        self.mean_, self.scale_, self.components_ = _fit_space(data, floor, int(self.n_nuisance))
+        folds = min(int(self.n_folds), n)
+        scores = np.empty(n)
+        fold_of = np.arange(n) % folds
+        for f in range(folds):
+            test = fold_of == f
+            mean, scale, comps = _fit_space(data[~test], floor, int(self.n_nuisance))
+            scores[test] = _residual_stat((data[test] - mean) / scale, comps)
+        self.reference_scores_ = scores
+        self.chi2_scale_, self.chi2_dof_ = scaled_chi2_fit(scores)
+        self.threshold_ = self.run_threshold(1)
+        self.reference_false_alarm_rate_ = float(np.mean(scores > self.threshold_))
+        return self
+
+    def standardize(self, X: npt.ArrayLike) -> FloatArray:
+        """Standardised features ``(x - mean_) / scale_`` (eq. 5.2 over eq. 5.3's sigma)."""
+        check_is_fitted(self, ["mean_", "scale_", "components_"])
+        data = validate_data(self, X, dtype=np.float64, reset=False)
+        return np.asarray((data - self.mean_) / self.scale_, dtype=np.float64)
+
+    def project(self, Z: npt.ArrayLike) -> FloatArray:
+        """Remove the supply-fluctuation directions from standardised vectors (rows)."""
+        check_is_fitted(self, ["components_"])
+        z = np.atleast_2d(np.asarray(Z, dtype=np.float64))
+        return np.asarray(z - (z @ self.components_.T) @ self.components_, dtype=np.float64)
+
+    def score_samples(self, X: npt.ArrayLike) -> FloatArray:
+        """Statistic T of each cycle (larger = further from the leak-free reference) [-]."""
+        return _residual_stat(self.standardize(X), self.components_)
+
+    def decision_function(self, X: npt.ArrayLike) -> FloatArray:
+        """``T - threshold_``; positive means alarm [-]."""
+        return self.score_samples(X) - self.threshold_
+
+    def predict(self, X: npt.ArrayLike) -> npt.NDArray[np.int64]:
+        """1 for a cycle whose statistic exceeds the per-cycle threshold, else 0."""
+        return (self.decision_function(X) > 0).astype(np.int64)
+
+    def run_threshold(self, n_cycles: int) -> float:
+        """Threshold of the mean statistic of a run of ``n_cycles`` cycles [-]."""
+        check_is_fitted(self, ["chi2_scale_", "chi2_dof_"])
+        m = max(int(n_cycles), 1)
+        return float(
+            self.chi2_scale_ / m * stats.chi2.ppf(1.0 - self.false_alarm_rate, m * self.chi2_dof_)
+        )
+
+    def run_p_value(self, X: npt.ArrayLike) -> float:
+        """Probability of a leak-free run scoring at least this run's mean statistic [-]."""
+        scores = self.score_samples(X)
+        m = scores.size
+        return float(stats.chi2.sf(np.mean(scores) * m / self.chi2_scale_, m * self.chi2_dof_))
+
+    def predict_run(self, X: npt.ArrayLike) -> bool:
+        """True when the mean statistic of the run's cycles exceeds the run threshold."""
+        scores = self.score_samples(X)
+        return bool(np.mean(scores) > self.run_threshold(scores.size))
+
+    def __sklearn_tags__(self) -> Any:
+        tags = super().__sklearn_tags__()
+        tags.requires_fit = True
+        return tags

@@ -1,0 +1,325 @@
+"""A self-contained HTML leak report: no external assets, figures as base64 PNG.
+
+Every piece of text that comes from data (file names, channel and location names,
+notes) is HTML-escaped.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+import os
+import tempfile
+import warnings
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from pneufdd import __version__
+from pneufdd.diagnosis.engine import Diagnosis, check_compatible
+from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.steps import StepTable
+from pneufdd.errors import FileExistsInputError, describe
+from pneufdd.report.figures import (
+    band_figure,
+    statistic_figure,
+    step_flow_figure,
+    step_trace_figure,
+    to_png,
+)
+
+__all__ = ["render_report", "write_report", "write_text_atomic"]
+
+_STYLE = """
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em;
+max-width:1100px;color:#222}
+h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em}
+table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:.3em .6em;
+text-align:right}th{background:#f0f0f0}td.l,th.l{text-align:left}
+.verdict{font-size:1.2em;font-weight:bold;padding:.5em;border-radius:4px}
+.leak{background:#fde2e1}.ok{background:#e1f5e4}img{max-width:100%}
+.note{color:#7a4b00}
+"""
+
+
+def _e(value: object) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def _img(png: bytes, alt: str) -> str:
+    data = base64.b64encode(png).decode("ascii")
+    return f'<figure><img alt="{_e(alt)}" src="data:image/png;base64,{data}"></figure>'
+
+
+def _fmt(x: float, digits: int = 2) -> str:
+    return "n/a" if not math.isfinite(x) else f"{x:,.{digits}f}"
+
+
+def _flow_channel(reference: ReferenceModel) -> str | None:
+    for name in ("Q_In", *reference.channels):
+        if name in reference.channels and reference.units[reference.channels.index(name)] == "kg/s":
+            return name
+    return reference.channels[0] if reference.channels else None
+
+
+def _band_channel(reference: ReferenceModel) -> str | None:
+    for name in ("P_DNC_A", "P_In", *reference.channels):
+        if name in reference.channels:
+            return name
+    return None
+
+
+def _figures(reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis) -> list[str]:
+    out: list[str] = []
+    if diagnosis.cycle_scores.size:
+        out.append(
+            _img(
+                to_png(
+                    statistic_figure(
+                        diagnosis.cycle_scores,
+                        diagnosis.cycle_threshold,
+                        diagnosis.run_score,
+                        diagnosis.run_threshold,
+                    )
+                ),
+                "per-cycle statistic",
+            )
+        )
+    flow = _flow_channel(reference)
+    if flow is not None:
+        c = reference.channels.index(flow)
+        unit = reference.units[c]
+        n = reference.n_steps
+        start = n + c * 3 * n  # the channel's step means in the feature vector
+        ref_means = reference.detector.mean_[start : start + n]
+        run_means = np.mean(run.features()[:, start : start + n], axis=0)
+        out.append(_img(to_png(step_flow_figure(flow, unit, ref_means, run_means)), flow))
+        if (
+            reference.band_mean is not None
+            and reference.trace_offsets is not None
+            and run.traces is not None
+            and run.traces.shape[2] == reference.band_mean.shape[1]
+        ):
+            offsets = reference.trace_offsets
+            diff = np.abs(run_means - ref_means)
+            top = sorted(int(j) for j in np.argsort(diff)[::-1][:3])
+            ref_tr = [reference.band_mean[c, offsets[j] : offsets[j + 1]] for j in top]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # samples no cycle reaches
+                run_mean = np.nanmean(run.traces[:, c, :], axis=0)
+            run_tr = [run_mean[offsets[j] : offsets[j + 1]] for j in top]
+            out.append(
+                _img(
+                    to_png(
+                        step_trace_figure(
+                            flow,
+                            unit,
+                            [j + 1 for j in top],
+                            ref_tr,
+                            run_tr,
+                            reference.trace_rate_hz,
+                        )
+                    ),
+                    f"{flow} traces of the most affected steps",
+                )
+            )
+    band = _band_channel(reference)
+    if (
+        band is not None
+        and reference.band_mean is not None
+        and reference.band_std is not None
+        and reference.trace_offsets is not None
+        and run.traces is not None
+        and run.traces.shape[2] == reference.band_mean.shape[1]
+    ):
+        c = reference.channels.index(band)
+        det = reference.band_detector(band)
+        std = det.std_ if det is not None else reference.band_std[c]
+        out.append(
+            _img(
+                to_png(
+                    band_figure(
+                        band,
+                        reference.units[c],
+                        reference.band_mean[c],
+                        std,
+                        reference.settings.band_eps,
+                        run.traces[:, c, :],
+                        reference.trace_rate_hz,
+                        reference.trace_offsets,
+                    )
+                ),
+                f"threshold band of {band}",
+            )
+        )
+    return out
+
+
+def _leak_table(diagnosis: Diagnosis) -> str:
+    if not diagnosis.leaks:
+        return "<p>No leak located.</p>"
+    rows = []
+    for i, leak in enumerate(diagnosis.leaks, start=1):
+        group = ", ".join(leak.ambiguity_group)
+        rows.append(
+            "<tr>"
+            f"<td>{i}</td><td class='l'>{_e(leak.location)}</td><td class='l'>{_e(group)}</td>"
+            f"<td>{_fmt(leak.flow_slpm, 1)}</td><td>{_fmt(leak.orifice_mm, 2)}</td>"
+            f"<td>{_fmt(leak.annual_cost, 0)}</td><td>{_fmt(100 * leak.confidence, 0)} %</td>"
+            "</tr>"
+        )
+    s = diagnosis.settings
+    return (
+        "<table><tr><th>#</th><th class='l'>location</th><th class='l'>ambiguity group</th>"
+        "<th>flow [SLPM]</th><th>equivalent orifice [mm]</th><th>annual cost [$]</th>"
+        "<th>confidence</th></tr>"
+        + "".join(rows)
+        + f"<tr><th colspan='5' class='l'>total</th><th>{_fmt(diagnosis.total_annual_cost, 0)}"
+        "</th><th></th></tr></table>"
+        f"<p>Cost by eq. 1.1 at {_fmt(s.hours, 0)} h/year, ${_fmt(s.price_per_kwh, 3)}/kWh and "
+        f"{_fmt(s.kw_per_100_cfm, 1)} kW per 100 cfm. SLPM at 0 degC, 1013 mbar "
+        "(1.294 kg/m<sup>3</sup>); orifice: sharp-edged (C<sub>d</sub> = 0.61), choked "
+        "from the leak's nominal pressure.</p>"
+    )
+
+
+def render_report(
+    reference: ReferenceModel,
+    run: StepTable,
+    diagnosis: Diagnosis,
+    title: str = "pneufdd leak report",
+    run_name: str = "run",
+) -> str:
+    """Render the self-contained HTML report of one diagnosis.
+
+    Parameters
+    ----------
+    reference : ReferenceModel
+        The reference the run was diagnosed against.
+    run : StepTable
+        The run's cycles (for the figures).
+    diagnosis : Diagnosis
+        The result of :func:`~pneufdd.diagnosis.engine.diagnose`.
+    title : str
+        Page title.
+    run_name : str
+        Name of the run (e.g. its file), shown on the page.
+
+    Returns
+    -------
+    str
+        A complete HTML document.
+    """
+    run = check_compatible(reference, run)
+    verdict = (
+        f"<div class='verdict leak'>Leak detected: {len(diagnosis.leaks)} leak(s) located, "
+        f"total {_fmt(diagnosis.total_annual_cost, 0)} $/year</div>"
+        if diagnosis.detected
+        else "<div class='verdict ok'>No leak detected</div>"
+    )
+    flagged = int(np.sum(diagnosis.cycle_scores > diagnosis.cycle_threshold))
+    detection = (
+        "<table>"
+        f"<tr><th class='l'>cycles analysed</th><td>{diagnosis.cycles_analyzed}</td></tr>"
+        f"<tr><th class='l'>run statistic (mean T) / threshold</th>"
+        f"<td>{_fmt(diagnosis.run_score, 3)} / {_fmt(diagnosis.run_threshold, 3)}</td></tr>"
+        f"<tr><th class='l'>p-value of a leak-free run</th><td>{diagnosis.p_value:.3g}</td></tr>"
+        f"<tr><th class='l'>cycles above the per-cycle threshold</th><td>{flagged}</td></tr>"
+        f"<tr><th class='l'>cross-validated false-alarm rate per leak-free reference cycle"
+        f"</th><td>{_fmt(100 * diagnosis.reference_false_alarm_rate, 2)} %</td></tr>"
+        f"<tr><th class='l'>band method (eps = {_fmt(reference.settings.band_eps, 1)}, "
+        f"n = {_fmt(100 * reference.settings.band_alarm_fraction, 1)} %): cycles flagged</th>"
+        f"<td>{diagnosis.band_alarms if diagnosis.band_fraction.size else 'n/a'}</td></tr>"
+        "</table>"
+    )
+    ambiguous = [leak for leak in diagnosis.leaks if len(leak.ambiguity_group) > 1]
+    ambiguity = (
+        "<p>Each leak's <em>ambiguity group</em> lists the candidate locations whose leak "
+        "signatures the available sensors cannot tell apart: swapping one for another "
+        "changes the fit by less than the noise allows, or their weighted signatures are "
+        "nearly collinear. The first member fits best, but a group of more than one member "
+        "is not a confident location: inspect all of them. The confidence is the "
+        "probability-like weight of the group times the fraction of the observed deviation "
+        "that the leak model explains.</p>"
+    )
+    if ambiguous:
+        ambiguity += (
+            "<ul>"
+            + "".join(
+                f"<li>{_e(leak.location)}: cannot be told apart from "
+                f"{_e(', '.join(leak.ambiguity_group[1:]))} with sensors "
+                f"{_e(', '.join(reference.channels) or 'digital only')}</li>"
+                for leak in ambiguous
+            )
+            + "</ul>"
+        )
+    notes = "".join(f"<p class='note'>{_e(n)}</p>" for n in diagnosis.notes)
+    sources = ", ".join(reference.sources) or "n/a"
+    meta = (
+        "<table>"
+        f"<tr><th class='l'>machine</th><td class='l'>{_e(reference.machine)}</td></tr>"
+        f"<tr><th class='l'>run</th><td class='l'>{_e(run_name)}</td></tr>"
+        f"<tr><th class='l'>reference</th><td class='l'>{reference.n_cycles} leak-free cycles "
+        f"from {_e(sources)}</td></tr>"
+        f"<tr><th class='l'>sensor set</th><td class='l'>"
+        f"{_e(', '.join(reference.channels) or 'none')} + PLC digital signals</td></tr>"
+        f"<tr><th class='l'>steps per cycle</th><td class='l'>{reference.n_steps}</td></tr>"
+        f"<tr><th class='l'>leak signatures</th><td class='l'>"
+        f"{_e(', '.join(reference.signatures.locations)) if reference.signatures else 'none'}"
+        "</td></tr></table>"
+    )
+    figures = "".join(_figures(reference, run, diagnosis))
+    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    return (
+        "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{_e(title)}</title><style>{_STYLE}</style></head><body>"
+        f"<h1>{_e(title)}</h1>{verdict}{notes}"
+        f"<h2>Leaks, ranked by annual cost</h2>{_leak_table(diagnosis)}"
+        f"<h2>Ambiguity groups</h2>{ambiguity}"
+        f"<h2>Detection</h2>{detection}"
+        f"<h2>Figures</h2>{figures}"
+        f"<h2>Inputs</h2>{meta}"
+        f"<p><small>pneufdd {_e(__version__)}, {_e(stamp)}. Methods: docs/diagnosis.md."
+        "</small></p></body></html>\n"
+    )
+
+
+def write_text_atomic(path: Path, text: str, overwrite: bool = True) -> Path:
+    """Write ``text`` to ``path`` via a temporary file and a rename."""
+    if path.exists() and not overwrite:
+        raise FileExistsInputError(describe(f"output file {str(path)!r}", "exists", "overwrite"))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        _default_mode(tmp)
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_report(
+    path: str | Path,
+    reference: ReferenceModel,
+    run: StepTable,
+    diagnosis: Diagnosis,
+    title: str = "pneufdd leak report",
+    run_name: str = "run",
+    overwrite: bool = True,
+) -> Path:
+    """Render the report and write it to ``path`` atomically."""
+    return write_text_atomic(
+        Path(path), render_report(reference, run, diagnosis, title, run_name), overwrite
+    )
+
+
+def _default_mode(path: str) -> None:
+    """Give a temporary file the mode a new file gets (mkstemp makes it 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, 0o666 & ~umask)

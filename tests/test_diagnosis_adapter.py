@@ -1,0 +1,82 @@
+"""Recording -> StepTable adapter and simulator-computed signatures on festo-dsd."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pneufdd.diagnosis.adapter import (
+    machine_sequence,
+    segment_cycles,
+    sequence_from_records,
+    sequence_to_records,
+    step_table,
+    trace_offsets,
+)
+from pneufdd.diagnosis.simulated import compute_signatures
+from pneufdd.physics.units import slpm_to_kg_s
+from pneufdd.sim import simulate
+
+SEED = 32_000
+
+
+@pytest.fixture(scope="module")
+def recording():
+    return simulate("festo-dsd", cycles=5, seed=SEED + 1)
+
+
+def test_machine_sequence_segments_every_inner_cycle(recording):
+    seq = machine_sequence(recording, "festo-dsd")
+    assert all(spec.valves for spec in seq)
+    assert sequence_from_records(sequence_to_records(seq)) == seq
+    cycles, _used, rejected = segment_cycles(recording, seq)
+    # 5 simulated cycles: at most the first (starts from rest) and the last (no
+    # successor closes its last step) are partial, whatever the timing
+    assert len(cycles) >= 3
+    assert len(cycles) + len(rejected) == 5
+    assert all(("mid-cycle" in r) or ("recording" in r) for r in rejected)
+    assert all(len(c.steps) == len(seq) for c in cycles)
+
+
+def test_step_summaries_equal_direct_slicing(recording):
+    seq = machine_sequence(recording, "festo-dsd")
+    cycles, _, _ = segment_cycles(recording, seq)
+    offsets = trace_offsets(cycles, 100.0)
+    table = step_table(recording, cycles, "festo-dsd", ["P_In", "Q_DNC_B"], offsets)
+    for name, c in (("P_In", 0), ("Q_DNC_B", 1)):
+        t, v = recording.channel(name)
+        for i, j in [(0, 0), (1, 1), (2, 30)]:
+            step = cycles[i].steps[j]
+            sel = v[(t >= step.start_s - 1e-9) & (t < step.end_s - 1e-9)]
+            assert table.summaries[i, j, c, 0] == pytest.approx(np.mean(sel), rel=1e-9)
+            assert table.summaries[i, j, c, 1] == pytest.approx(np.min(sel))
+            assert table.summaries[i, j, c, 2] == pytest.approx(np.max(sel))
+            # the template starts at the step's own start (lag removal, 5.3.1.1): the
+            # first 100 Hz block at or after the step's start
+            block = int(np.ceil(step.start_s * 100.0 - 1e-9))
+            expected = np.mean(v[block * 10 : block * 10 + 10])
+            assert table.traces[i, c, offsets[j]] == pytest.approx(expected, rel=1e-9)
+    assert np.allclose(table.durations, [[s.duration_s for s in c.steps] for c in cycles])
+
+
+def test_supply_leak_signature_is_a_constant_flow_offset():
+    # section 5.3.1.2: a supply leak adds about its flow to Q_In in every step
+    rec = simulate("festo-dsd", cycles=3, seed=SEED + 2)
+    seq = machine_sequence(rec, "festo-dsd")
+    cycles, _, _ = segment_cycles(rec, seq)
+    names = step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
+    sig = compute_signatures(
+        "festo-dsd",
+        names,
+        seq,
+        cycles=1,
+        channels=["Q_In"],
+        sizes_slpm=(30.0,),
+        locations=("supply",),
+        workers=1,
+    )
+    n = len(seq)
+    q_mean = sig.deltas[0, 0, n : 2 * n]
+    assert sig.sizes[0, 0] == pytest.approx(slpm_to_kg_s(30.0), rel=1e-6)
+    assert np.median(q_mean) == pytest.approx(slpm_to_kg_s(30.0), rel=0.15)
+    assert np.mean(q_mean > 0) > 0.9

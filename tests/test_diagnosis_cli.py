@@ -1,0 +1,165 @@
+"""``pneufdd reference build`` and ``pneufdd diagnose`` on simulated festo-dsd files."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from pneufdd.cli.app import main
+from pneufdd.diagnosis.pnref import load_reference
+from pneufdd.sim import simulate
+
+SEED = 31_000  # this file's seeds: SEED + k
+
+
+def _flat(text: str) -> str:
+    """The console wraps long messages anywhere, even inside paths: drop whitespace."""
+    return "".join(text.split())
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("cli")
+    paths = {}
+    for name, cycles, leaks, seed in [
+        ("ref1", 8, {}, 1),
+        ("ref2", 8, {}, 2),
+        ("short", 9, {}, 3),
+        ("free", 6, {}, 4),
+        ("leaky", 6, {"supply": 4}, 5),
+    ]:
+        rec = simulate("festo-dsd", cycles=cycles, leaks=leaks, seed=SEED + seed)
+        paths[name] = rec.write(folder / f"{name}.parquet")
+        if name == "free":
+            other = dict(rec.metadata)
+            other["machine"] = {"name": "another-machine"}
+            paths["other"] = rec.with_metadata(other).write(folder / "other.parquet")
+            keep = [c for c in rec.channels if c != "Q_In"]
+            paths["noq"] = rec.select(keep).write(folder / "noq.parquet")
+    ref = folder / "ref.pnref"
+    code = main(
+        [
+            "reference",
+            "build",
+            str(paths["ref1"]),
+            str(paths["ref2"]),
+            "--out",
+            str(ref),
+            "--no-signatures",
+        ]
+    )
+    assert code == 0
+    paths["ref"] = ref
+    paths["folder"] = folder
+    return paths
+
+
+def test_reference_build_writes_a_valid_reference(files):
+    model = load_reference(files["ref"])
+    assert model.machine == "festo-dsd"
+    assert model.n_cycles >= 12  # 2 x 8 simulated; the first and last may be partial
+    assert "Q_In" in model.channels
+    assert model.sequence
+
+
+@pytest.mark.parametrize(("channels", "expected"), [("P_In,Q_In", ("P_In", "Q_In")), ("none", ())])
+def test_reference_channels_option(files, tmp_path, channels, expected):
+    out = tmp_path / "r.pnref"
+    code = main(
+        [
+            "reference",
+            "build",
+            str(files["ref1"]),
+            str(files["ref2"]),
+            "--out",
+            str(out),
+            "--channels",
+            channels,
+            "--no-signatures",
+        ]
+    )
+    assert code == 0
+    assert load_reference(out).channels == expected
+
+
+def test_reference_of_fewer_than_ten_cycles_is_refused(files, tmp_path, capsys):
+    out = tmp_path / "r.pnref"
+    code = main(["reference", "build", str(files["short"]), "--out", str(out), "--no-signatures"])
+    assert code == 2
+    assert not out.exists()
+    assert not list(tmp_path.iterdir())
+    assert "referencecycles" in _flat(capsys.readouterr().err)
+
+
+def test_leak_free_run_exits_zero(files, tmp_path):
+    out, rep = tmp_path / "d.json", tmp_path / "d.html"
+    code = main(
+        [
+            "diagnose",
+            str(files["free"]),
+            "--reference",
+            str(files["ref"]),
+            "--json",
+            str(out),
+            "--report",
+            str(rep),
+        ]
+    )
+    data = json.loads(out.read_text())
+    assert code == 0
+    assert data["detected"] is False
+    assert data["cycles_analyzed"] in (4, 5)  # 6 simulated; first and last may be partial
+    assert data["leaks"] == []
+    assert rep.read_text().startswith("<!DOCTYPE html>")
+
+
+def test_leaky_run_exits_one(files, tmp_path):
+    out = tmp_path / "d.json"
+    code = main(
+        [
+            "diagnose",
+            str(files["leaky"]),
+            "--reference",
+            str(files["ref"]),
+            "--json",
+            str(out),
+            "--hours",
+            "8000",
+        ]
+    )
+    data = json.loads(out.read_text())
+    assert code == 1
+    assert data["detected"] is True
+    assert data["cost_settings"]["hours"] == 8000.0
+    assert any("signatures" in note for note in data["notes"])  # built without them
+
+
+@pytest.mark.parametrize(("run", "message"), [("other", "another machine"), ("noq", "Q_In")])
+def test_bad_runs_fail_cleanly(files, tmp_path, capsys, run, message):
+    out, rep = tmp_path / "d.json", tmp_path / "d.html"
+    code = main(
+        [
+            "diagnose",
+            str(files[run]),
+            "--reference",
+            str(files["ref"]),
+            "--json",
+            str(out),
+            "--report",
+            str(rep),
+        ]
+    )
+    assert code == 2
+    assert message.replace(" ", "") in _flat(capsys.readouterr().err)
+    assert not list(tmp_path.iterdir())  # no partial output
+
+
+def test_corrupted_reference_fails_cleanly(files, tmp_path, capsys):
+    bad = tmp_path / "bad.pnref"
+    bad.write_bytes(files["ref"].read_bytes()[:300])
+    out = tmp_path / "d.json"
+    code = main(["diagnose", str(files["free"]), "--reference", str(bad), "--json", str(out)])
+    assert code == 2
+    assert "bad.pnref" in _flat(capsys.readouterr().err)
+    assert not out.exists()

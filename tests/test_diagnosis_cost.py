@@ -1,0 +1,78 @@
+"""Leak cost by eq. 1.1 and the equivalent sharp-edged orifice."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from pneufdd.diagnosis.cost import (
+    CostSettings,
+    annual_cost,
+    cost_leaks,
+    equivalent_orifice_mm,
+)
+from pneufdd.errors import InputError
+from pneufdd.physics.units import kg_s_to_scfm, psig_to_pa, scfm_to_kg_s
+
+
+def test_eq_1_1_by_hand():
+    # 10 cfm at 18 kW / 100 cfm, 7000 h, $0.05 / kWh: 10 * 0.18 * 7000 * 0.05 = $630
+    assert annual_cost(scfm_to_kg_s(10.0), CostSettings()) == pytest.approx(630.0, rel=1e-12)
+    custom = CostSettings(hours=8760.0, price_per_kwh=0.12, kw_per_100_cfm=22.0)
+    assert annual_cost(scfm_to_kg_s(3.0), custom) == pytest.approx(
+        3.0 * 0.22 * 8760.0 * 0.12, rel=1e-12
+    )
+
+
+def test_section_1_1_example_total():
+    # 100 leaks of 1/32 in and 50 of 1/16 in at 90 psig, 10 of 1/4 in at 100 psig,
+    # sharp-edged (x 0.61 of Figure 1.2), 7000 h, $0.05/kWh, 18 kW/100 cfm: $57,069.
+    flows = [1.46] * 100 + [5.72] * 50 + [100.9] * 10
+    pressures = [psig_to_pa(90.0)] * 150 + [psig_to_pa(100.0)] * 10
+    _, total = cost_leaks(
+        ["x"] * 160,
+        [scfm_to_kg_s(0.61 * f) for f in flows],
+        pressures,
+        [1.0] * 160,
+        [("x",)] * 160,
+        CostSettings(),
+    )
+    assert total == pytest.approx(57_069.0, rel=0.05)
+
+
+@pytest.mark.parametrize(
+    ("inch", "psig", "cfm"),
+    [(1 / 64, 70, 0.29), (1 / 16, 90, 5.72), (1 / 4, 100, 100.9), (3 / 8, 125, 275.5)],
+)
+def test_orifice_inverts_figure_1_2(inch, psig, cfm):
+    # Figure 1.2 gives flows of well-rounded orifices (Cd ~ 1); the sharp-edged flow
+    # is x 0.61, so the equivalent sharp-edged diameter of that flow is the table's.
+    d = equivalent_orifice_mm(scfm_to_kg_s(0.61 * cfm), psig_to_pa(psig))
+    assert d == pytest.approx(25.4 * inch, rel=0.07)
+
+
+def test_orifice_scales_with_square_root_of_flow():
+    d1 = equivalent_orifice_mm(1e-3, 6e5)
+    d4 = equivalent_orifice_mm(4e-3, 6e5)
+    assert d4 == pytest.approx(2 * d1, rel=1e-12)
+
+
+def test_ranking_and_total():
+    leaks, total = cost_leaks(
+        ["a", "b", "c"],
+        [1e-4, 3e-3, 1e-3],
+        [6e5] * 3,
+        [1.0] * 3,
+        [("a",), ("b",), ("c",)],
+        CostSettings(),
+    )
+    assert [leak.location for leak in leaks] == ["b", "c", "a"]
+    assert math.isclose(total, sum(leak.annual_cost for leak in leaks))
+    assert leaks[0].flow_slpm == pytest.approx(3e-3 / 1.294 * 60_000.0)
+    assert kg_s_to_scfm(leaks[0].mass_flow) > 0
+
+
+def test_bad_settings_rejected():
+    with pytest.raises(InputError, match="hours"):
+        CostSettings(hours=-1.0)

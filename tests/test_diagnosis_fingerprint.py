@@ -1,0 +1,188 @@
+"""Non-negative decomposition into leak signatures (eqs. 5.23-5.24) and ambiguity groups."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from _diag_synth import synth_signatures
+from pneufdd.diagnosis.fingerprint import locate
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.errors import InputError
+
+
+def _linear_set(matrix: np.ndarray) -> SignatureSet:
+    n_loc, n_feat = matrix.shape
+    return SignatureSet(
+        tuple(f"L{i}" for i in range(n_loc)),
+        np.full((n_loc, 1), 10.0),  # linear: one simulated size well above the tests'
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(n_feat)),
+        np.full(n_loc, 6e5),
+    )
+
+
+def _whiten(delta):
+    return np.atleast_2d(delta) * 50.0
+
+
+@given(
+    st.integers(0, 5),
+    st.integers(0, 5),
+    st.floats(0.2, 5.0),
+    st.floats(0.2, 5.0),
+    st.integers(0, 2**31 - 1),
+)
+def test_nnls_recovers_known_nonnegative_mixture(i, j, a, b, seed):
+    rng = np.random.default_rng(seed)
+    matrix = np.abs(rng.normal(size=(6, 80)))
+    sig = _linear_set(matrix)
+    truth = {i: a} if i == j else {i: a, j: b}
+    observed = sum(size * matrix[loc] for loc, size in truth.items())
+    result = locate(observed, sig, _whiten, max_leaks=2)
+    found = {sig.locations.index(leak.location): leak.mass_flow for leak in result.leaks}
+    assert found.keys() == truth.keys()
+    for loc, size in truth.items():
+        assert found[loc] == pytest.approx(size, rel=1e-6)
+    assert all(len(leak.ambiguity_group) == 1 for leak in result.leaks)
+    assert result.explained == pytest.approx(1.0, abs=1e-9)
+
+
+def test_collinear_signatures_form_one_ambiguity_group():
+    rng = np.random.default_rng(1)
+    matrix = np.abs(rng.normal(size=(4, 60)))
+    matrix[3] = 2.0 * matrix[1]  # L3 looks exactly like a leak twice the size at L1
+    sig = _linear_set(matrix)
+    observed = 1.0 * matrix[1] + 0.01 * rng.normal(size=60)
+    result = locate(observed, sig, _whiten, max_leaks=2)
+    assert len(result.leaks) == 1
+    leak = result.leaks[0]
+    assert set(leak.ambiguity_group) == {"L1", "L3"}
+    sizes = dict(zip(leak.ambiguity_group, leak.group_mass_flows, strict=True))
+    assert sizes["L1"] == pytest.approx(2.0 * sizes["L3"], rel=1e-3)
+    assert leak.confidence > 0.9  # confident that the leak is in the group ...
+    # ... but not in either member alone: the two fit equally well.
+
+
+def test_distinct_signatures_are_not_grouped():
+    rng = np.random.default_rng(2)
+    matrix = np.abs(rng.normal(size=(4, 60)))
+    sig = _linear_set(matrix)
+    observed = 0.7 * matrix[2] + 0.001 * rng.normal(size=60)
+    (leak,) = locate(observed, sig, _whiten).leaks
+    assert leak.ambiguity_group == ("L2",)
+    assert leak.confidence > 0.95
+
+
+def test_nonlinear_signatures_are_refined_to_the_right_size():
+    sig = synth_signatures()
+    # inside the simulated sizes (2e-4 ... 1.5e-3 kg/s): 2 %; extrapolated by 1/6: 5 %
+    cases = [("supply", 4.2e-4, 0.02), ("X_B", 1.1e-3, 0.02), ("Y_A", 1.4e-3, 0.02)]
+    cases.append(("X_A", 1.75e-3, 0.05))
+    for loc, size, tol in cases:
+        i = sig.locations.index(loc)
+        # the true effect of the synthetic machine at this size (not the signature's
+        # interpolation): rebuild it from a finer signature set
+        fine = synth_signatures(sizes=(size,))
+        observed = fine.deltas[i, 0]
+        scale = np.maximum(np.abs(sig.deltas).max(axis=(0, 1)) * 1e-3, 1e-12)
+        (leak,) = locate(observed, sig, lambda d, s=scale: np.atleast_2d(d) / s).leaks
+        assert leak.location == loc
+        assert leak.mass_flow == pytest.approx(size, rel=tol)
+
+
+def test_sizes_beyond_the_ladder_are_capped():
+    sig = synth_signatures()  # largest simulated size 1.5e-3 kg/s
+    observed = synth_signatures(sizes=(4e-3,)).deltas[1, 0]
+    (leak,) = locate(
+        observed, sig, lambda d: np.atleast_2d(d) * 1e3, max_leaks=1, max_extrapolation=1.25
+    ).leaks
+    assert leak.location == "X_A"
+    assert leak.mass_flow == pytest.approx(1.25 * 1.5e-3)
+
+
+def test_locate_rejects_wrong_shape():
+    sig = _linear_set(np.ones((2, 5)))
+    with pytest.raises(InputError, match="shape of observed"):
+        locate(np.ones(4), sig, _whiten)
+
+
+def test_signature_select_and_validation():
+    sig = synth_signatures()
+    sub = sig.select(sig.feature_names[:12])
+    assert sub.deltas.shape == (5, 3, 12)
+    with pytest.raises(InputError, match="positive, increasing"):
+        SignatureSet(
+            ("a",), np.array([[2.0, 1.0]]), np.zeros((1, 2, 3)), ("x", "y", "z"), np.array([6e5])
+        )
+
+
+def test_vectorised_subset_fits_match_bounded_least_squares_oracle():
+    # oracle: scipy.optimize.lsq_linear on every combination of signature segments
+    import itertools
+
+    from scipy.optimize import lsq_linear
+
+    from pneufdd.diagnosis.fingerprint import _PiecewiseModel
+
+    rng = np.random.default_rng(8)
+    n_loc, n_sizes, n_feat = 4, 3, 25
+    sizes = np.cumsum(rng.uniform(0.5, 1.5, size=(n_loc, n_sizes)), axis=1)
+    deltas = np.cumsum(rng.normal(size=(n_loc, n_sizes, n_feat)), axis=1)
+    sig = SignatureSet(
+        tuple(f"L{i}" for i in range(n_loc)),
+        sizes,
+        deltas,
+        tuple(f"f{j}" for j in range(n_feat)),
+        np.full(n_loc, 6e5),
+    )
+    target = rng.normal(size=n_feat) * 3.0
+    model = _PiecewiseModel(sig, lambda d: np.atleast_2d(d), target)
+    knots = np.concatenate([np.zeros((n_loc, 1)), sizes], axis=1)
+    values = np.concatenate([np.zeros((n_loc, 1, n_feat)), deltas], axis=1)
+
+    def pieces(loc, k):
+        slope = (values[loc, k + 1] - values[loc, k]) / (knots[loc, k + 1] - knots[loc, k])
+        hi = knots[loc, k + 1] if k < n_sizes - 1 else np.inf
+        return values[loc, k] - knots[loc, k] * slope, slope, knots[loc, k], hi
+
+    for subset in [(0,), (2,), (0, 1), (1, 3), (2, 3)]:
+        best = np.inf
+        for segs in itertools.product(range(n_sizes), repeat=len(subset)):
+            parts = [pieces(loc, k) for loc, k in zip(subset, segs, strict=True)]
+            rhs = target - sum(p[0] for p in parts)
+            A = np.column_stack([p[1] for p in parts])
+            res = lsq_linear(A, rhs, bounds=([p[2] for p in parts], [p[3] for p in parts]))
+            best = min(best, float(np.sum((A @ res.x - rhs) ** 2)))
+        _, rss = model.fit(subset)
+        assert rss == pytest.approx(best, rel=1e-6, abs=1e-9)
+
+
+def test_supply_interaction_refines_pair_sizes():
+    # effects of a line leak and a supply leak are not additive (the supply leak lowers
+    # the pressure the line leak sees); with the bilinear term the sizes are recovered
+    rng = np.random.default_rng(12)
+    n_feat = 60
+    base = np.abs(rng.normal(size=(3, n_feat)))
+    inter = -0.3 * base[1] + 0.1 * rng.normal(size=n_feat)
+    sizes = np.array([[0.5, 1.0, 2.0, 4.0]] * 3)
+    deltas = sizes[:, :, None] * base[:, None, :]
+    names = tuple(f"f{j}" for j in range(n_feat))
+    plain = SignatureSet(("supply", "X_A", "X_B"), sizes, deltas, names, np.full(3, 6e5))
+    coupled = SignatureSet(
+        ("supply", "X_A", "X_B"),
+        sizes,
+        deltas,
+        names,
+        np.full(3, 6e5),
+        np.vstack([np.zeros(n_feat), inter, np.zeros(n_feat)]),
+        np.array([1.0, 1.0]),
+    )
+    a, b = 1.5, 2.5  # X_A and supply
+    observed = a * base[1] + b * base[0] + a * b * inter
+    found = {leak.location: leak.mass_flow for leak in locate(observed, coupled, _whiten).leaks}
+    assert found == pytest.approx({"X_A": a, "supply": b}, rel=1e-3)
+    biased = {leak.location: leak.mass_flow for leak in locate(observed, plain, _whiten).leaks}
+    assert abs(biased["X_A"] / a - 1) > 0.05

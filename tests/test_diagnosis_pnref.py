@@ -1,0 +1,140 @@
+"""The .pnref reference file: exact round trip, validation, atomic write."""
+
+from __future__ import annotations
+
+import json
+import zipfile
+
+import numpy as np
+import pytest
+
+from _diag_synth import synth_signatures, synth_table
+from pneufdd.diagnosis.pnref import load_reference, save_reference
+from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.errors import FileFormatError, InputError
+
+
+@pytest.fixture(scope="module")
+def model():
+    sig = synth_signatures()
+    sig = SignatureSet(
+        sig.locations,
+        sig.sizes,
+        sig.deltas,
+        sig.feature_names,
+        sig.nominal_pressure,
+        np.full((len(sig.locations), len(sig.feature_names)), 0.5),
+        np.array([1e-3, 6e-4]),
+    )
+    return ReferenceModel.build(
+        synth_table(20, seed=3),
+        machine_description={"name": "synth", "actuators": ["X", "Y"]},
+        signatures=sig,
+        sources=["a.parquet", "b.parquet"],
+        sequence=[{"valves": ["U_X_A"], "switches": [["S_X_B", 1]]}],
+    )
+
+
+def test_round_trip_is_exact(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+    back = load_reference(path)
+    assert back.machine == model.machine
+    assert back.machine_description == model.machine_description
+    assert back.channels == model.channels
+    assert back.units == model.units
+    assert back.sources == model.sources
+    assert back.sequence == model.sequence
+    assert back.settings == model.settings
+    assert back.supply_pressure == model.supply_pressure
+    for name in ("features", "band_mean", "band_std", "trace_offsets"):
+        assert np.array_equal(getattr(back, name), getattr(model, name))
+    assert back.signatures.locations == model.signatures.locations
+    assert np.array_equal(back.signatures.deltas, model.signatures.deltas)
+    assert np.array_equal(back.signatures.sizes, model.signatures.sizes)
+    assert np.array_equal(back.signatures.interaction, model.signatures.interaction)
+    assert np.array_equal(back.signatures.interaction_sizes, model.signatures.interaction_sizes)
+    assert np.array_equal(back.detector.threshold_, model.detector.threshold_)
+    assert not list(tmp_path.glob(".*tmp"))
+
+
+def test_refuses_to_overwrite(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+    with pytest.raises(InputError, match="exists"):
+        save_reference(model, path)
+    save_reference(model, path, overwrite=True)
+
+
+def test_truncated_file_rejected(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(FileFormatError, match=r"ref\.pnref"):
+        load_reference(path)
+
+
+def test_not_a_reference_rejected(tmp_path):
+    path = tmp_path / "junk.pnref"
+    path.write_text("hello")
+    with pytest.raises(FileFormatError, match=r"junk\.pnref"):
+        load_reference(path)
+    with pytest.raises(FileFormatError, match=r"missing\.pnref"):
+        load_reference(tmp_path / "missing.pnref")
+
+
+def _rewrite(path, out, edit):
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    edit(arrays)
+    with open(out, "wb") as handle:
+        np.savez(handle, **arrays)
+
+
+def test_wrong_version_rejected(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+
+    def bump(arrays):
+        header = json.loads(str(arrays["header"]))
+        header["version"] = 99
+        arrays["header"] = np.array(json.dumps(header))
+
+    _rewrite(path, tmp_path / "v99.pnref", bump)
+    with pytest.raises(FileFormatError, match=r"v99.pnref.*version"):
+        load_reference(tmp_path / "v99.pnref")
+
+
+def test_missing_and_misshapen_entries_rejected(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+    _rewrite(path, tmp_path / "nofeat.pnref", lambda a: a.pop("features"))
+    with pytest.raises(FileFormatError, match="features"):
+        load_reference(tmp_path / "nofeat.pnref")
+
+    def shrink(arrays):
+        arrays["sig_deltas"] = arrays["sig_deltas"][:, :, :-1]
+
+    _rewrite(path, tmp_path / "shape.pnref", shrink)
+    with pytest.raises(FileFormatError, match="sig_deltas"):
+        load_reference(tmp_path / "shape.pnref")
+
+
+def test_too_few_cycles_in_file_rejected(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+
+    def cut(arrays):
+        arrays["features"] = arrays["features"][:5]
+        header = json.loads(str(arrays["header"]))
+        header["n_cycles"] = 5
+        arrays["header"] = np.array(json.dumps(header))
+
+    _rewrite(path, tmp_path / "five.pnref", cut)
+    with pytest.raises(FileFormatError, match=r"five.pnref.*received 5"):
+        load_reference(tmp_path / "five.pnref")
+
+
+def test_no_pickle_inside(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+    with zipfile.ZipFile(path) as archive:
+        names = archive.namelist()
+    assert "header.npy" in names
+    with np.load(path, allow_pickle=False) as data:
+        assert all(data[k].dtype != object for k in data.files)
