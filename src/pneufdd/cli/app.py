@@ -40,7 +40,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; map library errors to documented exit codes (see exit_codes)."""
     err = Console(stderr=True)
     try:
-        app(args=argv, standalone_mode=False)
+        # In non-standalone mode click returns a raised typer.Exit's code as the value.
+        returned = app(args=argv, standalone_mode=False)
     except InputError as exc:
         err.print(f"[bold red]error:[/] {exc}", highlight=False)
         return ExitCode.INPUT_ERROR
@@ -60,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
                 show()
             return int(code)
         raise
-    return ExitCode.OK
+    return int(returned) if isinstance(returned, int) else ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -24,21 +24,7 @@ from pneufdd.diagnosis.pipeline import diagnose_recording
 from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.report.html import render_report, write_text_atomic
 
-__all__ = ["LeakFound", "leak_table", "register"]
-
-
-class LeakFound(Exception):  # noqa: N818 - an outcome, not an error
-    """Raised to end ``diagnose`` with exit code 1 (a leak was found).
-
-    ``pneufdd.cli.app.main`` maps any exception carrying ``exit_code`` to that code
-    (the path click's own usage errors take); ``typer.Exit`` cannot be used because
-    click swallows it in non-standalone mode.
-    """
-
-    exit_code = int(ExitCode.LEAK_FOUND)
-
-    def show(self) -> None:
-        """Nothing to print: the result is already on the console."""
+__all__ = ["leak_table", "register"]
 
 
 def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first") -> Table:
@@ -114,7 +100,7 @@ def diagnose(
     for note in result.notes:
         console.print(f"note: {note}", highlight=False)
     if result.detected:
-        raise LeakFound(f"{run}: leak detected")
+        raise typer.Exit(ExitCode.LEAK_FOUND)
 
 
 def register(app: typer.Typer) -> None:
