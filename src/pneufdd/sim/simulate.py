@@ -29,6 +29,10 @@ SIMULATOR_VERSION = f"pneufdd.sim {__version__} (twin model 1)"
 ANALOG_RATE_HZ = 1000.0
 DIGITAL_RATE_HZ = 100.0
 _DIGITAL_EVERY = round(ANALOG_RATE_HZ / DIGITAL_RATE_HZ)
+RUN_END_IDLE_S = 0.3
+"""Idle time recorded after the last cycle's last step [s]: the PLC stops in cycle-stop
+mode and the DAQ runs on briefly, as on the rig, so the last cycle's final switch
+edges are in the recording and it segments as complete."""
 
 MachineLike = str | Path | MachineDescription | dict[str, Any]
 LeaksLike = Mapping[str, Any] | Iterable[Leak] | None
@@ -149,6 +153,8 @@ def run_simulation(
     total_sub = 0
     for cyc in range(cycles):
         jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], nsteps)
+        if cyc == cycles - 1:
+            jitter[-1] += RUN_END_IDLE_S
         fric = np.clip(1.0 + desc.friction_scatter * rng.standard_normal(na), 0.5, 1.5)
         tau = desc.supply.house_drift_time_s
         ou = _ou_grid(rng, ou_now, plant.sp[lay.SP_DRIFT_STD], tau, n_ou)
