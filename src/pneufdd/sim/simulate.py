@@ -61,7 +61,7 @@ class _Buffers:
         n_ev = 8 * nsteps + 8 * na
         self.ev_act = np.zeros(n_ev, dtype=np.int64)
         self.ev_dir = np.zeros(n_ev, dtype=np.int64)
-        self.ev_t0 = np.zeros(n_ev)
+        self.ev_t0 = np.zeros((n_ev, 2))
         self.ev_t1 = np.zeros(n_ev)
 
 
@@ -183,9 +183,10 @@ def run_simulation(
                 Stroke(
                     desc.actuators[int(buf.ev_act[e])].id,
                     int(buf.ev_dir[e]),
-                    float(buf.ev_t0[e]),
+                    float(buf.ev_t0[e, 0]),
                     float(buf.ev_t1[e]),
-                    int(np.searchsorted(step_start[: cyc + 1, 0], buf.ev_t0[e], "right")) - 1,
+                    int(np.searchsorted(step_start[: cyc + 1, 0], buf.ev_t0[e, 1], "right")) - 1,
+                    float(buf.ev_t0[e, 1]),
                 )
             )
         chunks.append(_take(desc, buf, n, k_start, keep_outputs))
@@ -296,6 +297,7 @@ def _assemble(
             outputs[f"stroke_start_{a.id}"] = np.array([s.start for s in mine])
             outputs[f"stroke_end_{a.id}"] = np.array([s.end for s in mine])
             outputs[f"stroke_direction_{a.id}"] = np.array([s.direction for s in mine])
+            outputs[f"stroke_first_motion_{a.id}"] = np.array([s.first_motion for s in mine])
     return SimulationResult(
         time=time,
         outputs=outputs,
