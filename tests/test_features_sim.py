@@ -107,3 +107,25 @@ def test_table_4_5_signs(signs: dict[str, str], cls: str) -> None:
         if expected == "0":
             continue  # "no correlation or uncertain": nothing to check
         assert got == SIM_DISAGREES.get((cls, j), expected), (cls, j, table, sim)
+
+
+@pytest.mark.parametrize(("leaks", "seed"), [((), 1), ((("DNC_B", 4.0),), 2)])
+def test_last_cycle_final_step_is_comparable(leaks, seed) -> None:
+    # The recording runs on 0.3 s after the last cycle (RUN_END_IDLE_S); the last
+    # step of the data ends when its awaited switch is on plus the step's median gap
+    # in the other cycles, so its duration and air equal the other cycles' within
+    # their scatter (ending it with the data added 0.3 s and ~0.09 SL).
+    from pneufdd.signals import segment
+
+    rec = run(20, leaks, seed).recording
+    seg = segment(rec)
+    assert len(seg.complete) == 20
+    duration = np.array([c.steps[57].duration_s for c in seg.complete])
+    assert seg.complete[-1].end_s < rec.duration - 0.2
+    # durations come from 100 Hz edges: one digital sample of tolerance
+    assert duration[:-1].min() - 0.0101 <= duration[-1] <= duration[:-1].max() + 0.0101
+    df = feature_matrix(rec, groups=["air"])
+    for col in ("step58.air_SL", "DNC.air_extend_SL"):
+        v = df[col].to_numpy()
+        others = v[:-1]
+        assert abs(v[-1] - np.median(others)) <= 3.0 * others.std(), (col, v[-1], others)
