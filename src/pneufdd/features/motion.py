@@ -3,14 +3,16 @@
 With an LVDT (``X_<ACT>``), times come from the zero-phase filtered displacement
 (section 3.2.4) at the analog rate:
 
-* motion start (breakaway): the start-up of the acceleration that section 3.3
-  judges by eye, found by fitting "at rest until t0, then ``a (t - t0)^2 + b (t -
-  t0)^3``" to the raw displacement over the first 35 % of the travel (least squares,
-  t0 on the sample grid); a speed threshold (the last sample before the peak below
-  ``start_fraction`` = 5 % of the peak speed) is the fallback and an upper bound;
-* arrival: the first sample after the peak within ``end_tolerance`` (0.5 %) of the
-  stroke from the final position, plus the time the remaining distance takes at
-  the speed there (at most 5 samples);
+* motion start (start of sustained travel): the start-up of the acceleration that
+  section 3.3 judges by eye, found by fitting "at rest at ``c`` until t0, then ``c +
+  a (t - t0)^2 + b (t - t0)^3``" to the raw displacement over the first 25 % of the
+  travel (least squares, t0 on the sample grid); a speed threshold (the last sample
+  before the peak below ``start_fraction`` = 5 % of the peak speed) is the fallback
+  and an upper bound;
+* arrival: coarse, the first sample after the peak within ``end_tolerance`` (0.5 %)
+  of the stroke from the final position, plus the time the remaining distance takes
+  at the speed there (at most 5 samples); refined by a hinge fit "constant speed,
+  then at rest at the end stop" to the raw displacement around it;
 * t_p = start - valve firing, t_s = arrival - start, t_o = t_p + t_s (section 3.3);
 * balancing velocity: median speed over 50-90 % of the travel (the uniform
   latter half of a meter-out stroke, before cushioning);
