@@ -27,8 +27,11 @@ LOCATION = {"extend": "DNC_A", "retract": "DNC_B", "supply": "supply"}
 
 
 def _stroke_errors(leaks, seed) -> np.ndarray:
+    """Estimated minus true stroke time [s] of every DNC stroke of every complete cycle."""
     res = run(20, leaks, seed)
     df = feature_matrix(res.recording, groups=["motion"])
+    # The simulator records the idle machine after the last cycle: all 20 are complete.
+    assert len(df) == 20, df.attrs["rejected"]
     truth = {(s.cycle, s.direction): s.duration for s in res.strokes if s.actuator == "DNC"}
     cycles = df.index.get_level_values("cycle") - 1
     errors = []
@@ -38,21 +41,28 @@ def _stroke_errors(leaks, seed) -> np.ndarray:
     return np.concatenate(errors)
 
 
+# The seeds below are not those the estimator was developed on (exploration: seeds
+# 100-109, 20 cycles each, leak-free and 4-turn DNC_A, DNC_B, supply leaks; the
+# figures are in docs/signals.md).
+
+
 def test_stroke_times_against_the_simulator_ground_truth() -> None:
-    # Target: within 10 ms of the simulator's breakaway-to-end-stop time. The LVDT
-    # noise (1.2 mm at 1 kHz) limits the breakaway estimate to a few ms; measured on
-    # two leak-free runs, 75 of 76 strokes are within 10 ms, the worst 10.8 ms. This
-    # asserts what holds, not the target (see docs/signals.md).
+    # Target: within 10 ms of the simulator's stroke time (start of sustained travel
+    # to end stop). LVDT noise (1.2 mm at 1 kHz) limits the start estimate; on the
+    # 400 exploration strokes 99.5 % are within 10 ms, median 2.0 ms, 95th
+    # percentile 6.2 ms, worst 12.8 ms.
     err = np.abs(np.concatenate([_stroke_errors((), 1), _stroke_errors((), 11)]))
-    assert err.size == 4 * 19
-    assert np.median(err) < 0.005
-    assert np.mean(err < 0.010) >= 0.95
-    assert err.max() < 0.015
+    assert err.size == 4 * 20
+    assert np.median(err) < 0.004
+    assert np.percentile(err, 95) < 0.009
+    assert np.mean(err < 0.010) >= 0.97
+    assert err.max() < 0.016
 
 
 def test_stroke_times_with_leaks() -> None:
-    # With 4-turn leaks the start of the motion is slower and the estimate carries a
-    # bias of a few ms; measured: >= 85 % of the strokes within 10 ms, none beyond 25 ms.
+    # With 4-turn leaks the acceleration builds up more slowly and the start estimate
+    # scatters more; on the 1200 exploration strokes >= 98.8 % per condition are
+    # within 10 ms, 95th percentile <= 7.8 ms, worst 15.0 ms.
     err = np.abs(
         np.concatenate(
             [
@@ -62,9 +72,11 @@ def test_stroke_times_with_leaks() -> None:
             ]
         )
     )
-    assert np.median(err) < 0.006
-    assert np.mean(err < 0.010) >= 0.85
-    assert err.max() < 0.025
+    assert err.size == 3 * 2 * 20
+    assert np.median(err) < 0.005
+    assert np.percentile(err, 95) < 0.010
+    assert np.mean(err < 0.010) >= 0.95
+    assert err.max() < 0.020
 
 
 @pytest.fixture(scope="module")
@@ -95,3 +107,25 @@ def test_table_4_5_signs(signs: dict[str, str], cls: str) -> None:
         if expected == "0":
             continue  # "no correlation or uncertain": nothing to check
         assert got == SIM_DISAGREES.get((cls, j), expected), (cls, j, table, sim)
+
+
+@pytest.mark.parametrize(("leaks", "seed"), [((), 1), ((("DNC_B", 4.0),), 2)])
+def test_last_cycle_final_step_is_comparable(leaks, seed) -> None:
+    # The recording runs on 0.3 s after the last cycle (RUN_END_IDLE_S); the last
+    # step of the data ends when its awaited switch is on plus the step's median gap
+    # in the other cycles, so its duration and air equal the other cycles' within
+    # their scatter (ending it with the data added 0.3 s and ~0.09 SL).
+    from pneufdd.signals import segment
+
+    rec = run(20, leaks, seed).recording
+    seg = segment(rec)
+    assert len(seg.complete) == 20
+    duration = np.array([c.steps[57].duration_s for c in seg.complete])
+    assert seg.complete[-1].end_s < rec.duration - 0.2
+    # durations come from 100 Hz edges: one digital sample of tolerance
+    assert duration[:-1].min() - 0.0101 <= duration[-1] <= duration[:-1].max() + 0.0101
+    df = feature_matrix(rec, groups=["air"])
+    for col in ("step58.air_SL", "DNC.air_extend_SL"):
+        v = df[col].to_numpy()
+        others = v[:-1]
+        assert abs(v[-1] - np.median(others)) <= 3.0 * others.std(), (col, v[-1], others)

@@ -30,10 +30,9 @@ def _check_100(seg, truth_starts, n_full: int) -> None:
     err = starts - truth_starts[:n_full]
     assert err.min() >= -1e-9
     assert err.max() <= 0.0100001
-    # The simulator stops recording at the instant the last cycle's final switch is
-    # reached, before the 100 Hz data show it: that cycle cannot be verified.
-    for c in cycles:
-        assert c.complete or (c is seg.cycles[-1] and c.reason == END_REASON)
+    # The simulator records the idle machine after the last cycle (RUN_END_IDLE_S),
+    # so every cycle, the last one included, is verified complete.
+    assert all(c.complete for c in cycles), [c.reason for c in cycles if not c.complete]
 
 
 def test_58_steps_in_each_of_100_simulated_cycles() -> None:
@@ -41,7 +40,7 @@ def test_58_steps_in_each_of_100_simulated_cycles() -> None:
     seg = segment(res.recording)
     assert len(seg.cycles) == 100
     _check_100(seg, res.step_start, 100)
-    assert len(seg.complete) >= 99
+    assert len(seg.complete) == 100
     # The learned sequence (no machine description) finds the same steps.
     learned = segment(res.recording.with_metadata({}))
     assert [c.steps[0].start_s for c in learned.cycles] == [c.start_s for c in seg.cycles]
@@ -104,6 +103,24 @@ def test_steps_command_on_a_simulated_parquet_file(tmp_path, capsys) -> None:
     assert main(["steps", str(path), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert [len(c["steps"]) for c in d["cycles"]] == [58, 58, 58]
+    assert [c["complete"] for c in d["cycles"]] == [True, True, True]
+    assert d["rejected"] == []
+    assert d["cycles"][0]["steps"][1]["actuators"] == ["DNC", "DRQD", "HMPL_H"]
+
+
+def test_steps_command_rejects_a_recording_cut_before_the_last_switch(tmp_path, capsys) -> None:
+    import json
+
+    from pneufdd.cli.app import main
+
+    res = run(3, (("supply", 2.0),), seed=5)
+    # Cut 0.1 s after the last step fired: DNC is still extending, S_DNC_B not yet on.
+    cut = float(res.step_start[-1, -1]) + 0.1
+    path = damage(res.recording, 0, False, 0.0, cut).write(tmp_path / "cut.parquet")
+    assert main(["steps", str(path), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [len(c["steps"]) for c in d["cycles"]] == [58, 58, 58]
     assert [c["complete"] for c in d["cycles"]] == [True, True, False]
     assert d["rejected"][0]["reason"] == END_REASON
-    assert d["cycles"][0]["steps"][1]["actuators"] == ["DNC", "DRQD", "HMPL_H"]
+    # The unverified last step keeps the data's end as its end.
+    assert d["cycles"][2]["steps"][-1]["duration_s"] == pytest.approx(0.1, abs=0.011)

@@ -133,3 +133,13 @@ def test_cli_simulate_writes_identical_files(tmp_path: Path) -> None:
     assert (tmp_path / "a.parquet").read_bytes() == (tmp_path / "b.parquet").read_bytes()
     back = Recording.read(tmp_path / "a.parquet")
     assert back.metadata["leaks"][0]["location"] == "DNC_B"
+
+
+def test_every_simulated_cycle_segments_as_complete() -> None:
+    from pneufdd.signals.segmentation import segment
+
+    rec = simulate("festo-dsd", cycles=2, seed=21)
+    seg = segment(rec)
+    complete = [c for c in seg.cycles if c.complete]
+    assert len(complete) == 2, [c.reason for c in seg.cycles]
+    assert all(len(c.steps) == 58 for c in complete)

@@ -3,14 +3,16 @@
 With an LVDT (``X_<ACT>``), times come from the zero-phase filtered displacement
 (section 3.2.4) at the analog rate:
 
-* motion start (breakaway): the start-up of the acceleration that section 3.3
-  judges by eye, found by fitting "at rest until t0, then ``a (t - t0)^2 + b (t -
-  t0)^3``" to the raw displacement over the first 35 % of the travel (least squares,
-  t0 on the sample grid); a speed threshold (the last sample before the peak below
-  ``start_fraction`` = 5 % of the peak speed) is the fallback and an upper bound;
-* arrival: the first sample after the peak within ``end_tolerance`` (0.5 %) of the
-  stroke from the final position, plus the time the remaining distance takes at
-  the speed there (at most 5 samples);
+* motion start (start of sustained travel): the start-up of the acceleration that
+  section 3.3 judges by eye, found by fitting "at rest at ``c`` until t0, then ``c +
+  a (t - t0)^2 + b (t - t0)^3``" to the raw displacement over the first 25 % of the
+  travel (least squares, t0 on the sample grid); a speed threshold (the last sample
+  before the peak below ``start_fraction`` = 5 % of the peak speed) is the fallback
+  and an upper bound;
+* arrival: coarse, the first sample after the peak within ``end_tolerance`` (0.5 %)
+  of the stroke from the final position, plus the time the remaining distance takes
+  at the speed there (at most 5 samples); refined by a hinge fit "constant speed,
+  then at rest at the end stop" to the raw displacement around it;
 * t_p = start - valve firing, t_s = arrival - start, t_o = t_p + t_s (section 3.3);
 * balancing velocity: median speed over 50-90 % of the travel (the uniform
   latter half of a meter-out stroke, before cushioning);
@@ -34,6 +36,10 @@ from pneufdd.signals.segmentation import Step
 __all__ = ["MOTIONS", "detect_stroke", "exhaust_line", "supply_line"]
 
 MOTIONS = ("extend", "retract")
+# The arrival fit uses the raw LVDT over this time before the coarse arrival (and at
+# most the last 20 % of the travel): short enough that a cushioned stroke's speed is
+# nearly constant in it [s].
+ARRIVAL_WINDOW_S = 0.03
 
 
 def supply_line(motion: str) -> str:
@@ -85,9 +91,16 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
         progress = (x[i_start : i_end + 1] - x_start) / travel
         middle = speed[i_start : i_end + 1][(progress >= 0.5) & (progress <= 0.9)]
         stroke.t_start = c0 + (i0 + i_start) / fs
-        # The last `end_tolerance` of the travel is covered at the arrival speed.
+        # Coarse arrival: the last `end_tolerance` of the travel at the arrival speed.
         left = abs(x_end - x[i_end]) / max(float(speed[i_end]), 0.05 * v_max)
-        stroke.t_end = c0 + (i0 + i_end) / fs + min(left, 5.0 / fs)
+        t_end = (i0 + i_end) / fs + min(left, 5.0 / fs)
+        late = np.flatnonzero(sign * (x[: i_end + 1] - x_start) < 0.8 * abs(travel))
+        begin = int(late[-1]) + 1 if late.size else 0
+        begin = max(begin, i_end - round(ARRIVAL_WINDOW_S * fs))
+        t_hinge = _arrival(raw[i0 : i0 + x.size], fs, i_end, begin)
+        if t_hinge is not None and abs(t_hinge - (t_end - i0 / fs)) <= 10.0 / fs:
+            t_end = i0 / fs + t_hinge
+        stroke.t_end = c0 + t_end
         stroke.source = "lvdt"
         stroke.v_max = v_max
         stroke.v_balance = float(np.median(middle)) if middle.size else float("nan")
@@ -110,21 +123,56 @@ def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> St
     return stroke
 
 
-def _breakaway(
-    progress: npt.NDArray[np.float64], fs: float, latest: int, span_s: float = 0.1
-) -> float | None:
-    """Breakaway time [s from the window start] from the first 35 % of the travel.
+def _least_squares(
+    bases: list[npt.NDArray[np.float64]], y: npt.NDArray[np.float64], w: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """Residual sum of squares of the weighted fit of ``y`` on each candidate's bases.
 
-    A piston starting from rest travels ``a (t - t0)^2 + b (t - t0)^3`` (the
-    acceleration builds up as the chamber fills) and is at rest before ``t0``. For
-    every candidate ``t0`` on the sample grid within ``span_s`` before ``latest``
-    (the speed-threshold start, an upper bound) the linear least-squares fit of
-    ``(a, b)`` to the raw progress is computed; the ``t0`` of the smallest residual
-    is the breakaway. Using every sample up to 35 % of the travel, not a threshold,
-    averages the LVDT noise out. None when fewer than 8 samples are available.
+    ``bases[k]`` has shape (candidates, samples); one linear least-squares problem per
+    candidate row, solved through its normal equations (all rows at once). Rows
+    whose normal matrix is singular get ``inf``.
+    """
+    k = len(bases)
+    gram = np.empty((bases[0].shape[0], k, k))
+    rhs = np.empty((bases[0].shape[0], k))
+    wy = w * y
+    for a in range(k):
+        rhs[:, a] = bases[a] @ wy
+        for b in range(a, k):
+            gram[:, a, b] = gram[:, b, a] = (bases[a] * bases[b]) @ w
+    scale = np.prod(np.diagonal(gram, axis1=1, axis2=2), axis=1)
+    ok = np.abs(np.linalg.det(gram)) > 1e-12 * np.maximum(scale, 1e-300)
+    coef = np.zeros_like(rhs)
+    if ok.any():
+        coef[ok] = np.linalg.solve(gram[ok], rhs[ok][..., None])[..., 0]
+    return np.where(ok, float(wy @ y) - np.einsum("ij,ij->i", coef, rhs), np.inf)
+
+
+def _breakaway(
+    progress: npt.NDArray[np.float64],
+    fs: float,
+    latest: int,
+    span_s: float = 0.1,
+    upto: float = 0.25,
+) -> float | None:
+    """Start of sustained travel [s from the window start] from the first 25 % of travel.
+
+    A piston that starts to travel is at rest at ``c`` before ``t0`` and then moves
+    ``c + a (t - t0)^2 + b (t - t0)^3``: the acceleration builds up from (nearly)
+    zero as the driving chamber fills, the "start-up of the acceleration curve" of
+    section 3.3. For every candidate ``t0`` on the sample grid within ``span_s``
+    before ``latest`` (the speed-threshold start, an upper bound) the linear
+    least-squares fit of ``(c, a, b)`` to the raw progress is computed; the ``t0``
+    of the smallest residual is the start. Every sample up to ``upto`` of the travel
+    is used, not a threshold, which averages the LVDT noise out; the rest level
+    ``c`` is fitted rather than taken from a few samples (its error would shift
+    ``t0``); ``upto`` = 25 % ends the window while the acceleration is still
+    building up, before the meter-out flow limits the speed (a longer window makes
+    the cubic bend early and dates the start early). None when fewer than 8
+    samples are available.
     """
     finite = np.isfinite(progress)
-    above = np.flatnonzero(finite & (progress >= 0.35))
+    above = np.flatnonzero(finite & (progress >= upto))
     if above.size == 0 or above[0] < 8:
         return None
     first = max(min(latest, int(above[0]) - 1) - round(span_s * fs), 0)
@@ -135,17 +183,45 @@ def _breakaway(
     cand = t[: max(min(latest, stop - 1) - first, 0) + 1]
     u2 = np.clip(t[None, :] - cand[:, None], 0.0, None) ** 2
     u3 = u2 * np.sqrt(u2)
-    wy = w * y
-    # Normal equations of the fit of (a, b) for every candidate at once.
-    g22, g23, g33 = (u2 * u2) @ w, (u2 * u3) @ w, (u3 * u3) @ w
-    r2, r3 = u2 @ wy, u3 @ wy
-    det = g22 * g33 - g23 * g23
-    ok = det > 1e-30 * np.maximum(g22 * g33, 1e-300)
-    safe = np.where(ok, det, 1.0)
-    a = (g33 * r2 - g23 * r3) / safe
-    b = (g22 * r3 - g23 * r2) / safe
-    misfit = np.where(ok, float(wy @ y) - (a * r2 + b * r3), np.inf)
+    misfit = _least_squares([np.ones_like(u2), u2, u3], y, w)
     return float((first + int(np.argmin(misfit))) / fs)
+
+
+def _arrival(
+    x: npt.NDArray[np.float64], fs: float, coarse: int, begin: int, after_s: float = 0.05
+) -> float | None:
+    """Arrival at the end stop [s from the window start], by a hinge fit to the raw LVDT.
+
+    Near the end of a stroke the piston travels at a nearly constant (balancing)
+    speed and stops at the end stop: ``x = x_end - v max(t1 - t, 0)``. For every
+    candidate ``t1`` on the sample grid within 10 samples of ``coarse`` the linear
+    fit of ``(x_end, v)`` to the raw samples from ``begin`` (the later of 80 % of
+    the travel and ``ARRIVAL_WINDOW_S`` before ``coarse``) to ``after_s`` past
+    ``coarse`` is computed; the best ``t1`` is refined between
+    samples by a parabola through the residuals of its neighbours. None when the
+    window is too short.
+    """
+    stop = min(coarse + round(after_s * fs), x.size)
+    if coarse - begin < 5 or stop - coarse < 5:
+        return None
+    y = x[begin:stop]
+    finite = np.isfinite(y)
+    w = finite.astype(np.float64)
+    y = np.where(finite, y, 0.0)
+    t = np.arange(begin, stop) / fs
+    lo, hi = max(coarse - 10, begin + 3), min(coarse + 10, stop - 3)
+    cand = np.arange(lo, hi + 1) / fs
+    ramp = np.clip(cand[:, None] - t[None, :], 0.0, None)
+    misfit = _least_squares([np.ones_like(ramp), ramp], y, w)
+    k = int(np.argmin(misfit))
+    if not np.isfinite(misfit[k]):
+        return None
+    shift = 0.0
+    if 0 < k < misfit.size - 1 and np.all(np.isfinite(misfit[k - 1 : k + 2])):
+        curv = misfit[k - 1] - 2.0 * misfit[k] + misfit[k + 1]
+        if curv > 0.0:
+            shift = 0.5 * (misfit[k - 1] - misfit[k + 1]) / curv
+    return float(cand[k] + shift / fs)
 
 
 def _times(view: CycleView, actuator: str, motion: str) -> Stroke:

@@ -14,8 +14,10 @@ Rules (also in ``docs/signals.md``):
   falling edge of a solenoid held across steps and released by a later step
   (:func:`held_valves`, e.g. vacuum off). Edges no more than one digital sample
   period apart (chained) belong to the same step: parallel motions.
-* **Step end**: the start of the next step (of any cycle); the last step of a
-  recording ends with the digital data.
+* **Step end**: the start of the next step (of any cycle). The last step of a
+  recording ends when its awaited switches are satisfied plus the median gap of the
+  same step in the other cycles (:mod:`pneufdd.signals.final_step`), at the latest
+  with the digital data.
 * **Moving actuators**: those whose solenoid fired (``U_<ACT>_A`` extends,
   ``U_<ACT>_B`` retracts).
 * **Cycle**: a run of steps whose valve sets equal the machine's sequence, step 1
@@ -39,6 +41,7 @@ import numpy.typing as npt
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.digital import debounce, edges
+from pneufdd.signals.final_step import close_final_step
 
 __all__ = [
     "Cycle",
@@ -126,7 +129,9 @@ class Step:
     start_s : float
         Time of the valve firing [s].
     end_s : float
-        Start of the next step (or end of the data) [s].
+        Start of the next step [s]; for the recording's last step, the time its
+        awaited switches were satisfied plus the median gap of the same step in the
+        other cycles, at most the end of the data (:mod:`pneufdd.signals.final_step`).
     valves : tuple of str
         Solenoid channels that fired.
     """
@@ -686,6 +691,7 @@ def segment(
     if pos < n:
         reason = _reject_reason(codes[pos:], pattern, specs, ev.signatures[pos:], True, pos == 0)
         cycles.append(Cycle(len(cycles) + 1, steps_of(pos, n), False, reason))
+    cycles = close_final_step(cycles, specs, ev.end_s, ev.switch_rise, ev.switch_fall)
     return Segmentation(tuple(cycles), specs, source)
 
 

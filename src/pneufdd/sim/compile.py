@@ -283,6 +283,6 @@ def initial_state(machine: MachineDescription, plant: Plant) -> dict[str, F64 | 
         "ss": np.zeros(lay.SS_SIZE),
         "istate": np.zeros(lay.IS_SIZE, dtype=np.int64),
         "cum": np.zeros(lay.CM_SIZE),
-        "mv_t0": np.full(na, -1.0),
+        "mv_t0": np.tile(np.array([-1.0, -1.0, 0.0, 1.0]), (na, 1)),
         "mv_dir": np.zeros(na, dtype=np.int64),
     }

@@ -113,6 +113,9 @@ _G = GAMMA_AIR
 _CV_AIR = R_AIR / (GAMMA_AIR - 1.0)
 _CP_AIR = GAMMA_AIR * R_AIR / (GAMMA_AIR - 1.0)
 _DV = 1e-4  # Karnopp velocity band [m/s]
+# Travel after a breakaway, without re-sticking, that makes it the start of sustained
+# motion (the stroke start of section 3.3) rather than a stick-slip creep [m].
+_SUSTAINED_TRAVEL = 2e-4
 _WAKE = 300.0  # pressure difference that wakes a frozen chamber [Pa]
 _SLEEP = 30.0  # pressure difference below which a resting chamber may freeze [Pa]
 
@@ -561,9 +564,14 @@ def run_cycle(
                     if blocked or abs(force) <= fs:
                         continue
                     stuck[i] = 0
-                    if mv_t0[i] < 0.0:
-                        mv_t0[i] = ts
+                    if mv_t0[i, 0] < 0.0:
+                        mv_t0[i, 0] = ts
                         mv_dir[i] = 1 if force > 0.0 else -1
+                        mv_t0[i, 3] = 0.0
+                    if mv_t0[i, 3] == 0.0:
+                        # a (new) breakaway before sustained travel: candidate start
+                        mv_t0[i, 1] = ts
+                        mv_t0[i, 2] = x[i]
                     v_old = 0.0
                 else:
                     v_old = v[i]
@@ -586,14 +594,18 @@ def run_cycle(
                     x_new = stroke
                     v_new = 0.0
                     stuck[i] = 1
-                if stuck[i] == 1 and mv_t0[i] >= 0.0 and (x_new <= 0.0 or x_new >= stroke):
+                if mv_t0[i, 3] == 0.0 and abs(x_new - mv_t0[i, 2]) >= _SUSTAINED_TRAVEL:
+                    mv_t0[i, 3] = 1.0
+                if stuck[i] == 1 and mv_t0[i, 0] >= 0.0 and (x_new <= 0.0 or x_new >= stroke):
                     if n_ev < ev_act.size:
                         ev_act[n_ev] = i
                         ev_dir[n_ev] = mv_dir[i]
-                        ev_t0[n_ev] = mv_t0[i]
+                        ev_t0[n_ev, 0] = mv_t0[i, 1]
+                        ev_t0[n_ev, 1] = mv_t0[i, 0]
                         ev_t1[n_ev] = ts + dt
                         n_ev += 1
-                    mv_t0[i] = -1.0
+                    mv_t0[i, 0] = -1.0
+                    mv_t0[i, 3] = 1.0
                 vdot[ca] = cp[2 * i, CP_AREA] * (x_new - x[i]) / dt
                 vdot[cb] = -cp[2 * i + 1, CP_AREA] * (x_new - x[i]) / dt
                 x[i] = x_new

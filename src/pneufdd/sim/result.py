@@ -22,6 +22,13 @@ __all__ = ["SimulationResult", "Stroke"]
 class Stroke:
     """One piston motion: leaving one end stop until arriving at the other.
 
+    The start is the start of *sustained* travel, the "start-up of the acceleration
+    curve" that section 3.3 uses to end the positioning time: the last breakaway
+    after which the piston travelled 0.2 mm without sticking again. With F_cf > F_sf
+    (section 4.2.3) a piston often creeps by stick-slip for some milliseconds
+    (micro-slips of micrometres, re-sticking in between) before it moves off; that
+    creep belongs to the positioning time and is kept in ``first_motion``.
+
     Attributes
     ----------
     actuator : str
@@ -29,11 +36,14 @@ class Stroke:
     direction : int
         +1 extend (towards the B end), -1 retract.
     start : float
-        Time the piston broke away [s].
+        Start of sustained travel [s].
     end : float
         Time it reached the end stop [s] (only completed strokes are listed).
     cycle : int
-        Cycle index (0-based) in which the stroke started.
+        Cycle index (0-based) in which the first motion (``first_motion``) occurred.
+    first_motion : float
+        Time of the first breakaway from the end stop, including stick-slip creep
+        before ``start`` (``first_motion <= start``) [s].
     """
 
     actuator: str
@@ -41,6 +51,7 @@ class Stroke:
     start: float
     end: float
     cycle: int
+    first_motion: float
 
     @property
     def duration(self) -> float:
@@ -67,7 +78,8 @@ class SimulationResult:
         (through the supply line), ``mass_regulator``, ``mass_exhausted``,
         ``mass_leaked``, ``mass_vacuum`` [kg], ``vacuum_level`` [-], ``step`` (0-based);
         and, not on the time base: ``step_start`` (cycles x steps) [s] and per
-        actuator ``stroke_start_<ACT>``, ``stroke_end_<ACT>`` [s],
+        actuator ``stroke_start_<ACT>`` (sustained travel, see :class:`Stroke`),
+        ``stroke_end_<ACT>``, ``stroke_first_motion_<ACT>`` [s],
         ``stroke_direction_<ACT>`` (+1 extend, -1 retract).
     step_start : ndarray
         Start time of every step, shape (cycles, steps) [s].

@@ -29,6 +29,10 @@ SIMULATOR_VERSION = f"pneufdd.sim {__version__} (twin model 1)"
 ANALOG_RATE_HZ = 1000.0
 DIGITAL_RATE_HZ = 100.0
 _DIGITAL_EVERY = round(ANALOG_RATE_HZ / DIGITAL_RATE_HZ)
+RUN_END_IDLE_S = 0.3
+"""Idle time recorded after the last cycle's last step [s]: the PLC stops in cycle-stop
+mode and the DAQ runs on briefly, as on the rig, so the last cycle's final switch
+edges are in the recording and it segments as complete."""
 
 MachineLike = str | Path | MachineDescription | dict[str, Any]
 LeaksLike = Mapping[str, Any] | Iterable[Leak] | None
@@ -57,7 +61,7 @@ class _Buffers:
         n_ev = 8 * nsteps + 8 * na
         self.ev_act = np.zeros(n_ev, dtype=np.int64)
         self.ev_dir = np.zeros(n_ev, dtype=np.int64)
-        self.ev_t0 = np.zeros(n_ev)
+        self.ev_t0 = np.zeros((n_ev, 2))
         self.ev_t1 = np.zeros(n_ev)
 
 
@@ -149,6 +153,8 @@ def run_simulation(
     total_sub = 0
     for cyc in range(cycles):
         jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], nsteps)
+        if cyc == cycles - 1:
+            jitter[-1] += RUN_END_IDLE_S
         fric = np.clip(1.0 + desc.friction_scatter * rng.standard_normal(na), 0.5, 1.5)
         tau = desc.supply.house_drift_time_s
         ou = _ou_grid(rng, ou_now, plant.sp[lay.SP_DRIFT_STD], tau, n_ou)
@@ -177,9 +183,10 @@ def run_simulation(
                 Stroke(
                     desc.actuators[int(buf.ev_act[e])].id,
                     int(buf.ev_dir[e]),
-                    float(buf.ev_t0[e]),
+                    float(buf.ev_t0[e, 0]),
                     float(buf.ev_t1[e]),
-                    int(np.searchsorted(step_start[: cyc + 1, 0], buf.ev_t0[e], "right")) - 1,
+                    int(np.searchsorted(step_start[: cyc + 1, 0], buf.ev_t0[e, 1], "right")) - 1,
+                    float(buf.ev_t0[e, 1]),
                 )
             )
         chunks.append(_take(desc, buf, n, k_start, keep_outputs))
@@ -290,6 +297,7 @@ def _assemble(
             outputs[f"stroke_start_{a.id}"] = np.array([s.start for s in mine])
             outputs[f"stroke_end_{a.id}"] = np.array([s.end for s in mine])
             outputs[f"stroke_direction_{a.id}"] = np.array([s.direction for s in mine])
+            outputs[f"stroke_first_motion_{a.id}"] = np.array([s.first_motion for s in mine])
     return SimulationResult(
         time=time,
         outputs=outputs,
