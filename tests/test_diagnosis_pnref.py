@@ -27,6 +27,7 @@ def model():
         np.full((len(sig.locations), len(sig.feature_names)), 0.5),
         np.array([1e-3, 6e-4]),
         sig.sizes * np.linspace(0.9, 0.1, len(sig.locations))[:, None],
+        np.tile([-1e-5, -2e-6], (len(sig.locations), 1)),
     )
     return ReferenceModel.build(
         synth_table(20, seed=3),
@@ -56,6 +57,9 @@ def test_round_trip_is_exact(model, tmp_path):
     assert np.array_equal(back.signatures.interaction, model.signatures.interaction)
     assert np.array_equal(back.signatures.interaction_sizes, model.signatures.interaction_sizes)
     assert np.array_equal(back.signatures.mean_flow, model.signatures.mean_flow)
+    assert np.array_equal(
+        back.signatures.mean_flow_interaction, model.signatures.mean_flow_interaction
+    )
     assert np.array_equal(back.detector.threshold_, model.detector.threshold_)
     assert not list(tmp_path.glob(".*tmp"))
 
@@ -114,6 +118,7 @@ def test_version_1_file_asks_for_a_rebuild(model, tmp_path):
         header["version"] = 1
         arrays["header"] = np.array(json.dumps(header))
         arrays.pop("sig_mean_flow")
+        arrays.pop("sig_mean_flow_interaction")
 
     _rewrite(path, tmp_path / "old.pnref", downgrade)
     with pytest.raises(FileFormatError) as info:

@@ -36,7 +36,7 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
         "ambiguity group",
         "flow [SLPM]",
         "avg flow [SLPM]",
-        "orifice [mm]",
+        "orifice \\[mm]",  # escaped: rich reads [mm] as markup
         "cost [$/yr]",
         "confidence",
     ):

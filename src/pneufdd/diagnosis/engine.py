@@ -245,6 +245,18 @@ def diagnose(
                 if not math.isfinite(p) or p <= 0:
                     p = reference.supply_pressure
                 pressures.append(p if math.isfinite(p) and p > 0 else 6.0e5)
+            found = localisation.leaks
+            if len(found) == 2 and sum(leak.location == "supply" for leak in found) == 1:
+                # a line leak next to a supply leak blows from a lower pressure
+                line_leak = next(leak for leak in found if leak.location != "supply")
+                supply_leak = next(leak for leak in found if leak.location == "supply")
+                both = sig.average_flows_with_supply(
+                    sig.locations.index(line_leak.location),
+                    line_leak.mass_flow,
+                    supply_leak.mass_flow,
+                )
+                if both is not None:
+                    averages = [both[0] if leak is line_leak else both[1] for leak in found]
             leaks, total = cost_leaks(
                 [leak.location for leak in localisation.leaks],
                 [leak.mass_flow for leak in localisation.leaks],

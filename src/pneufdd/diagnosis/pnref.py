@@ -20,11 +20,14 @@ entry                  content
 ``sig_interaction_sizes`` (2,) float64, optional [kg/s]
 ``sig_mean_flow``      (n_locations, n_sizes) float64, optional: mean leaked mass
                        flow per machine cycle at each signature size [kg/s]
+``sig_mean_flow_interaction`` (n_locations, 2) float64, optional: change of the
+                       line and supply leaks' mean flows when both leak [kg/s]
 =====================  ===========================================================
 
-Version history: 1 (issue 5); 2 adds ``sig_mean_flow`` (a leak is priced by the air
-it loses over a cycle, not by its flow while its line is pressurised). A file of
-another version is refused with a message asking to rebuild the reference.
+Version history: 1 (issue 5); 2 adds ``sig_mean_flow`` and
+``sig_mean_flow_interaction`` (a leak is priced by the air it loses over a cycle, not
+by its flow while its line is pressurised). A file of another version is refused with
+a message asking to rebuild the reference.
 
 The file is written to a temporary name and renamed into place; it is read with
 ``allow_pickle=False`` and every entry's presence, dtype and shape is checked.
@@ -119,6 +122,8 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
             arrays["sig_interaction_sizes"] = np.asarray(model.signatures.interaction_sizes)
         if model.signatures.mean_flow is not None:
             arrays["sig_mean_flow"] = model.signatures.mean_flow
+        if model.signatures.mean_flow_interaction is not None:
+            arrays["sig_mean_flow_interaction"] = model.signatures.mean_flow_interaction
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
@@ -234,8 +239,19 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 mean_flow = None
                 if "sig_mean_flow" in data.files:
                     mean_flow = _array(data, source, "sig_mean_flow", "f", sizes.shape)
+                flow_inter = None
+                if "sig_mean_flow_interaction" in data.files:
+                    flow_inter = _array(data, source, "sig_mean_flow_interaction", "f", (n_loc, 2))
                 signatures = SignatureSet(
-                    tuple(locations), sizes, deltas, names, pressure, inter, inter_sizes, mean_flow
+                    tuple(locations),
+                    sizes,
+                    deltas,
+                    names,
+                    pressure,
+                    inter,
+                    inter_sizes,
+                    mean_flow,
+                    flow_inter,
                 )
             supply = header.get("supply_pressure")
             model = ReferenceModel(

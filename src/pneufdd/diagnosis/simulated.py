@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from rich.progress import Progress
+from scipy.integrate import cumulative_trapezoid
 
 from pneufdd.diagnosis.adapter import segment_cycles, step_table
 from pneufdd.diagnosis.signatures import SignatureSet
@@ -74,7 +75,7 @@ def mean_leak_flow(
     time : ndarray
         Sample times [s].
     mass_leaked : ndarray
-        Cumulative mass lost through all leaks at ``time`` [kg].
+        Cumulative mass lost through the leak(s) at ``time`` [kg].
     cycle_start : ndarray
         Start time of every cycle [s].
     first, last : int
@@ -107,8 +108,8 @@ def _mean_features(
     seed: int,
     sequence: Sequence[StepSpec],
     channels: Sequence[str],
-) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...], float]:
-    """Mean features, leak ground truth, feature names and mean leaked flow [kg/s]."""
+) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...], dict[str, float]]:
+    """Mean features, leak ground truth, feature names and mean flow of each leak [kg/s]."""
     # the first simulated cycle starts from rest and the last one has no successor to
     # end its last step: segmentation keeps the cycles in between, and the leaked air
     # is averaged over the same inner cycles
@@ -116,7 +117,16 @@ def _mean_features(
     rec = sim.recording
     found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {leaks}")
     table = step_table(rec, found, machine, channels)
-    leaked = mean_leak_flow(sim.time, sim.outputs["mass_leaked"], sim.cycle_start, 1, cycles + 1)
+    leaked = {
+        loc: mean_leak_flow(
+            sim.time,
+            cumulative_trapezoid(sim.outputs[f"mdot_leak_{loc}"], sim.time, initial=0.0),
+            sim.cycle_start,
+            1,
+            cycles + 1,
+        )
+        for loc in leaks
+    }
     return (
         np.mean(table.features(), axis=0),
         rec.metadata["leaks"],
@@ -133,12 +143,15 @@ def _location_ladder(
     float,
     npt.NDArray[np.float64],
     npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
 ]:
     """Mean features of one location at every size of the ladder (one worker's job).
 
     Also returns ``M(loc + supply) - M(loc)`` at :data:`INTERACTION_SIZES_SLPM` (NaN
-    for the supply itself), from which the supply interaction is formed, and the
-    mean leaked mass flow per cycle at every size [kg/s].
+    for the supply itself), from which the supply interaction is formed, the mean
+    leaked mass flow per cycle at every size [kg/s], and, at the interaction sizes,
+    the line leak's mean flow alone, with the supply leak, and the supply leak's mean
+    flow with the line leak [kg/s] (NaN for the supply itself).
     """
     machine, loc, ladder, cycles, seed, sequence, channels = job
     sizes = np.zeros(len(ladder))
@@ -150,9 +163,10 @@ def _location_ladder(
         trial = float(slpm)
         for _ in range(6):
             try:
-                mean, truth, _, leaked[k] = _mean_features(
+                mean, truth, _, flows = _mean_features(
                     machine, {loc: f"{trial}slpm"}, cycles, seed, sequence, channels
                 )
+                leaked[k] = flows[loc]
                 break
             except (MachineStalledError, InputError):
                 trial = previous + 0.6 * (trial - previous)
@@ -165,9 +179,10 @@ def _location_ladder(
         means.append(mean)
         previous = trial
     pair = np.full_like(means[0], np.nan)
+    pair_flows = np.full(3, np.nan)
     if loc != "supply":
         line, supply = INTERACTION_SIZES_SLPM
-        both, _, _, _ = _mean_features(
+        both, _, _, both_flows = _mean_features(
             machine,
             {loc: f"{line}slpm", "supply": f"{supply}slpm"},
             cycles,
@@ -175,11 +190,12 @@ def _location_ladder(
             sequence,
             channels,
         )
-        alone, _, _, _ = _mean_features(
+        alone, _, _, alone_flows = _mean_features(
             machine, {loc: f"{line}slpm"}, cycles, seed, sequence, channels
         )
         pair = both - alone
-    return sizes, np.stack(means), pressure, pair, leaked
+        pair_flows[:] = (alone_flows[loc], both_flows[loc], both_flows["supply"])
+    return sizes, np.stack(means), pressure, pair, leaked, pair_flows
 
 
 def compute_signatures(
@@ -261,6 +277,7 @@ def compute_signatures(
     deltas = np.zeros((len(locations), len(sizes_slpm), len(feature_names)))
     pressure = np.zeros(len(locations))
     mean_flow = np.zeros((len(locations), len(sizes_slpm)))
+    flow_interaction = np.zeros((len(locations), 2))
     jobs = [
         (
             machine,
@@ -274,7 +291,7 @@ def compute_signatures(
         for loc in locations
     ]
     interaction = np.zeros((len(locations), len(feature_names)))
-    supply_alone, _, _, _ = _mean_features(
+    supply_alone, _, _, supply_alone_flows = _mean_features(
         machine,
         {"supply": f"{INTERACTION_SIZES_SLPM[1]}slpm"},
         cycles,
@@ -286,12 +303,17 @@ def compute_signatures(
     pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
     try:
         results = pool.map(_location_ladder, jobs) if pool else map(_location_ladder, jobs)
-        for i, (loc_sizes, loc_means, p, pair, loc_leaked) in enumerate(results):
+        for i, (loc_sizes, loc_means, p, pair, loc_leaked, pair_flows) in enumerate(results):
             sizes[i], deltas[i], pressure[i] = loc_sizes, loc_means[:, cols] - base[cols], p
             mean_flow[i] = loc_leaked
             if locations[i] != "supply":
                 # M(l+s) - M(l) - M(s) + M(0)
                 interaction[i] = (pair - supply_alone + base)[cols]
+                # each leak's mean flow with the other minus without it
+                flow_interaction[i] = (
+                    pair_flows[1] - pair_flows[0],
+                    pair_flows[2] - supply_alone_flows["supply"],
+                )
             for _ in sizes_slpm:
                 advance()
     finally:
@@ -306,4 +328,5 @@ def compute_signatures(
         interaction,
         np.asarray(slpm_to_kg_s(np.asarray(INTERACTION_SIZES_SLPM, dtype=np.float64))),
         mean_flow,
+        flow_interaction,
     )
