@@ -15,7 +15,7 @@ from pneufdd.diagnosis.adapter import (
 )
 from pneufdd.diagnosis.simulated import compute_signatures
 from pneufdd.physics.units import slpm_to_kg_s
-from pneufdd.sim import simulate
+from pneufdd.sim import run_simulation, simulate
 
 SEED = 32_000
 
@@ -59,8 +59,12 @@ def test_step_summaries_equal_direct_slicing(recording):
     assert np.allclose(table.durations, [[s.duration_s for s in c.steps] for c in cycles])
 
 
-def test_supply_leak_signature_is_a_constant_flow_offset():
-    # section 5.3.1.2: a supply leak adds about its flow to Q_In in every step
+SIG_SIZES_SLPM = (30.0, 55.0)
+
+
+@pytest.fixture(scope="module")
+def signatures():
+    """Simulated signatures of a supply and a DNC_B leak at 30 and 55 SLPM (Q_In only)."""
     rec = simulate("festo-dsd", cycles=3, seed=SEED + 2)
     seq = machine_sequence(rec, "festo-dsd")
     cycles, _, _ = segment_cycles(rec, seq)
@@ -71,12 +75,81 @@ def test_supply_leak_signature_is_a_constant_flow_offset():
         seq,
         cycles=1,
         channels=["Q_In"],
-        sizes_slpm=(30.0,),
-        locations=("supply",),
+        sizes_slpm=SIG_SIZES_SLPM,
+        locations=("supply", "DNC_B"),
         workers=1,
     )
-    n = len(seq)
+    return sig, len(seq)
+
+
+def test_supply_leak_signature_is_a_constant_flow_offset(signatures):
+    # section 5.3.1.2: a supply leak adds about its flow to Q_In in every step
+    sig, n = signatures
     q_mean = sig.deltas[0, 0, n : 2 * n]
     assert sig.sizes[0, 0] == pytest.approx(slpm_to_kg_s(30.0), rel=1e-6)
     assert np.median(q_mean) == pytest.approx(slpm_to_kg_s(30.0), rel=0.15)
     assert np.mean(q_mean > 0) > 0.9
+
+
+def _true_mean_leak_flow(location, size_slpm, seed):
+    """Leaked mass of one inner cycle / its duration, from the simulator's cumulative
+    leaked mass (independent of the signatures' integration of the leak flow).
+
+    Also returns the cycle's mean manifold pressure over the leak's nominal pressure.
+    """
+    sim = run_simulation("festo-dsd", cycles=3, leaks={location: f"{size_slpm}slpm"}, seed=seed)
+    t0, t1 = sim.cycle_start[1], sim.cycle_start[2]
+    m0, m1 = np.interp([t0, t1], sim.time, sim.outputs["mass_leaked"])
+    inside = (sim.time >= t0) & (sim.time <= t1)
+    pressure = np.trapezoid(sim.outputs["p_manifold"][inside], sim.time[inside]) / (t1 - t0)
+    return (m1 - m0) / (t1 - t0), pressure / sim.leaks[0].nominal_pressure_pa
+
+
+def test_supply_leak_loses_its_flow_all_cycle(signatures):
+    sig, _ = signatures
+    for k, slpm in enumerate(SIG_SIZES_SLPM):
+        nominal = sig.sizes[0, k]
+        assert sig.average_flow(0, nominal) == pytest.approx(sig.mean_flow[0, k], rel=1e-12)
+        # another seed, integrated independently from the simulator's leak flow
+        truth, pressure_ratio = _true_mean_leak_flow("supply", slpm, SEED + 10 + k)
+        assert sig.mean_flow[0, k] == pytest.approx(truth, rel=0.02)
+        # it blows all cycle, choked, from the manifold: its mean flow is the nominal
+        # flow scaled by the mean manifold pressure, which the leak itself pulls a
+        # little below the nominal supply pressure
+        assert sig.mean_flow[0, k] == pytest.approx(nominal * pressure_ratio, rel=0.02)
+        assert sig.mean_flow[0, k] <= nominal
+    # a 30 SLPM supply leak loses within a few % of its nominal flow
+    assert sig.mean_flow[0, 0] == pytest.approx(sig.sizes[0, 0], rel=0.06)
+
+
+def test_rod_side_leak_loses_air_only_while_its_line_is_pressurised(signatures):
+    # festo-dsd's DNC has a 5/3 closed-centre valve: a DNC_B leak blows while the rod
+    # side is pressurised, then drains the isolated chamber and stops
+    sig, _ = signatures
+    k = SIG_SIZES_SLPM.index(55.0)
+    nominal = sig.sizes[1, k]
+    assert nominal == pytest.approx(slpm_to_kg_s(55.0), rel=1e-6)
+    average = sig.average_flow(1, nominal)
+    assert average < 0.2 * nominal
+    truth, _ = _true_mean_leak_flow("DNC_B", 55.0, SEED + 20)
+    assert average == pytest.approx(truth, rel=0.05)
+    # a smaller leak drains its line more slowly: it loses a larger share of its flow
+    assert sig.duty(1, sig.sizes[1, 0]) > sig.duty(1, nominal)
+
+
+def test_rod_side_leak_next_to_a_supply_leak(signatures):
+    # section 5.3.1.5's pair: the supply leak lowers the pressure the DNC_B leak blows
+    # from; the mean flows with the bilinear interaction match the simulator's
+    sig, _ = signatures
+    line, supply = slpm_to_kg_s(55.0), slpm_to_kg_s(28.0)
+    avg_line, avg_supply = sig.average_flows_with_supply(1, line, supply)
+    sim = run_simulation(
+        "festo-dsd", cycles=3, leaks={"DNC_B": "55slpm", "supply": "28slpm"}, seed=SEED + 30
+    )
+    t0, t1 = sim.cycle_start[1], sim.cycle_start[2]
+    inside = (sim.time >= t0) & (sim.time <= t1)
+    for loc, estimate in (("DNC_B", avg_line), ("supply", avg_supply)):
+        lost = np.trapezoid(sim.outputs[f"mdot_leak_{loc}"][inside], sim.time[inside])
+        assert estimate == pytest.approx(lost / (t1 - t0), rel=0.05)
+    # alone, the DNC_B leak would lose more
+    assert avg_line < sig.average_flow(1, line)

@@ -7,6 +7,8 @@ import math
 import pytest
 
 from pneufdd.diagnosis.cost import (
+    COST_BASIS_AVERAGE,
+    COST_BASIS_CONTINUOUS,
     CostSettings,
     annual_cost,
     cost_leaks,
@@ -76,3 +78,58 @@ def test_ranking_and_total():
 def test_bad_settings_rejected():
     with pytest.raises(InputError, match="hours"):
         CostSettings(hours=-1.0)
+
+
+def test_cost_is_eq_1_1_of_the_average_flow():
+    # a 55 SLPM rod-side leak losing 4.5 SLPM on average over the cycle
+    nominal, average = 55.0 * 1.294 / 60_000.0, 4.5 * 1.294 / 60_000.0
+    settings = CostSettings(hours=6000.0, price_per_kwh=0.1, kw_per_100_cfm=20.0)
+    (leak,), total = cost_leaks(
+        ["DNC_B"], [nominal], [6e5], [1.0], [("DNC_B",)], settings, [average]
+    )
+    cfm = kg_s_to_scfm(average)
+    assert leak.annual_cost == pytest.approx(cfm * 0.20 * 6000.0 * 0.1, rel=1e-12)
+    assert total == leak.annual_cost
+    assert leak.flow_slpm == pytest.approx(55.0, rel=1e-12)  # nominal flow unchanged
+    assert leak.average_flow_slpm == pytest.approx(4.5, rel=1e-12)
+    assert leak.orifice_mm == pytest.approx(equivalent_orifice_mm(nominal, 6e5), rel=1e-12)
+    assert leak.cost_basis == COST_BASIS_AVERAGE
+    # linear in the average flow
+    (double,), _ = cost_leaks(
+        ["DNC_B"], [nominal], [6e5], [1.0], [("DNC_B",)], settings, [2 * average]
+    )
+    assert double.annual_cost == pytest.approx(2 * leak.annual_cost, rel=1e-12)
+
+
+def test_ranking_follows_the_cost_not_the_nominal_flow():
+    # the rod-side leak is larger but loses less air than the supply leak
+    leaks, total = cost_leaks(
+        ["supply", "DNC_B"],
+        [6.0e-4, 1.2e-3],
+        [6e5, 6e5],
+        [1.0, 1.0],
+        [("supply",), ("DNC_B",)],
+        CostSettings(),
+        [5.8e-4, 9.0e-5],
+    )
+    assert [leak.location for leak in leaks] == ["supply", "DNC_B"]
+    assert total == pytest.approx(annual_cost(5.8e-4 + 9.0e-5, CostSettings()), rel=1e-12)
+
+
+def test_unknown_average_assumes_continuous_leakage():
+    leaks, _ = cost_leaks(
+        ["a", "b"],
+        [1e-3, 1e-3],
+        [6e5, 6e5],
+        [1.0, 1.0],
+        [("a",), ("b",)],
+        CostSettings(),
+        [None, 1e-4],
+    )
+    by = {leak.location: leak for leak in leaks}
+    assert by["a"].cost_basis == COST_BASIS_CONTINUOUS
+    assert by["a"].annual_cost == pytest.approx(annual_cost(1e-3, CostSettings()), rel=1e-12)
+    assert by["a"].average_flow_slpm == by["a"].flow_slpm
+    assert by["b"].annual_cost == pytest.approx(0.1 * by["a"].annual_cost, rel=1e-12)
+    with pytest.raises(InputError, match="average leak flow at b"):
+        cost_leaks(["b"], [1e-3], [6e5], [1.0], [("b",)], CostSettings(), [-1.0])

@@ -6,9 +6,15 @@ import numpy as np
 import pytest
 
 from _diag_synth import LOCATIONS, synth_signatures, synth_table
-from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.cost import (
+    COST_BASIS_AVERAGE,
+    COST_BASIS_CONTINUOUS,
+    CostSettings,
+    annual_cost,
+)
 from pneufdd.diagnosis.engine import diagnose
 from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import ChannelError, InputError, MachineError
 
 
@@ -87,13 +93,48 @@ def test_json_has_required_fields(reference):
     assert set(leak) == {
         "location",
         "flow_slpm",
+        "average_flow_slpm",
         "orifice_mm",
         "annual_cost",
+        "cost_basis",
         "confidence",
         "ambiguity_group",
     }
     assert leak["flow_slpm"] == pytest.approx(7e-4 / 1.294 * 60_000, rel=0.1)
     assert data["cost_settings"]["hours"] == 4000.0
+    # the synthetic signatures hold no mean flows per cycle: continuous leakage assumed,
+    # and said so
+    assert leak["average_flow_slpm"] == leak["flow_slpm"]
+    assert leak["cost_basis"] == COST_BASIS_CONTINUOUS
+    assert any("continuously" in note for note in data["notes"])
+
+
+def test_cost_uses_the_average_flow_over_the_cycle(reference):
+    sig = reference.signatures
+    # a leak that loses on average 10 % of its nominal flow at the smallest size and
+    # 5 % at the largest (it drains its line faster when larger)
+    duty = np.linspace(0.10, 0.05, sig.sizes.shape[1])
+    with_mean = SignatureSet(
+        sig.locations,
+        sig.sizes,
+        sig.deltas,
+        sig.feature_names,
+        sig.nominal_pressure,
+        mean_flow=sig.sizes * duty,
+    )
+    ref = reference.with_signatures(with_mean)
+    settings = CostSettings(hours=4000.0)
+    result = diagnose(ref, synth_table(10, {"X_A": 1.5e-3}, seed=45), settings)
+    plain = diagnose(reference, synth_table(10, {"X_A": 1.5e-3}, seed=45), settings)
+    (leak,) = result.leaks
+    assert leak.mass_flow == plain.leaks[0].mass_flow  # sizing is unchanged
+    row = sig.sizes[sig.locations.index("X_A")]
+    expected = np.interp(leak.mass_flow, row, duty) * leak.mass_flow
+    assert leak.average_mass_flow == pytest.approx(expected, rel=1e-9)
+    assert leak.cost_basis == COST_BASIS_AVERAGE
+    assert leak.annual_cost == pytest.approx(annual_cost(expected, settings), rel=1e-12)
+    assert leak.annual_cost == pytest.approx(plain.leaks[0].annual_cost * expected / leak.mass_flow)
+    assert not any("continuously" in note for note in result.notes)
 
 
 def test_band_method_sees_a_large_leak(reference):

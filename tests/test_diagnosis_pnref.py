@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from _diag_synth import synth_signatures, synth_table
-from pneufdd.diagnosis.pnref import load_reference, save_reference
+from pneufdd.diagnosis.pnref import FORMAT_VERSION, load_reference, save_reference
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import FileFormatError, InputError
@@ -26,6 +26,8 @@ def model():
         sig.nominal_pressure,
         np.full((len(sig.locations), len(sig.feature_names)), 0.5),
         np.array([1e-3, 6e-4]),
+        sig.sizes * np.linspace(0.9, 0.1, len(sig.locations))[:, None],
+        np.tile([-1e-5, -2e-6], (len(sig.locations), 1)),
     )
     return ReferenceModel.build(
         synth_table(20, seed=3),
@@ -54,6 +56,10 @@ def test_round_trip_is_exact(model, tmp_path):
     assert np.array_equal(back.signatures.sizes, model.signatures.sizes)
     assert np.array_equal(back.signatures.interaction, model.signatures.interaction)
     assert np.array_equal(back.signatures.interaction_sizes, model.signatures.interaction_sizes)
+    assert np.array_equal(back.signatures.mean_flow, model.signatures.mean_flow)
+    assert np.array_equal(
+        back.signatures.mean_flow_interaction, model.signatures.mean_flow_interaction
+    )
     assert np.array_equal(back.detector.threshold_, model.detector.threshold_)
     assert not list(tmp_path.glob(".*tmp"))
 
@@ -101,6 +107,40 @@ def test_wrong_version_rejected(model, tmp_path):
     _rewrite(path, tmp_path / "v99.pnref", bump)
     with pytest.raises(FileFormatError, match=r"v99.pnref.*version"):
         load_reference(tmp_path / "v99.pnref")
+
+
+def test_version_1_file_asks_for_a_rebuild(model, tmp_path):
+    # a reference written before the mean leak flows were stored (format version 1)
+    path = save_reference(model, tmp_path / "ref.pnref")
+
+    def downgrade(arrays):
+        header = json.loads(str(arrays["header"]))
+        header["version"] = 1
+        arrays["header"] = np.array(json.dumps(header))
+        arrays.pop("sig_mean_flow")
+        arrays.pop("sig_mean_flow_interaction")
+
+    _rewrite(path, tmp_path / "old.pnref", downgrade)
+    with pytest.raises(FileFormatError) as info:
+        load_reference(tmp_path / "old.pnref")
+    message = str(info.value)
+    assert "old.pnref" in message
+    assert "received 1" in message
+    assert f"version {FORMAT_VERSION}" in message
+    assert FORMAT_VERSION == 2
+    assert "rebuild the reference" in message
+    assert "pneufdd reference build" in message
+
+
+def test_misshapen_mean_flow_rejected(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+    _rewrite(
+        tmp_path / "ref.pnref",
+        tmp_path / "bad.pnref",
+        lambda a: a.update(sig_mean_flow=a["sig_mean_flow"][:, :1]),
+    )
+    with pytest.raises(FileFormatError, match="sig_mean_flow"):
+        load_reference(path.parent / "bad.pnref")
 
 
 def test_missing_and_misshapen_entries_rejected(model, tmp_path):

@@ -10,6 +10,7 @@ from html.parser import HTMLParser
 import pytest
 
 from _diag_synth import synth_signatures, synth_table
+from pneufdd.diagnosis.cost import COST_BASIS_CONTINUOUS
 from pneufdd.diagnosis.engine import diagnose
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.report import render_report, write_report
@@ -76,8 +77,13 @@ def test_report_contains_table_values(case):
         assert f"{leak.flow_slpm:,.1f}" in text
         assert f"{leak.orifice_mm:,.2f}" in text
         assert f"{leak.annual_cost:,.0f}" in text
+        assert f"{leak.average_flow_slpm:,.1f}" in text
     assert f"{result.total_annual_cost:,.0f}" in text
     assert "Leak detected" in text
+    assert "average flow over the cycle [SLPM]" in text
+    # the case's signatures hold no mean flows per cycle: the report says so
+    assert all(leak.cost_basis == COST_BASIS_CONTINUOUS for leak in result.leaks)
+    assert "Costs assume continuous leakage" in text
 
 
 def test_report_escapes_text(case):

@@ -18,7 +18,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
-from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE, CostSettings
 from pneufdd.diagnosis.engine import Diagnosis
 from pneufdd.diagnosis.pipeline import diagnose_recording
 from pneufdd.diagnosis.pnref import load_reference
@@ -35,7 +35,8 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
         "location",
         "ambiguity group",
         "flow [SLPM]",
-        "orifice [mm]",
+        "avg flow [SLPM]",
+        "orifice \\[mm]",  # escaped: rich reads [mm] as markup
         "cost [$/yr]",
         "confidence",
     ):
@@ -48,12 +49,20 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
             leak.location,
             ", ".join(leak.ambiguity_group),
             f"{leak.flow_slpm:.1f}",
+            f"{leak.average_flow_slpm:.1f}",
             f"{leak.orifice_mm:.2f}",
             f"{leak.annual_cost:,.0f}",
             f"{100 * leak.confidence:.0f} %",
         )
     table.add_section()
-    table.add_row("", "total", "", "", "", f"{result.total_annual_cost:,.0f}", "")
+    table.add_row("", "total", "", "", "", "", f"{result.total_annual_cost:,.0f}", "")
+    table.caption = (
+        "flow: while the leak's line is pressurised, at supply pressure (what a leak "
+        "detector finds); avg flow: mean over the operating cycle; cost: eq. 1.1 of the "
+        "avg flow x operating hours"
+    )
+    if any(leak.cost_basis != COST_BASIS_AVERAGE for leak in result.leaks):
+        table.caption += " (continuous leakage assumed where no average flow is known)"
     return table
 
 

@@ -1,5 +1,21 @@
 """What a leak costs: flow in SLPM, equivalent orifice and annual cost by eq. 1.1.
 
+Two flows describe a leak on a sequenced machine:
+
+- its **nominal flow** (``flow_slpm``): the leak flow while its line is pressurised,
+  at the machine's supply pressure. This is what a technician finds with an
+  ultrasonic detector and what the equivalent orifice is computed from;
+- its **average flow** (``average_flow_slpm``): the mean leaked flow over an
+  operating cycle. A ``supply`` leak blows all cycle, so the two are equal; a leak on
+  an actuator line only loses air while that line holds pressure (with a 5/3
+  closed-centre valve it blows until the isolated chamber is empty, with a 5/2
+  valve during the steps the line is pressurised).
+
+The annual cost of eq. 1.1 is that of the air really lost: the average flow times the
+operating hours (1.1's "leakage rate" is a continuous flow). When the average flow is
+not known (a reference without signature mean flows) the nominal flow is used, i.e.
+continuous leakage is assumed; :attr:`CostedLeak.cost_basis` says which.
+
 .. math::
 
     \\text{cost per year} = Q_{cfm} \\cdot \\frac{kW}{cfm} \\cdot \\text{hours}
@@ -29,6 +45,8 @@ from pneufdd.physics.leaks import SHARP_EDGE_CD, equivalent_orifice_diameter
 from pneufdd.physics.units import kg_s_to_slpm
 
 __all__ = [
+    "COST_BASIS_AVERAGE",
+    "COST_BASIS_CONTINUOUS",
     "SHARP_EDGED_CD",
     "CostSettings",
     "CostedLeak",
@@ -39,6 +57,12 @@ __all__ = [
 
 SHARP_EDGED_CD: float = SHARP_EDGE_CD
 """Discharge coefficient of a sharp-edged orifice (Figure 1.2 note) [-]."""
+
+COST_BASIS_AVERAGE = "average flow over the operating cycle"
+"""Cost basis: operating hours x the mean leaked flow while the machine cycles."""
+
+COST_BASIS_CONTINUOUS = "nominal flow, continuous leakage assumed"
+"""Cost basis when the average flow is unknown: the nominal flow all operating hours."""
 
 
 @dataclass(frozen=True)
@@ -72,7 +96,7 @@ def annual_cost(mass_flow: float, settings: CostSettings) -> float:
     Parameters
     ----------
     mass_flow : float
-        Leak mass flow [kg/s].
+        Mean leaked mass flow while the machine operates [kg/s].
     settings : CostSettings
         Hours, price and specific power.
 
@@ -143,17 +167,24 @@ class CostedLeak:
     location : str
         Most likely location.
     mass_flow : float
-        Leak flow [kg/s].
+        Nominal leak flow: while its line is pressurised, at the machine's supply
+        pressure [kg/s].
     flow_slpm : float
-        Leak flow at the dissertation's standard conditions [SLPM].
+        Nominal leak flow at the dissertation's standard conditions [SLPM].
     orifice_mm : float
-        Equivalent sharp-edged orifice diameter [mm].
+        Equivalent sharp-edged orifice diameter of the nominal flow [mm].
     annual_cost : float
-        Cost per year by eq. 1.1 [$].
+        Cost per year by eq. 1.1 of the average flow [$].
     confidence : float
         Confidence that a leak lies in the ambiguity group [-].
     ambiguity_group : tuple of str
         Locations the sensors cannot tell apart.
+    average_mass_flow : float
+        Mean leaked flow over an operating cycle [kg/s].
+    average_flow_slpm : float
+        Mean leaked flow over an operating cycle [SLPM].
+    cost_basis : str
+        :data:`COST_BASIS_AVERAGE` or :data:`COST_BASIS_CONTINUOUS`.
     """
 
     location: str
@@ -163,6 +194,9 @@ class CostedLeak:
     annual_cost: float
     confidence: float
     ambiguity_group: tuple[str, ...]
+    average_mass_flow: float
+    average_flow_slpm: float
+    cost_basis: str
 
 
 def cost_leaks(
@@ -172,8 +206,27 @@ def cost_leaks(
     confidences: Sequence[float],
     groups: Sequence[tuple[str, ...]],
     settings: CostSettings,
+    average_flows: Sequence[float | None] | None = None,
 ) -> tuple[list[CostedLeak], float]:
     """Cost each leak and rank them, largest annual cost first.
+
+    Parameters
+    ----------
+    locations : sequence of str
+        Most likely location of each leak.
+    mass_flows : sequence of float
+        Nominal leak flows, at the leak's nominal pressure [kg/s].
+    pressures : sequence of float
+        Nominal absolute pressure of each leak [Pa].
+    confidences : sequence of float
+        Confidence of each leak [-].
+    groups : sequence of tuple of str
+        Ambiguity group of each leak.
+    settings : CostSettings
+        Economic inputs of eq. 1.1.
+    average_flows : sequence of float or None, optional
+        Mean leaked flow of each leak over an operating cycle [kg/s]; None (for all
+        or one leak) prices that leak at its nominal flow (continuous leakage).
 
     Returns
     -------
@@ -189,20 +242,37 @@ def cost_leaks(
     >>> [leak.location for leak in leaks], round(total, 2) == round(sum(
     ...     leak.annual_cost for leak in leaks), 2)
     (['DNC_B', 'supply'], True)
+
+    A line leak that loses on average a twentieth of its nominal flow costs a
+    twentieth as much:
+
+    >>> leaks, _ = cost_leaks(["DNC_B"], [1.2e-3], [6e5], [0.9], [("DNC_B",)],
+    ...                       CostSettings(), average_flows=[6.0e-5])
+    >>> round(leaks[0].flow_slpm, 1), round(leaks[0].average_flow_slpm, 2)
+    (55.6, 2.78)
     """
-    rows = [
-        CostedLeak(
-            location=loc,
-            mass_flow=float(flow),
-            flow_slpm=float(kg_s_to_slpm(float(flow))),
-            orifice_mm=equivalent_orifice_mm(float(flow), float(p)),
-            annual_cost=annual_cost(float(flow), settings),
-            confidence=float(conf),
-            ambiguity_group=tuple(group),
+    if average_flows is None:
+        average_flows = [None] * len(locations)
+    rows = []
+    for loc, flow, p, conf, group, mean in zip(
+        locations, mass_flows, pressures, confidences, groups, average_flows, strict=True
+    ):
+        if mean is not None and (not math.isfinite(mean) or mean < 0):
+            raise InputError(describe(f"average leak flow at {loc} [kg/s]", mean, ">= 0"))
+        lost = float(flow) if mean is None else float(mean)
+        rows.append(
+            CostedLeak(
+                location=loc,
+                mass_flow=float(flow),
+                flow_slpm=float(kg_s_to_slpm(float(flow))),
+                orifice_mm=equivalent_orifice_mm(float(flow), float(p)),
+                annual_cost=annual_cost(lost, settings),
+                confidence=float(conf),
+                ambiguity_group=tuple(group),
+                average_mass_flow=lost,
+                average_flow_slpm=float(kg_s_to_slpm(lost)),
+                cost_basis=COST_BASIS_CONTINUOUS if mean is None else COST_BASIS_AVERAGE,
+            )
         )
-        for loc, flow, p, conf, group in zip(
-            locations, mass_flows, pressures, confidences, groups, strict=True
-        )
-    ]
     rows.sort(key=lambda r: -r.annual_cost)
     return rows, float(sum(r.annual_cost for r in rows))

@@ -95,8 +95,10 @@ class Diagnosis:
                 {
                     "location": leak.location,
                     "flow_slpm": num(leak.flow_slpm),
+                    "average_flow_slpm": num(leak.average_flow_slpm),
                     "orifice_mm": num(leak.orifice_mm),
                     "annual_cost": num(leak.annual_cost),
+                    "cost_basis": leak.cost_basis,
                     "confidence": num(leak.confidence),
                     "ambiguity_group": list(leak.ambiguity_group),
                 }
@@ -124,6 +126,9 @@ class Diagnosis:
                 "dof": self.localisation.dof,
             },
             "cost_settings": {
+                "basis": "annual_cost = eq. 1.1 of average_flow_slpm (mean leaked flow "
+                "over the operating cycle) x hours; flow_slpm = leak flow while its line "
+                "is pressurised, at the machine's supply pressure",
                 "hours": self.settings.hours,
                 "price_per_kwh": self.settings.price_per_kwh,
                 "kw_per_100_cfm": self.settings.kw_per_100_cfm,
@@ -231,11 +236,27 @@ def diagnose(
             if not localisation.leaks:
                 notes.append("leak detected but no combination of leak signatures explains it")
             pressures = []
+            averages: list[float | None] = []
             for leak in localisation.leaks:
+                averages.append(
+                    sig.average_flow(sig.locations.index(leak.location), leak.mass_flow)
+                )
                 p = float(sig.nominal_pressure[sig.locations.index(leak.location)])
                 if not math.isfinite(p) or p <= 0:
                     p = reference.supply_pressure
                 pressures.append(p if math.isfinite(p) and p > 0 else 6.0e5)
+            found = localisation.leaks
+            if len(found) == 2 and sum(leak.location == "supply" for leak in found) == 1:
+                # a line leak next to a supply leak blows from a lower pressure
+                line_leak = next(leak for leak in found if leak.location != "supply")
+                supply_leak = next(leak for leak in found if leak.location == "supply")
+                both = sig.average_flows_with_supply(
+                    sig.locations.index(line_leak.location),
+                    line_leak.mass_flow,
+                    supply_leak.mass_flow,
+                )
+                if both is not None:
+                    averages = [both[0] if leak is line_leak else both[1] for leak in found]
             leaks, total = cost_leaks(
                 [leak.location for leak in localisation.leaks],
                 [leak.mass_flow for leak in localisation.leaks],
@@ -243,7 +264,14 @@ def diagnose(
                 [leak.confidence for leak in localisation.leaks],
                 [leak.ambiguity_group for leak in localisation.leaks],
                 settings,
+                averages,
             )
+            if localisation.leaks and sig.mean_flow is None:
+                notes.append(
+                    "the reference holds no mean leak flows per cycle: costs assume the "
+                    "leaks blow continuously at their nominal flow (an upper bound for "
+                    "leaks on actuator lines; rebuild the reference with signatures)"
+                )
             if localisation.explained < 0.5:
                 notes.append(
                     f"the leak model explains only {100 * localisation.explained:.0f} % of the "

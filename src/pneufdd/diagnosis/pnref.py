@@ -18,7 +18,16 @@ entry                  content
 ``sig_pressure``       (n_locations,) float64, optional [Pa]
 ``sig_interaction``    (n_locations, n_features) float64, optional
 ``sig_interaction_sizes`` (2,) float64, optional [kg/s]
+``sig_mean_flow``      (n_locations, n_sizes) float64, optional: mean leaked mass
+                       flow per machine cycle at each signature size [kg/s]
+``sig_mean_flow_interaction`` (n_locations, 2) float64, optional: change of the
+                       line and supply leaks' mean flows when both leak [kg/s]
 =====================  ===========================================================
+
+Version history: 1 (issue 5); 2 adds ``sig_mean_flow`` and
+``sig_mean_flow_interaction`` (a leak is priced by the air it loses over a cycle, not
+by its flow while its line is pressurised). A file of another version is refused with
+a message asking to rebuild the reference.
 
 The file is written to a temporary name and renamed into place; it is read with
 ``allow_pickle=False`` and every entry's presence, dtype and shape is checked.
@@ -50,7 +59,7 @@ from pneufdd.errors import (
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
 
 FORMAT_NAME = "pneufdd-reference"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 
 def _header(model: ReferenceModel) -> dict[str, Any]:
@@ -111,6 +120,10 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
         if model.signatures.interaction is not None:
             arrays["sig_interaction"] = model.signatures.interaction
             arrays["sig_interaction_sizes"] = np.asarray(model.signatures.interaction_sizes)
+        if model.signatures.mean_flow is not None:
+            arrays["sig_mean_flow"] = model.signatures.mean_flow
+        if model.signatures.mean_flow_interaction is not None:
+            arrays["sig_mean_flow_interaction"] = model.signatures.mean_flow_interaction
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
@@ -182,7 +195,15 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                     FORMAT_NAME,
                 )
             if header.get("version") != FORMAT_VERSION:
-                raise _bad(source, "version", header.get("version"), [FORMAT_VERSION])
+                raise FileFormatError(
+                    describe(
+                        f"reference file {str(source)!r}: format version",
+                        header.get("version"),
+                        f"version {FORMAT_VERSION} (the version this pneufdd reads)",
+                    )
+                    + "; rebuild the reference with 'pneufdd reference build' from its "
+                    "leak-free recordings"
+                )
             try:
                 channels = tuple(str(c) for c in header["channels"])
                 units = tuple(str(u) for u in header["units"])
@@ -215,8 +236,22 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 if "sig_interaction" in data.files:
                     inter = _array(data, source, "sig_interaction", "f", (n_loc, n_feat))
                     inter_sizes = _array(data, source, "sig_interaction_sizes", "f", (2,))
+                mean_flow = None
+                if "sig_mean_flow" in data.files:
+                    mean_flow = _array(data, source, "sig_mean_flow", "f", sizes.shape)
+                flow_inter = None
+                if "sig_mean_flow_interaction" in data.files:
+                    flow_inter = _array(data, source, "sig_mean_flow_interaction", "f", (n_loc, 2))
                 signatures = SignatureSet(
-                    tuple(locations), sizes, deltas, names, pressure, inter, inter_sizes
+                    tuple(locations),
+                    sizes,
+                    deltas,
+                    names,
+                    pressure,
+                    inter,
+                    inter_sizes,
+                    mean_flow,
+                    flow_inter,
                 )
             supply = header.get("supply_pressure")
             model = ReferenceModel(

@@ -54,6 +54,17 @@ class SignatureSet:
         bilinear in the two sizes. Zero for ``supply`` itself.
     interaction_sizes : ndarray, shape (2,), optional
         Line and supply leak sizes at which ``interaction`` was simulated [kg/s].
+    mean_flow : ndarray, shape (n_locations, n_sizes), optional
+        Mean leaked mass flow over a machine cycle at each simulated size [kg/s]: the
+        air the leak really loses. A ``supply`` leak blows all cycle (about its size);
+        a leak on an actuator line only while that line holds pressure. See
+        :meth:`average_flow`.
+    mean_flow_interaction : ndarray, shape (n_locations, 2), optional
+        With a supply leak, at ``interaction_sizes``: the change of the line leak's
+        mean flow and of the supply leak's mean flow caused by the other leak [kg/s]
+        (a supply leak lowers the pressure the line leak blows from). Modelled as
+        bilinear in the two sizes (:meth:`average_flows_with_supply`); zero for
+        ``supply`` itself. Needs ``mean_flow`` and ``interaction_sizes``.
 
     Examples
     --------
@@ -75,6 +86,8 @@ class SignatureSet:
     nominal_pressure: FloatArray
     interaction: FloatArray | None = None
     interaction_sizes: FloatArray | None = None
+    mean_flow: FloatArray | None = None
+    mean_flow_interaction: FloatArray | None = None
 
     def __post_init__(self) -> None:
         locations = tuple(self.locations)
@@ -113,6 +126,28 @@ class SignatureSet:
                 raise InputError(describe("interaction_sizes [kg/s]", isz.tolist(), "2 sizes > 0"))
             object.__setattr__(self, "interaction", inter)
             object.__setattr__(self, "interaction_sizes", isz)
+        if self.mean_flow is not None:
+            mean = np.asarray(self.mean_flow, dtype=np.float64)
+            if mean.shape != sizes.shape:
+                raise InputError(describe("shape of mean_flow", mean.shape, [sizes.shape]))
+            if not np.all(np.isfinite(mean)) or np.any(mean < 0):
+                raise InputError(describe("mean_flow [kg/s]", mean.tolist(), "finite, >= 0"))
+            object.__setattr__(self, "mean_flow", mean)
+        if self.mean_flow_interaction is not None:
+            mfi = np.asarray(self.mean_flow_interaction, dtype=np.float64)
+            if self.mean_flow is None or self.interaction_sizes is None:
+                raise InputError(
+                    describe(
+                        "mean_flow_interaction",
+                        "given alone",
+                        "with mean_flow and interaction_sizes",
+                    )
+                )
+            if mfi.shape != (n_loc, 2) or not np.all(np.isfinite(mfi)):
+                raise InputError(
+                    describe("shape of mean_flow_interaction", mfi.shape, [(n_loc, 2)])
+                )
+            object.__setattr__(self, "mean_flow_interaction", mfi)
         object.__setattr__(self, "locations", locations)
         object.__setattr__(self, "sizes", sizes)
         object.__setattr__(self, "deltas", deltas)
@@ -175,7 +210,53 @@ class SignatureSet:
             self.nominal_pressure,
             None if self.interaction is None else self.interaction[:, cols],
             self.interaction_sizes,
+            self.mean_flow,
+            self.mean_flow_interaction,
         )
+
+    def duty(self, location: int, size: float) -> float | None:
+        """Fraction of its nominal flow a leak loses on average over a machine cycle.
+
+        ``mean_flow / size`` at the simulated sizes, interpolated linearly in the
+        size; below the smallest and beyond the largest size the end values are
+        kept (a leak's duty depends on the size only through how fast it drains
+        its line). A ``supply`` leak's duty is about 1 (it leaks all cycle); a leak on
+        a line of a 5/3 closed-centre valve blows only until the isolated chamber is
+        empty.
+
+        Parameters
+        ----------
+        location : int
+            Index into :attr:`locations`.
+        size : float
+            Leak mass flow at nominal pressure [kg/s].
+
+        Returns
+        -------
+        float or None
+            Duty [-], None when the signatures hold no mean flows.
+
+        Examples
+        --------
+        A line leak that loses all its flow at size 1 but half of it at size 2:
+
+        >>> s = SignatureSet(("X_B",), np.array([[1.0, 2.0]]), np.zeros((1, 2, 1)),
+        ...                  ("a",), np.array([6e5]), mean_flow=np.array([[1.0, 1.0]]))
+        >>> s.duty(0, 1.5), s.duty(0, 0.5), s.duty(0, 4.0), s.average_flow(0, 4.0)
+        (0.75, 1.0, 0.5, 2.0)
+        """
+        if self.mean_flow is None:
+            return None
+        ratio = self.mean_flow[location] / self.sizes[location]
+        return float(np.interp(max(float(size), 0.0), self.sizes[location], ratio))
+
+    def average_flow(self, location: int, size: float) -> float | None:
+        """Mean leaked mass flow over a machine cycle of a leak of ``size`` [kg/s].
+
+        ``size * duty(location, size)``; None when the signatures hold no mean flows.
+        """
+        duty = self.duty(location, size)
+        return None if duty is None else max(float(size), 0.0) * duty
 
     def interaction_slope(self, location: int) -> FloatArray | None:
         """Bilinear interaction with a supply leak per unit of both sizes.
@@ -187,3 +268,41 @@ class SignatureSet:
             return None
         line, supply = self.interaction_sizes
         return np.asarray(self.interaction[location] / (line * supply), dtype=np.float64)
+
+    def average_flows_with_supply(
+        self, line: int, line_size: float, supply_size: float
+    ) -> tuple[float, float] | None:
+        """Mean flows of a line leak and a supply leak leaking together [kg/s].
+
+        Each leak's :meth:`average_flow` plus the bilinear interaction
+        ``mean_flow_interaction[line] * (line_size / l0) * (supply_size / s0)`` with
+        ``(l0, s0)`` the :attr:`interaction_sizes`, floored at zero.
+
+        Parameters
+        ----------
+        line : int
+            Index of the line location into :attr:`locations`.
+        line_size, supply_size : float
+            Nominal sizes of the two leaks [kg/s].
+
+        Returns
+        -------
+        tuple of float or None
+            Mean flows of the line leak and of the supply leak [kg/s]; None without
+            ``mean_flow_interaction`` or a ``supply`` location.
+        """
+        if (
+            self.mean_flow_interaction is None
+            or self.interaction_sizes is None
+            or "supply" not in self.locations
+        ):
+            return None
+        supply = self.locations.index("supply")
+        line_alone = self.average_flow(line, line_size)
+        supply_alone = self.average_flow(supply, supply_size)
+        if line_alone is None or supply_alone is None:
+            return None
+        l0, s0 = self.interaction_sizes
+        scale = max(float(line_size), 0.0) / l0 * max(float(supply_size), 0.0) / s0
+        d_line, d_supply = self.mean_flow_interaction[line] * scale
+        return max(line_alone + float(d_line), 0.0), max(supply_alone + float(d_supply), 0.0)

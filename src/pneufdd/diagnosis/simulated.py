@@ -11,6 +11,11 @@ pressure (the ground-truth convention of :mod:`pneufdd.sim`); the stored size is
 simulator's resolved nominal mass flow.
 
 A leak so large that the machine stalls is retried at a smaller size.
+
+The same simulations also give the air each leak really loses: the simulator's
+cumulative leaked mass over the judged cycles divided by their duration (the mean
+leaked mass flow per cycle, stored as :attr:`SignatureSet.mean_flow`), which prices a
+leak by eq. 1.1 (:mod:`pneufdd.diagnosis.cost`) without extra simulations.
 """
 
 from __future__ import annotations
@@ -23,15 +28,22 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from rich.progress import Progress
+from scipy.integrate import cumulative_trapezoid
 
 from pneufdd.diagnosis.adapter import segment_cycles, step_table
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import InputError, describe
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.signals.segmentation import StepSpec
-from pneufdd.sim import MachineStalledError, load_machine, simulate
+from pneufdd.sim import MachineStalledError, load_machine, run_simulation
 
-__all__ = ["SIGNATURE_SEED", "SIGNATURE_SIZES_SLPM", "candidate_locations", "compute_signatures"]
+__all__ = [
+    "SIGNATURE_SEED",
+    "SIGNATURE_SIZES_SLPM",
+    "candidate_locations",
+    "compute_signatures",
+    "mean_leak_flow",
+]
 
 SIGNATURE_SIZES_SLPM: tuple[float, ...] = (3.0, 8.0, 15.0, 30.0, 50.0, 80.0, 120.0, 170.0, 230.0)
 """Leak sizes simulated per location, as flow at nominal supply pressure [SLPM]."""
@@ -49,6 +61,46 @@ def candidate_locations(machine: str) -> tuple[str, ...]:
     return ("supply", *[f"{a}_{side}" for a in desc.actuator_ids for side in ("A", "B")])
 
 
+def mean_leak_flow(
+    time: npt.NDArray[np.float64],
+    mass_leaked: npt.NDArray[np.float64],
+    cycle_start: npt.NDArray[np.float64],
+    first: int,
+    last: int,
+) -> float:
+    """Mean leaked mass flow over whole machine cycles ``first`` .. ``last - 1``.
+
+    Parameters
+    ----------
+    time : ndarray
+        Sample times [s].
+    mass_leaked : ndarray
+        Cumulative mass lost through the leak(s) at ``time`` [kg].
+    cycle_start : ndarray
+        Start time of every cycle [s].
+    first, last : int
+        Cycles averaged: from the start of ``first`` to the start of ``last``.
+
+    Returns
+    -------
+    float
+        Leaked mass per cycle time [kg/s].
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 30.0, 3001)
+    >>> round(mean_leak_flow(t, 2e-3 * t, np.array([0.0, 10.0, 20.0]), 1, 2), 12)
+    0.002
+    """
+    if not 0 <= first < last < cycle_start.size:
+        raise InputError(
+            describe("cycles averaged", (first, last), f"0 <= first < last < {cycle_start.size}")
+        )
+    t0, t1 = float(cycle_start[first]), float(cycle_start[last])
+    m0, m1 = np.interp([t0, t1], time, mass_leaked)
+    return float((m1 - m0) / (t1 - t0))
+
+
 def _mean_features(
     machine: str,
     leaks: dict[str, str],
@@ -56,25 +108,54 @@ def _mean_features(
     seed: int,
     sequence: Sequence[StepSpec],
     channels: Sequence[str],
-) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...]]:
+) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...], dict[str, float]]:
+    """Mean features, leak ground truth, feature names and mean flow of each leak [kg/s]."""
     # the first simulated cycle starts from rest and the last one has no successor to
-    # end its last step: segmentation keeps the cycles in between
-    rec = simulate(machine, cycles=cycles + 2, leaks=leaks, seed=seed)
+    # end its last step: segmentation keeps the cycles in between, and the leaked air
+    # is averaged over the same inner cycles
+    sim = run_simulation(machine, cycles=cycles + 2, leaks=leaks, seed=seed, keep_outputs=True)
+    rec = sim.recording
     found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {leaks}")
     table = step_table(rec, found, machine, channels)
-    return np.mean(table.features(), axis=0), rec.metadata["leaks"], table.feature_names()
+    leaked = {
+        loc: mean_leak_flow(
+            sim.time,
+            cumulative_trapezoid(sim.outputs[f"mdot_leak_{loc}"], sim.time, initial=0.0),
+            sim.cycle_start,
+            1,
+            cycles + 1,
+        )
+        for loc in leaks
+    }
+    return (
+        np.mean(table.features(), axis=0),
+        rec.metadata["leaks"],
+        table.feature_names(),
+        leaked,
+    )
 
 
 def _location_ladder(
     job: tuple[str, str, tuple[float, ...], int, int, tuple[StepSpec, ...], tuple[str, ...]],
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float, npt.NDArray[np.float64]]:
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    float,
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+]:
     """Mean features of one location at every size of the ladder (one worker's job).
 
     Also returns ``M(loc + supply) - M(loc)`` at :data:`INTERACTION_SIZES_SLPM` (NaN
-    for the supply itself), from which the supply interaction is formed.
+    for the supply itself), from which the supply interaction is formed, the mean
+    leaked mass flow per cycle at every size [kg/s], and, at the interaction sizes,
+    the line leak's mean flow alone, with the supply leak, and the supply leak's mean
+    flow with the line leak [kg/s] (NaN for the supply itself).
     """
     machine, loc, ladder, cycles, seed, sequence, channels = job
     sizes = np.zeros(len(ladder))
+    leaked = np.zeros(len(ladder))
     means: list[npt.NDArray[np.float64]] = []
     pressure = float("nan")
     previous = 0.0
@@ -82,9 +163,10 @@ def _location_ladder(
         trial = float(slpm)
         for _ in range(6):
             try:
-                mean, truth, _ = _mean_features(
+                mean, truth, _, flows = _mean_features(
                     machine, {loc: f"{trial}slpm"}, cycles, seed, sequence, channels
                 )
+                leaked[k] = flows[loc]
                 break
             except (MachineStalledError, InputError):
                 trial = previous + 0.6 * (trial - previous)
@@ -97,9 +179,10 @@ def _location_ladder(
         means.append(mean)
         previous = trial
     pair = np.full_like(means[0], np.nan)
+    pair_flows = np.full(3, np.nan)
     if loc != "supply":
         line, supply = INTERACTION_SIZES_SLPM
-        both, _, _ = _mean_features(
+        both, _, _, both_flows = _mean_features(
             machine,
             {loc: f"{line}slpm", "supply": f"{supply}slpm"},
             cycles,
@@ -107,11 +190,12 @@ def _location_ladder(
             sequence,
             channels,
         )
-        alone, _, _ = _mean_features(
+        alone, _, _, alone_flows = _mean_features(
             machine, {loc: f"{line}slpm"}, cycles, seed, sequence, channels
         )
         pair = both - alone
-    return sizes, np.stack(means), pressure, pair
+        pair_flows[:] = (alone_flows[loc], both_flows[loc], both_flows["supply"])
+    return sizes, np.stack(means), pressure, pair, leaked, pair_flows
 
 
 def compute_signatures(
@@ -180,7 +264,7 @@ def compute_signatures(
         if progress is not None and task is not None:
             progress.advance(task)
 
-    base, _, names = _mean_features(machine, {}, cycles, seed, sequence, channels)
+    base, _, names, _ = _mean_features(machine, {}, cycles, seed, sequence, channels)
     advance()
     index = {n: i for i, n in enumerate(names)}
     missing = [n for n in feature_names if n not in index]
@@ -192,6 +276,8 @@ def compute_signatures(
     sizes = np.zeros((len(locations), len(sizes_slpm)))
     deltas = np.zeros((len(locations), len(sizes_slpm), len(feature_names)))
     pressure = np.zeros(len(locations))
+    mean_flow = np.zeros((len(locations), len(sizes_slpm)))
+    flow_interaction = np.zeros((len(locations), 2))
     jobs = [
         (
             machine,
@@ -205,7 +291,7 @@ def compute_signatures(
         for loc in locations
     ]
     interaction = np.zeros((len(locations), len(feature_names)))
-    supply_alone, _, _ = _mean_features(
+    supply_alone, _, _, supply_alone_flows = _mean_features(
         machine,
         {"supply": f"{INTERACTION_SIZES_SLPM[1]}slpm"},
         cycles,
@@ -217,11 +303,17 @@ def compute_signatures(
     pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
     try:
         results = pool.map(_location_ladder, jobs) if pool else map(_location_ladder, jobs)
-        for i, (loc_sizes, loc_means, p, pair) in enumerate(results):
+        for i, (loc_sizes, loc_means, p, pair, loc_leaked, pair_flows) in enumerate(results):
             sizes[i], deltas[i], pressure[i] = loc_sizes, loc_means[:, cols] - base[cols], p
+            mean_flow[i] = loc_leaked
             if locations[i] != "supply":
                 # M(l+s) - M(l) - M(s) + M(0)
                 interaction[i] = (pair - supply_alone + base)[cols]
+                # each leak's mean flow with the other minus without it
+                flow_interaction[i] = (
+                    pair_flows[1] - pair_flows[0],
+                    pair_flows[2] - supply_alone_flows["supply"],
+                )
             for _ in sizes_slpm:
                 advance()
     finally:
@@ -235,4 +327,6 @@ def compute_signatures(
         pressure,
         interaction,
         np.asarray(slpm_to_kg_s(np.asarray(INTERACTION_SIZES_SLPM, dtype=np.float64))),
+        mean_flow,
+        flow_interaction,
     )

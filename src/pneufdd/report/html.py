@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pneufdd import __version__
+from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
 from pneufdd.diagnosis.engine import Diagnosis, check_compatible
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.diagnosis.steps import StepTable
@@ -166,20 +167,40 @@ def _leak_table(diagnosis: Diagnosis) -> str:
         rows.append(
             "<tr>"
             f"<td>{i}</td><td class='l'>{_e(leak.location)}</td><td class='l'>{_e(group)}</td>"
-            f"<td>{_fmt(leak.flow_slpm, 1)}</td><td>{_fmt(leak.orifice_mm, 2)}</td>"
+            f"<td>{_fmt(leak.flow_slpm, 1)}</td><td>{_fmt(leak.average_flow_slpm, 1)}</td>"
+            f"<td>{_fmt(leak.orifice_mm, 2)}</td>"
             f"<td>{_fmt(leak.annual_cost, 0)}</td><td>{_fmt(100 * leak.confidence, 0)} %</td>"
             "</tr>"
         )
     s = diagnosis.settings
+    continuous = [
+        leak.location for leak in diagnosis.leaks if leak.cost_basis != COST_BASIS_AVERAGE
+    ]
+    basis = (
+        "<p><b>Costs assume continuous leakage at the nominal flow</b> for "
+        f"{_e(', '.join(continuous))}: the reference holds no mean leak flows per cycle "
+        "(rebuild it with signatures).</p>"
+        if continuous
+        else ""
+    )
     return (
         "<table><tr><th>#</th><th class='l'>location</th><th class='l'>ambiguity group</th>"
-        "<th>flow [SLPM]</th><th>equivalent orifice [mm]</th><th>annual cost [$]</th>"
+        "<th>flow while pressurised [SLPM]</th><th>average flow over the cycle [SLPM]</th>"
+        "<th>equivalent orifice [mm]</th><th>annual cost [$]</th>"
         "<th>confidence</th></tr>"
         + "".join(rows)
-        + f"<tr><th colspan='5' class='l'>total</th><th>{_fmt(diagnosis.total_annual_cost, 0)}"
+        + f"<tr><th colspan='6' class='l'>total</th><th>{_fmt(diagnosis.total_annual_cost, 0)}"
         "</th><th></th></tr></table>"
-        f"<p>Cost by eq. 1.1 at {_fmt(s.hours, 0)} h/year, ${_fmt(s.price_per_kwh, 3)}/kWh and "
-        f"{_fmt(s.kw_per_100_cfm, 1)} kW per 100 cfm. SLPM at 0 degC, 1013 mbar "
+        + basis
+        + "<p><i>Flow while pressurised</i>: the leak flow while its line holds pressure, at "
+        "the machine's supply pressure (what an ultrasonic leak detector finds; the "
+        "orifice is computed from it). <i>Average flow</i>: the air the leak really loses, "
+        "averaged over an operating cycle (a supply leak blows all the time; a leak on an "
+        "actuator line only while that line is pressurised). "
+        f"Annual cost by eq. 1.1 of the average flow over {_fmt(s.hours, 0)} operating "
+        f"hours/year, at ${_fmt(s.price_per_kwh, 3)}/kWh and "
+        f"{_fmt(s.kw_per_100_cfm, 1)} kW per 100 cfm; a line that stays pressurised while "
+        "the machine stands idle leaks more than this. SLPM at 0 degC, 1013 mbar "
         "(1.294 kg/m<sup>3</sup>); orifice: sharp-edged (C<sub>d</sub> = 0.61), choked "
         "from the leak's nominal pressure.</p>"
     )
