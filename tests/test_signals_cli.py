@@ -44,6 +44,7 @@ def test_steps_tables_list_cycles_and_reasons() -> None:
     assert "2 complete, 1 rejected" in text
     assert "truncated: the recording ends after step 6 of 58" in text
     assert "DNC, DRQD, HMPL_H" in text
+    assert "duration [s]" in text  # unit headers are not eaten as rich markup
 
 
 def test_steps_command_reports_unreadable_file(tmp_path) -> None:

@@ -9,6 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from pneufdd.recording.model import Recording
@@ -37,7 +38,7 @@ def render_steps(
     good = seg.complete
     seq = Table(title=f"Sequence: {len(seg.sequence)} steps ({seg.source})")
     for col in ("step", "actuators", "median duration [s]", "min [s]", "max [s]"):
-        seq.add_column(col)
+        seq.add_column(escape(col))
     durations = np.array([[s.duration_s for s in c.steps] for c in good]) if good else None
     for j, spec in enumerate(seg.sequence):
         acts = ", ".join(sorted({actuator_of(v) for v in spec.valves}))
@@ -49,7 +50,7 @@ def render_steps(
     out.print(seq)
     cyc = Table(title=f"Cycles: {len(good)} complete, {len(seg.rejected)} rejected")
     for col in ("cycle", "start [s]", "duration [s]", "steps", "complete", "reason"):
-        cyc.add_column(col)
+        cyc.add_column(escape(col))
     for c in seg.cycles:
         cyc.add_row(
             str(c.index),
@@ -64,7 +65,7 @@ def render_steps(
         for c in seg.cycles:
             t = Table(title=f"Cycle {c.index}")
             for col in ("step", "start [s]", "duration [s]", "actuators"):
-                t.add_column(col)
+                t.add_column(escape(col))
             for s in c.steps:
                 t.add_row(
                     str(s.index), f"{s.start_s:.3f}", f"{s.duration_s:.3f}", ", ".join(s.actuators)
