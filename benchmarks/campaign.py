@@ -8,7 +8,9 @@ Seeds: every seed is ``SEED_OFFSET + k`` with ``SEED_OFFSET = 92_000_000``. No s
 or above 90,000,000 is used anywhere else in pneufdd (tests and development use seeds
 below 10,000,000; the leak signatures use 5,300,001; the demo 4,200,000 + k), so the
 campaign never sees data the methods were tuned on. (Offset 91,000,000 served one run
-on a pre-merge simulator; only its summary was looked at, and it is retired.)
+on a pre-merge simulator; only its summary was looked at, and it is retired. 92,000,000
+measured main after issue 5's merge; ``--seed-offset 93000000`` measured the ``pairs``
+branch once. A new measurement takes a new offset.)
 
 A run is 10 consecutive complete cycles (12 are simulated: the first starts from rest
 mid-sequence and the last has no successor to close its last step). Single leaks: every
@@ -20,7 +22,9 @@ sets (full rig; ``P_In, Q_In`` + PLC digital signals) and the digital-only set
 - true location inside the reported ambiguity group; mean group size;
 - median (and 90th percentile) relative size error of the true location's estimate;
 - per-cycle detection and false-alarm rates (each cycle judged alone);
-- two simultaneous leaks: both locations found;
+- two simultaneous leaks: both locations found (in the ambiguity groups; separately, in
+  the groups or one listed alternative explanation), mean group size on pair runs;
+- single-leak runs that list an alternative explanation; diagnosis time per run;
 - cross-validated per-cycle false-alarm rate of each reference;
 - runs the simulator could not complete (the machine stalls with some pairs of large
   leaks: no cycle to diagnose), listed and excluded.

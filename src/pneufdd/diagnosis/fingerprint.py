@@ -22,10 +22,11 @@ two unknowns, solved in closed form from one Gram matrix of the whitened signatu
 pieces (an exhaustive sparse subset search instead of :func:`scipy.optimize.nnls`,
 whose linear model cannot follow saturating effects such as a line pressure that
 drops to atmosphere). A larger subset is preferred only when it lowers the residual by
-an information-criterion penalty and by a minimum relative gain. When the chosen pair
-includes a supply leak and the signatures carry the supply interaction, the two sizes
-are refined with the bilinear interaction term (a supply leak lowers the pressure the
-line leak sees, so their effects are not additive).
+an information-criterion penalty and by a minimum relative gain. Before the choice,
+the best additive pairs are refit with a bilinear interaction term
+(:func:`pair_coupling`: a supply leak lowers the pressure every line leak sees, and a
+line leak lowers the supply pressure in proportion to the air it draws), so their
+effects are not taken as additive.
 
 Ambiguity: for each leak of the chosen model, every other location is tried in its
 place. Alternatives whose fit is nearly as good (Akaike-type weight
@@ -34,7 +35,11 @@ residual at most ``1 + relative_tolerance`` times the best) or whose weighted
 signature is nearly collinear with the chosen one form its ambiguity group;
 the sensors cannot tell them apart and they are reported together. The confidence is
 the weight of the group times the fraction of the observed deviation the model
-explains.
+explains. Explanations that share no location with the chosen one but fit about as
+well are listed as alternatives (:class:`Explanation`); a supply leak is always
+paired with the alternative "both lines of the best-fitting actuator", and of two
+leaks on both lines of one actuator the smaller one's group includes ``supply``:
+these explanations draw air alike and supply sensors hardly separate them.
 """
 
 from __future__ import annotations
