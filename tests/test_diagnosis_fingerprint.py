@@ -298,3 +298,48 @@ def test_smaller_of_two_same_actuator_leaks_may_be_a_supply_leak():
     assert groups == {"X_A": ("X_A",), "X_B": ("X_B", "supply")}
     other = locate(3.0 * matrix[1] + 1.0 * matrix[4], sig, _whiten)
     assert [leak.ambiguity_group for leak in other.leaks] == [("X_A",), ("Y_B",)]
+
+
+def test_both_lines_alternative_needs_sizes_below_the_cap():
+    matrix, _ = _supply_equals_both_lines()
+    ladder = np.array([[40.0], [10.0], [10.0], [10.0], [10.0]])  # caps 50 and 12.5
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        ladder,
+        ladder[:, :, None] * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    # 8 per line: within the cap, X's two lines are offered as the alternative ...
+    assert any(
+        set(a.locations) == {"X_A", "X_B"}
+        for a in locate(8.0 * matrix[0], sig, _whiten).alternatives
+    )
+    # ... 30 per line is beyond it: they cannot make this supply leak
+    beyond = locate(30.0 * matrix[0], sig, _whiten)
+    assert [leak.location for leak in beyond.leaks] == ["supply"]
+    assert all(set(a.locations) != {"X_A", "X_B"} for a in beyond.alternatives)
+
+
+def test_both_lines_alternative_needs_a_comparable_residual():
+    rng = np.random.default_rng(25)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    matrix[0] = matrix[1] + matrix[2] + 0.5 * np.abs(rng.normal(size=50))  # not quite
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    observed = 2.0 * matrix[0] + 0.01 * rng.normal(size=50)
+
+    def pairs(result):
+        return [a for a in result.alternatives if len(a.locations) == 2]
+
+    loose = locate(observed, sig, _whiten, both_lines_max_ratio=1e12)
+    strict = locate(observed, sig, _whiten)
+    assert [leak.location for leak in strict.leaks] == ["supply"]
+    (alt,) = pairs(loose)
+    assert alt.rss > 30.0 * loose.rss  # a far worse fit ...
+    assert pairs(strict) == []  # ... is not offered by default

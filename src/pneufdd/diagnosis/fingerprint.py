@@ -427,6 +427,7 @@ def locate(
     max_extrapolation: float = 1.25,
     refine_top: int = 20,
     max_alternatives: int = 3,
+    both_lines_max_ratio: float = 30.0,
 ) -> Localisation:
     """Decompose an observed feature change into non-negative leak contributions.
 
@@ -468,6 +469,12 @@ def locate(
         Largest number of alternative explanations reported: sets of one or two
         locations, disjoint from the chosen ones, whose residual is at most
         ``1 + relative_tolerance`` times the chosen one [-].
+    both_lines_max_ratio : float
+        A supply leak's alternative "both lines of one actuator" is offered only when
+        the additive residual of those two leaks is at most this multiple of the
+        chosen model's: their joint effect is far from additive, so a generous
+        multiple, but an explanation 100 times worse is no explanation (30: the
+        largest multiple among development pairs where it held the truth was 27.6) [-].
     min_flow : float
         Smallest leak reported; a model needing a smaller leak is not considered
         (2 SLPM by default, below the leak valve's first turn) [kg/s].
@@ -622,7 +629,9 @@ def locate(
         )
         for r, sub, flows in disjoint
     ]
-    both_lines = _both_lines_alternative(signatures, subset, coef, model, min_flow)
+    both_lines = _both_lines_alternative(
+        signatures, subset, coef, model, rss, min_flow, both_lines_max_ratio
+    )
     if both_lines is not None and all(
         set(both_lines.locations) != set(e.locations) for e in explanations
     ):
@@ -653,7 +662,9 @@ def _both_lines_alternative(
     subset: tuple[int, ...],
     sizes: FloatArray,
     model: _PiecewiseModel,
+    chosen_rss: float,
     min_flow: float,
+    max_ratio: float,
 ) -> Explanation | None:
     """A supply leak re-explained as leaks on both lines of one actuator.
 
@@ -664,7 +675,10 @@ def _both_lines_alternative(
     them. When the chosen model holds a supply leak, the actuator whose two lines fit
     best (additive residual, the same model for every actuator) replaces it; the
     chosen model's other leaks are kept (a kept leak on one of those lines adds to
-    its flow).
+    its flow). An actuator whose fit needs a size at the size cap cannot produce the
+    supply leak's effect and is not offered, nor one whose additive residual exceeds
+    ``max_ratio`` times the chosen model's ``rss`` (only the residual of the two line
+    leaks is compared, not the kept leaks).
     """
     if "supply" not in signatures.locations:
         return None
@@ -679,11 +693,14 @@ def _both_lines_alternative(
             continue
         b = signatures.locations.index(partner)
         flows, rss = model.fit((a, b))
-        if np.all(flows >= min_flow) and (best is None or rss < best[0]):
+        at_cap = np.any(flows >= (1.0 - 1e-9) * model.hi[[a, b], -1])
+        if np.all(flows >= min_flow) and not at_cap and (best is None or rss < best[0]):
             best = (rss, a, b)
     if best is None:
         return None
     rss, a, b = best
+    if rss > max_ratio * chosen_rss:
+        return None
     pair_flows = model.fit((a, b))[0]
     fitted = {a: float(pair_flows[0]), b: float(pair_flows[1])}
     for i in keep:
