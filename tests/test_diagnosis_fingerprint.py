@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from _diag_synth import synth_signatures
-from pneufdd.diagnosis.fingerprint import locate
+from pneufdd.diagnosis.fingerprint import locate, pair_coupling
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import InputError
 
@@ -186,3 +186,160 @@ def test_supply_interaction_refines_pair_sizes():
     assert found == pytest.approx({"X_A": a, "supply": b}, rel=1e-3)
     biased = {leak.location: leak.mass_flow for leak in locate(observed, plain, _whiten).leaks}
     assert abs(biased["X_A"] / a - 1) > 0.05
+
+
+def _located(result):
+    return {leak.location: leak.mass_flow for leak in result.leaks}
+
+
+def test_pair_coupling_extends_supply_interaction_to_line_pairs():
+    # K_supply = 0, f_supply = 1; a line's share f is the ratio of its supply-flow
+    # change to a supply leak's; coupling(l, m) = f_l K_m + f_m K_l is symmetric
+    rng = np.random.default_rng(21)
+    n_feat = 40
+    base = np.abs(rng.normal(size=(3, n_feat)))
+    base[1, :10] = 0.5 * base[0, :10]  # X_A draws half the supply flow of a supply leak
+    base[2, :10] = 0.25 * base[0, :10]
+    inter = rng.normal(size=(3, n_feat))
+    inter[0] = 0.0
+    sizes = np.array([[1.0, 2.0]] * 3)
+    names = tuple(f"Q_In.mean@{j}" if j < 10 else f"P_In.mean@{j}" for j in range(n_feat))
+    sig = SignatureSet(
+        ("supply", "X_A", "Y_A"),
+        sizes,
+        sizes[:, :, None] * base[:, None, :],
+        names,
+        np.full(3, 6e5),
+        inter,
+        np.array([1.0, 1.0]),
+    )
+    coupling = pair_coupling(sig, reference_size=1.0)
+    assert coupling is not None
+    np.testing.assert_allclose(coupling(0, 1), inter[1])
+    np.testing.assert_allclose(coupling(1, 0), inter[1])
+    np.testing.assert_allclose(coupling(1, 2), 0.5 * inter[2] + 0.25 * inter[1])
+    np.testing.assert_allclose(coupling(2, 1), coupling(1, 2))
+    plain = SignatureSet(("supply", "X_A", "Y_A"), sizes, sig.deltas, names, np.full(3, 6e5))
+    assert pair_coupling(plain) is None
+
+
+def test_line_pair_with_interaction_is_recovered():
+    # a perfect mixture of two line leaks plus their coupling term: exact sizes back
+    rng = np.random.default_rng(22)
+    n_feat = 60
+    base = np.abs(rng.normal(size=(4, n_feat)))
+    base[1, :12] = 0.6 * base[0, :12]
+    base[2, :12] = 0.4 * base[0, :12]
+    base[3, :12] = 0.5 * base[0, :12]
+    inter = np.zeros((4, n_feat))
+    inter[1:] = -0.3 * base[1:] + 0.1 * rng.normal(size=(3, n_feat))
+    sizes = np.array([[0.5, 1.0, 2.0, 4.0]] * 4)
+    names = tuple(f"Q_In.mean@{j}" if j < 12 else f"f{j}" for j in range(n_feat))
+    locs = ("supply", "X_A", "Y_A", "Z_A")
+    deltas = sizes[:, :, None] * base[:, None, :]
+    sig = SignatureSet(locs, sizes, deltas, names, np.full(4, 6e5), inter, np.array([1.0, 1.0]))
+    plain = SignatureSet(locs, sizes, deltas, names, np.full(4, 6e5))
+    a, b = 1.5, 2.5  # X_A and Y_A
+    term = pair_coupling(sig, reference_size=1.0)(1, 2)
+    observed = a * base[1] + b * base[2] + a * b * term
+    assert _located(locate(observed, sig, _whiten)) == pytest.approx({"X_A": a, "Y_A": b}, rel=1e-3)
+    biased = _located(locate(observed, plain, _whiten))
+    assert biased.keys() != {"X_A", "Y_A"} or abs(biased["X_A"] / a - 1) > 0.02
+
+
+def _supply_equals_both_lines(seed=23):
+    rng = np.random.default_rng(seed)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    matrix[0] = matrix[1] + matrix[2]  # supply leak = both lines of X: indistinguishable
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    return matrix, sig
+
+
+def test_indistinguishable_explanations_are_both_reported():
+    matrix, sig = _supply_equals_both_lines()
+    for observed in (2.0 * matrix[0], 2.0 * matrix[1] + 2.0 * matrix[2]):
+        result = locate(observed, sig, _whiten)
+        reported = [set(leak.ambiguity_group) for leak in result.leaks] + [
+            set(alt.locations) for alt in result.alternatives
+        ]
+        # whichever the truth, it is inside what is reported, with its sizes
+        assert {"supply"} in reported or any("supply" in r for r in reported)
+        assert {"X_A", "X_B"} in reported
+        alt = next(a for a in result.alternatives if set(a.locations) == {"X_A", "X_B"})
+        assert alt.mass_flows == pytest.approx((2.0, 2.0), rel=1e-6)
+        assert alt.rss == pytest.approx(result.rss, abs=1e-6)
+
+
+def test_distinct_single_leak_has_no_alternative():
+    matrix, sig = _supply_equals_both_lines()
+    result = locate(1.5 * matrix[3], sig, _whiten)
+    assert [leak.ambiguity_group for leak in result.leaks] == [("Y_A",)]
+    assert result.alternatives == ()
+
+
+def test_smaller_of_two_same_actuator_leaks_may_be_a_supply_leak():
+    rng = np.random.default_rng(24)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    result = locate(3.0 * matrix[1] + 1.0 * matrix[2], sig, _whiten)
+    groups = {leak.location: leak.ambiguity_group for leak in result.leaks}
+    assert groups == {"X_A": ("X_A",), "X_B": ("X_B", "supply")}
+    other = locate(3.0 * matrix[1] + 1.0 * matrix[4], sig, _whiten)
+    assert [leak.ambiguity_group for leak in other.leaks] == [("X_A",), ("Y_B",)]
+
+
+def test_both_lines_alternative_needs_sizes_below_the_cap():
+    matrix, _ = _supply_equals_both_lines()
+    ladder = np.array([[40.0], [10.0], [10.0], [10.0], [10.0]])  # caps 50 and 12.5
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        ladder,
+        ladder[:, :, None] * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    # 8 per line: within the cap, X's two lines are offered as the alternative ...
+    assert any(
+        set(a.locations) == {"X_A", "X_B"}
+        for a in locate(8.0 * matrix[0], sig, _whiten).alternatives
+    )
+    # ... 30 per line is beyond it: they cannot make this supply leak
+    beyond = locate(30.0 * matrix[0], sig, _whiten)
+    assert [leak.location for leak in beyond.leaks] == ["supply"]
+    assert all(set(a.locations) != {"X_A", "X_B"} for a in beyond.alternatives)
+
+
+def test_both_lines_alternative_needs_a_comparable_residual():
+    rng = np.random.default_rng(25)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    matrix[0] = matrix[1] + matrix[2] + 0.5 * np.abs(rng.normal(size=50))  # not quite
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    observed = 2.0 * matrix[0] + 0.01 * rng.normal(size=50)
+
+    def pairs(result):
+        return [a for a in result.alternatives if len(a.locations) == 2]
+
+    loose = locate(observed, sig, _whiten, both_lines_max_ratio=1e12)
+    strict = locate(observed, sig, _whiten)
+    assert [leak.location for leak in strict.leaks] == ["supply"]
+    (alt,) = pairs(loose)
+    assert alt.rss > 30.0 * loose.rss  # a far worse fit ...
+    assert pairs(strict) == []  # ... is not offered by default

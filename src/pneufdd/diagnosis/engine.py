@@ -23,6 +23,7 @@ from pneufdd.diagnosis.fingerprint import Localisation, locate
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
+from pneufdd.physics.units import kg_s_to_slpm
 
 __all__ = ["Diagnosis", "diagnose"]
 
@@ -103,6 +104,16 @@ class Diagnosis:
                     "ambiguity_group": list(leak.ambiguity_group),
                 }
                 for leak in self.leaks
+            ],
+            "alternative_explanations": []
+            if self.localisation is None
+            else [
+                {
+                    "locations": list(alt.locations),
+                    "flows_slpm": [num(float(kg_s_to_slpm(f))) for f in alt.mass_flows],
+                    "rss": num(alt.rss),
+                }
+                for alt in self.localisation.alternatives
             ],
             "total_annual_cost": num(self.total_annual_cost),
             "detection": {

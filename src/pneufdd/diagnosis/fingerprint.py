@@ -22,10 +22,11 @@ two unknowns, solved in closed form from one Gram matrix of the whitened signatu
 pieces (an exhaustive sparse subset search instead of :func:`scipy.optimize.nnls`,
 whose linear model cannot follow saturating effects such as a line pressure that
 drops to atmosphere). A larger subset is preferred only when it lowers the residual by
-an information-criterion penalty and by a minimum relative gain. When the chosen pair
-includes a supply leak and the signatures carry the supply interaction, the two sizes
-are refined with the bilinear interaction term (a supply leak lowers the pressure the
-line leak sees, so their effects are not additive).
+an information-criterion penalty and by a minimum relative gain. Before the choice,
+the best additive pairs are refit with a bilinear interaction term
+(:func:`pair_coupling`: a supply leak lowers the pressure every line leak sees, and a
+line leak lowers the supply pressure in proportion to the air it draws), so their
+effects are not taken as additive.
 
 Ambiguity: for each leak of the chosen model, every other location is tried in its
 place. Alternatives whose fit is nearly as good (Akaike-type weight
@@ -34,7 +35,11 @@ residual at most ``1 + relative_tolerance`` times the best) or whose weighted
 signature is nearly collinear with the chosen one form its ambiguity group;
 the sensors cannot tell them apart and they are reported together. The confidence is
 the weight of the group times the fraction of the observed deviation the model
-explains.
+explains. Explanations that share no location with the chosen one but fit about as
+well are listed as alternatives (:class:`Explanation`); a supply leak is always
+paired with the alternative "both lines of the best-fitting actuator", and of two
+leaks on both lines of one actuator the smaller one's group includes ``supply``:
+these explanations draw air alike and supply sensors hardly separate them.
 """
 
 from __future__ import annotations
@@ -48,8 +53,9 @@ import numpy.typing as npt
 
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import InputError, describe
+from pneufdd.physics.units import slpm_to_kg_s
 
-__all__ = ["LeakEstimate", "Localisation", "locate"]
+__all__ = ["Explanation", "LeakEstimate", "Localisation", "locate", "pair_coupling"]
 
 FloatArray = npt.NDArray[np.float64]
 Whitener = Callable[[FloatArray], FloatArray]
@@ -82,6 +88,25 @@ class LeakEstimate:
 
 
 @dataclass(frozen=True)
+class Explanation:
+    """An alternative set of one or two leaks that explains the data about as well.
+
+    Attributes
+    ----------
+    locations : tuple of str
+        Leak locations of the explanation.
+    mass_flows : tuple of float
+        Their fitted flows [kg/s].
+    rss : float
+        Weighted residual sum of squares of the explanation [-].
+    """
+
+    locations: tuple[str, ...]
+    mass_flows: tuple[float, ...]
+    rss: float
+
+
+@dataclass(frozen=True)
 class Localisation:
     """Result of :func:`locate`.
 
@@ -97,6 +122,10 @@ class Localisation:
         Number of weighted residual components [-].
     explained : float
         ``1 - rss / rss_null``, the fraction of the deviation explained [-].
+    alternatives : tuple of Explanation
+        Other explanations that share no location with the chosen one yet fit about
+        as well (e.g. one supply leak versus leaks on both lines of an actuator
+        without line sensors), best first; empty when the chosen one stands alone.
     """
 
     leaks: tuple[LeakEstimate, ...]
@@ -104,6 +133,7 @@ class Localisation:
     rss: float
     dof: int
     explained: float
+    alternatives: tuple[Explanation, ...] = ()
 
 
 class _PiecewiseModel:
@@ -273,7 +303,7 @@ class _PiecewiseModel:
                 best_a, best_rss = a, rss
         return best_a, best_rss
 
-    def refine_with_supply(
+    def refine_pair(
         self,
         line: int,
         supply: int,
@@ -281,23 +311,27 @@ class _PiecewiseModel:
         sizes: tuple[float, float],
         iterations: int = 30,
     ) -> tuple[float, float, float]:
-        """Sizes of a line leak and a supply leak with their bilinear interaction.
+        """Sizes of two leaks with their bilinear interaction ``K``.
 
         Minimises ``|y - E_line(a) - E_supply(b) - a b K|`` by alternating exact
-        one-dimensional fits (each piecewise linear in its own size).
+        one-dimensional fits (each piecewise linear in its own size). ``supply`` may be
+        any second location (see :func:`pair_coupling`).
 
         Returns
         -------
         a, b : float
-            Line and supply leak sizes [kg/s].
+            Sizes of ``line`` and ``supply`` [kg/s].
         rss : float
             Whitened residual [-].
         """
         a, b = sizes
         rss = np.inf
         for _ in range(iterations):
+            a_old, b_old = a, b
             a, _ = self._best_1d(line, self.target - self.effect(supply, b), b * coupling)
             b, rss = self._best_1d(supply, self.target - self.effect(line, a), a * coupling)
+            if abs(a - a_old) <= 1e-4 * max(a, 1e-12) and abs(b - b_old) <= 1e-4 * max(b, 1e-12):
+                break
         return a, b, rss
 
     def column(self, loc: int, size: float) -> FloatArray:
@@ -308,6 +342,76 @@ class _PiecewiseModel:
         return np.asarray(
             (self.V[loc, seg] + size * self.S[loc, seg]) / max(size, 1e-300), dtype=np.float64
         )
+
+
+def pair_coupling(
+    signatures: SignatureSet, reference_size: float | None = None
+) -> Callable[[int, int], FloatArray | None] | None:
+    r"""Bilinear interaction of two simultaneous leaks, per unit of both sizes.
+
+    A supply leak lowers the pressure every line leak sees; its interaction with line
+    ``m`` is simulated and stored (``SignatureSet.interaction_slope``, :math:`K_m`).
+    A line leak ``l`` lowers the supply pressure too, in proportion to the supply air
+    it draws: the fraction :math:`f_l` of a supply leak of the same nominal size,
+    measured on the signatures as the ratio of their supply-flow (``Q_In.mean``)
+    changes. Two leaks then interact as (an extension of the vector sum of eqs.
+    5.23-5.24 with the supply-pressure coupling of section 5.3.1.5)
+
+    .. math::
+
+        \Delta x = e_l(a_l) + e_m(a_m) + a_l a_m (f_l K_m + f_m K_l),
+        \qquad f_{supply} = 1,\; K_{supply} = 0.
+
+    Parameters
+    ----------
+    signatures : SignatureSet
+        Signatures with their supply interaction.
+    reference_size : float, optional
+        Size at which :math:`f_l` is measured; the supply ladder's point nearest
+        30 SLPM by default [kg/s].
+
+    Returns
+    -------
+    callable or None
+        ``coupling(l, m)`` -> interaction per unit of both sizes
+        [feature unit / (kg/s)^2], or None for a pair it cannot model (two line leaks
+        without a supply-flow feature); None when the signatures carry no interaction
+        or no supply location.
+    """
+    if signatures.interaction is None or "supply" not in signatures.locations:
+        return None
+    supply = signatures.locations.index("supply")
+    if reference_size is None:
+        ladder = signatures.sizes[supply]
+        reference_size = float(ladder[np.argmin(np.abs(ladder - float(slpm_to_kg_s(30.0))))])
+    flow = np.array([name.startswith("Q_In.mean") for name in signatures.feature_names])
+    share: FloatArray | None = None
+    if np.any(flow):
+        base = float(np.sum(signatures.effect(supply, reference_size)[flow]))
+        if base > 0:
+            share = np.array(
+                [
+                    float(np.sum(signatures.effect(loc, reference_size)[flow])) / base
+                    for loc in range(len(signatures.locations))
+                ]
+            )
+            share[supply] = 1.0
+    slopes = [
+        np.zeros(signatures.n_features) if loc == supply else signatures.interaction_slope(loc)
+        for loc in range(len(signatures.locations))
+    ]
+
+    def coupling(first: int, second: int) -> FloatArray | None:
+        k1, k2 = slopes[first], slopes[second]
+        if k1 is None or k2 is None:
+            return None
+        if supply in (first, second):
+            return k1 + k2
+        if share is None:
+            return None
+        return np.asarray(share[first] * k2 + share[second] * k1, dtype=np.float64)
+
+    return coupling
 
 
 def locate(
@@ -321,6 +425,9 @@ def locate(
     min_flow: float = 4.3e-5,
     relative_tolerance: float = 0.5,
     max_extrapolation: float = 1.25,
+    refine_top: int = 20,
+    max_alternatives: int = 3,
+    both_lines_max_ratio: float = 30.0,
 ) -> Localisation:
     """Decompose an observed feature change into non-negative leak contributions.
 
@@ -355,6 +462,19 @@ def locate(
         Largest size considered, as a multiple of the largest simulated size: beyond
         the ladder the effects are extrapolated linearly, and an unbounded
         extrapolation lets one huge leak absorb a second, real one [-].
+    refine_top : int
+        Number of best additive pairs whose sizes are refined with their bilinear
+        interaction (:func:`pair_coupling`) before the model is chosen [-].
+    max_alternatives : int
+        Largest number of alternative explanations reported: sets of one or two
+        locations, disjoint from the chosen ones, whose residual is at most
+        ``1 + relative_tolerance`` times the chosen one [-].
+    both_lines_max_ratio : float
+        A supply leak's alternative "both lines of one actuator" is offered only when
+        the additive residual of those two leaks is at most this multiple of the
+        chosen model's: their joint effect is far from additive, so a generous
+        multiple, but an explanation 100 times worse is no explanation (30: the
+        largest multiple among development pairs where it held the truth was 27.6) [-].
     min_flow : float
         Smallest leak reported; a model needing a smaller leak is not considered
         (2 SLPM by default, below the leak valve's first turn) [kg/s].
@@ -403,6 +523,24 @@ def locate(
                 continue
             if k not in best or rss < best[k][2]:
                 best[k] = (subset, coef, rss)
+    coupling = pair_coupling(signatures)
+    if coupling is not None and 2 in best:
+        ranked = sorted(
+            (fit[1], sub)
+            for sub, fit in fits.items()
+            if len(sub) == 2 and np.all(fit[0] >= min_flow)
+        )
+        for _, sub in ranked[:refine_top]:
+            term = coupling(*sub)
+            if term is None:
+                continue
+            a, b, rss_i = model.refine_pair(
+                sub[0], sub[1], whiten(term)[0], (float(fits[sub][0][0]), float(fits[sub][0][1]))
+            )
+            if rss_i < fits[sub][1] and min(a, b) >= min_flow:
+                fits[sub] = (np.array([a, b]), rss_i)
+                if rss_i < best[2][2]:
+                    best[2] = (sub, fits[sub][0], rss_i)
     chosen = 0
     for k in range(1, min(max_leaks, n_loc) + 1):
         if k not in best:
@@ -416,22 +554,6 @@ def locate(
         else:
             break
     subset, coef, rss = best[chosen]
-    refined: dict[int, float] = {}
-    if len(subset) == 2 and "supply" in signatures.locations:
-        supply = signatures.locations.index("supply")
-        if supply in subset:
-            line = subset[0] if subset[1] == supply else subset[1]
-            slope = signatures.interaction_slope(line)
-            if slope is not None:
-                coupling = whiten(slope)[0]
-                a, b, rss_i = model.refine_with_supply(
-                    line,
-                    supply,
-                    coupling,
-                    (float(coef[subset.index(line)]), float(coef[subset.index(supply)])),
-                )
-                if rss_i < rss:
-                    refined = {line: a, supply: b}
     s2 = max(1.0, rss / max(dof - len(subset), 1))
     explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
     leaks: list[LeakEstimate] = []
@@ -468,11 +590,19 @@ def locate(
             ):
                 members.append(alt)
         members.sort(key=lambda a: -weights[a])
+        if (
+            slot == int(np.argmin(coef))
+            and _same_actuator(signatures.locations, subset)
+            and "supply" in signatures.locations
+        ):
+            # Both lines of one actuator draw air like a supply leak: the smaller one
+            # may stand for a supply leak (see _both_lines_alternative).
+            supply = signatures.locations.index("supply")
+            if supply not in members:
+                members.append(supply)
         total = float(sum(weights.values()))
         mass = float(sum(weights[a] for a in members)) / total if total > 0 else 0.0
         best_member = members[0]
-        if best_member == loc and loc in refined:
-            sizes[loc] = refined[loc]
         leaks.append(
             LeakEstimate(
                 location=signatures.locations[best_member],
@@ -483,4 +613,100 @@ def locate(
             )
         )
     leaks.sort(key=lambda leak: -leak.mass_flow)
-    return Localisation(tuple(leaks), rss_null, float(rss), dof, float(explained))
+    disjoint = sorted(
+        (fit[1], sub, fit[0])
+        for sub, fit in fits.items()
+        if subset
+        and not set(sub) & set(subset)
+        and np.all(fit[0] >= min_flow)
+        and fit[1] <= (1.0 + relative_tolerance) * rss
+    )[:max_alternatives]
+    explanations = [
+        Explanation(
+            tuple(signatures.locations[i] for i in sub),
+            tuple(float(x) for x in flows),
+            float(r),
+        )
+        for r, sub, flows in disjoint
+    ]
+    both_lines = _both_lines_alternative(
+        signatures, subset, coef, model, rss, min_flow, both_lines_max_ratio
+    )
+    if both_lines is not None and all(
+        set(both_lines.locations) != set(e.locations) for e in explanations
+    ):
+        explanations.append(both_lines)
+    return Localisation(
+        tuple(leaks),
+        rss_null,
+        float(rss),
+        dof,
+        float(explained),
+        tuple(explanations),
+    )
+
+
+def _same_actuator(locations: tuple[str, ...], subset: tuple[int, ...]) -> bool:
+    """True when ``subset`` is the extend and the retract line of one actuator."""
+    names = sorted(locations[i] for i in subset)
+    return (
+        len(names) == 2
+        and names[0].endswith("_A")
+        and names[1].endswith("_B")
+        and names[0][:-2] == names[1][:-2]
+    )
+
+
+def _both_lines_alternative(
+    signatures: SignatureSet,
+    subset: tuple[int, ...],
+    sizes: FloatArray,
+    model: _PiecewiseModel,
+    chosen_rss: float,
+    min_flow: float,
+    max_ratio: float,
+) -> Explanation | None:
+    """A supply leak re-explained as leaks on both lines of one actuator.
+
+    Leaks on the extend and the retract line of one actuator draw air in every step,
+    like a supply leak; with supply sensors (and without line sensors on that
+    actuator) the two explanations are physically near-indistinguishable, and their
+    simultaneous effect is far from the additive model, so residuals cannot separate
+    them. When the chosen model holds a supply leak, the actuator whose two lines fit
+    best (additive residual, the same model for every actuator) replaces it; the
+    chosen model's other leaks are kept (a kept leak on one of those lines adds to
+    its flow). An actuator whose fit needs a size at the size cap cannot produce the
+    supply leak's effect and is not offered, nor one whose additive residual exceeds
+    ``max_ratio`` times the chosen model's ``rss`` (only the residual of the two line
+    leaks is compared, not the kept leaks).
+    """
+    if "supply" not in signatures.locations:
+        return None
+    supply = signatures.locations.index("supply")
+    if supply not in subset:
+        return None
+    keep = [i for i in subset if i != supply]
+    best: tuple[float, int, int] | None = None
+    for a, name in enumerate(signatures.locations):
+        partner = name[:-2] + "_B"
+        if not name.endswith("_A") or partner not in signatures.locations:
+            continue
+        b = signatures.locations.index(partner)
+        flows, rss = model.fit((a, b))
+        at_cap = np.any(flows >= (1.0 - 1e-9) * model.hi[[a, b], -1])
+        if np.all(flows >= min_flow) and not at_cap and (best is None or rss < best[0]):
+            best = (rss, a, b)
+    if best is None:
+        return None
+    rss, a, b = best
+    if rss > max_ratio * chosen_rss:
+        return None
+    pair_flows = model.fit((a, b))[0]
+    fitted = {a: float(pair_flows[0]), b: float(pair_flows[1])}
+    for i in keep:
+        fitted[i] = fitted.get(i, 0.0) + float(sizes[subset.index(i)])
+    return Explanation(
+        tuple(signatures.locations[i] for i in fitted),
+        tuple(fitted.values()),
+        float(rss),
+    )
