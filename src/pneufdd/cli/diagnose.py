@@ -41,7 +41,9 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
         "confidence",
     ):
         table.add_column(
-            name, justify="left" if name in ("location", "ambiguity group") else "right"
+            name,
+            justify="left" if name in ("location", "ambiguity group") else "right",
+            overflow="fold",  # a narrow terminal wraps text instead of cutting it
         )
     for i, leak in enumerate(result.leaks, start=1):
         table.add_row(
