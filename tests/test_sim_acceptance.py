@@ -169,11 +169,18 @@ def test_stick_slip_force_recovered_by_eq_4_15(reference: SimulationResult) -> N
 
 def test_cycles_differ(reference: SimulationResult) -> None:
     """Supply fluctuation and friction scatter: leak-free cycles are not identical."""
-    times = [s.duration for s in reference.strokes_of("DNC", +1)]
-    assert len(set(times)) == len(times)
+    # stroke times on the 1 ms grid: not all the same
+    times = {round(s.duration * 1000) for s in reference.strokes_of("DNC", +1)}
+    assert len(times) >= 2
     durations = np.diff(reference.cycle_start)
-    assert durations[0] != durations[1]
+    assert abs(durations[0] - durations[1]) >= 0.005
     assert 5.0 < durations[0] < 60.0
+    # the house-air fluctuation moves each cycle's mean supply pressure by far more
+    # than the sensor noise averaged over a cycle (measured spread: about 2 kPa)
+    t, p_in = reference.recording.channel("P_In")
+    edges = np.append(reference.cycle_start, t[-1])
+    means = [np.mean(p_in[(t >= a) & (t < b)]) for a, b in itertools.pairwise(edges)]
+    assert np.ptp(means) > 500.0
 
 
 def test_switches_drive_sequence_and_return_home(reference: SimulationResult) -> None:
