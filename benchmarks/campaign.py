@@ -10,7 +10,8 @@ below 10,000,000; the leak signatures use 5,300,001; the demo 4,200,000 + k), so
 campaign never sees data the methods were tuned on. (Offset 91,000,000 served one run
 on a pre-merge simulator; only its summary was looked at, and it is retired. 92,000,000
 measured main after issue 5's merge; ``--seed-offset 93000000`` measured the ``pairs``
-branch once. A new measurement takes a new offset.)
+branch once; 94,000,000 measured the explanations checked by simulation. A new
+measurement takes a new offset.)
 
 A run is 10 consecutive complete cycles (12 are simulated: the first starts from rest
 mid-sequence and the last has no successor to close its last step). Single leaks: every
@@ -24,7 +25,8 @@ sets (full rig; ``P_In, Q_In`` + PLC digital signals) and the digital-only set
 - per-cycle detection and false-alarm rates (each cycle judged alone);
 - two simultaneous leaks: both locations found (in the ambiguity groups; separately, in
   the groups or one listed alternative explanation), mean group size on pair runs;
-- single-leak runs that list an alternative explanation; diagnosis time per run;
+- single-leak runs that list an alternative explanation, and that report a second
+  (spurious) leak; diagnosis time per run;
 - cross-validated per-cycle false-alarm rate of each reference;
 - runs the simulator could not complete (the machine stalls with some pairs of large
   leaks: no cycle to diagnose), listed and excluded.
@@ -76,6 +78,7 @@ class Tally:
     pairs_both_alt: int = 0
     pair_group_sizes: list[int] = field(default_factory=list)
     single_with_alternatives: int = 0
+    single_extra_leak: int = 0
     diagnosis_seconds: list[float] = field(default_factory=list)
     by_location: dict[str, list[bool]] = field(default_factory=dict)
 
@@ -164,6 +167,7 @@ def _score(
             t.inside += int(ok)
             t.by_location.setdefault(loc, []).append(ok)
             t.single_with_alternatives += int(bool(res["alternatives"]))
+            t.single_extra_leak += int(len(fits) > 1)
             if hit:
                 group, flows = hit[0]
                 t.group_sizes.append(len(group))
@@ -213,6 +217,10 @@ def report(tallies: dict[str, Tally], models: dict[str, Any]) -> None:
         print(
             "single-leak runs listing an alternative explanation: "
             f"{_pct(t.single_with_alternatives, t.leak_runs)}"
+        )
+        print(
+            "single-leak runs reporting a second (spurious) leak: "
+            f"{_pct(t.single_extra_leak, t.leak_runs)}"
         )
         if t.diagnosis_seconds:
             d = np.asarray(t.diagnosis_seconds)

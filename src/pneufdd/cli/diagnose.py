@@ -81,6 +81,15 @@ def diagnose(
         float, typer.Option("--kw-per-100cfm", help="Compressor kW per 100 cfm (eq. 1.1).")
     ] = 18.0,
     max_leaks: Annotated[int, typer.Option(help="Most simultaneous leaks considered.")] = 2,
+    simulate: Annotated[
+        bool,
+        typer.Option(
+            "--simulate/--no-simulate",
+            help="When the leak signatures do not explain the run (typically two large "
+            "leaks), check the best explanations with the digital twin (a few seconds "
+            "more).",
+        ),
+    ] = True,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
     console = Console()
@@ -88,7 +97,12 @@ def diagnose(
     model = load_reference(reference)
     with Progress(console=Console(stderr=True), transient=True) as progress:
         table, result = diagnose_recording(
-            model, run, settings, max_leaks=max_leaks, progress=progress
+            model,
+            run,
+            settings,
+            max_leaks=max_leaks,
+            progress=progress,
+            simulate_explanations=simulate,
         )
     # render everything first, write afterwards: no partial output on error
     outputs: list[tuple[Path, str]] = []

@@ -12,20 +12,51 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.diagnosis.adapter import sequence_from_records
 from pneufdd.diagnosis.cost import CostedLeak, CostSettings, cost_leaks
 from pneufdd.diagnosis.fingerprint import Localisation, locate
 from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.simulated import SimulatedLeakEffect
 from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.physics.units import kg_s_to_slpm
+from pneufdd.sim import load_machine
 
 __all__ = ["Diagnosis", "diagnose"]
+
+
+def _simulated_effect(
+    reference: ReferenceModel, whiten: Callable[[FloatArray], FloatArray]
+) -> Callable[[Mapping[int, float]], FloatArray | None] | None:
+    """Whitened simulated effect of leaks on the reference's machine, or None."""
+    sig = reference.signatures
+    if sig is None or not reference.sequence:
+        return None
+    try:
+        load_machine(reference.machine)
+    except InputError:
+        return None  # the simulator does not know this machine
+    effect = SimulatedLeakEffect(
+        reference.machine,
+        reference.feature_names,
+        sequence_from_records(reference.sequence),
+        reference.channels,
+    )
+    locations = sig.locations
+
+    def simulate(leaks: Mapping[int, float]) -> FloatArray | None:
+        change = effect({locations[i]: size for i, size in leaks.items()})
+        return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
+
+    return simulate
+
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -188,6 +219,7 @@ def diagnose(
     run: StepTable,
     settings: CostSettings | None = None,
     max_leaks: int = 2,
+    simulate_explanations: bool = True,
 ) -> Diagnosis:
     """Detect, locate, size and cost leaks in ``run`` against ``reference``.
 
@@ -201,6 +233,12 @@ def diagnose(
         Economic inputs of eq. 1.1.
     max_leaks : int
         Largest number of simultaneous leaks considered.
+    simulate_explanations : bool
+        When the leak signatures do not explain the run to noise level (typically two
+        large leaks, whose effects are far from additive), simulate the best
+        explanations with the digital twin and choose among them
+        (:mod:`pneufdd.diagnosis.verify`); a few seconds more. Needs a machine the
+        simulator knows; skipped otherwise.
 
     Returns
     -------
@@ -243,7 +281,10 @@ def diagnose(
             def whiten(delta: FloatArray) -> FloatArray:
                 return det.project(np.atleast_2d(delta) / det.scale_) * gain
 
-            localisation = locate(observed, sig, whiten, max_leaks=max_leaks)
+            simulate = None
+            if simulate_explanations:
+                simulate = _simulated_effect(reference, whiten)
+            localisation = locate(observed, sig, whiten, max_leaks=max_leaks, simulate=simulate)
             if not localisation.leaks:
                 notes.append("leak detected but no combination of leak signatures explains it")
             pressures = []

@@ -241,8 +241,12 @@ def diagnose_recording(
     settings: CostSettings | None = None,
     max_leaks: int = 2,
     progress: Progress | None = None,
+    simulate_explanations: bool = True,
 ) -> tuple[StepTable, Diagnosis]:
-    """Read (if a path), segment and diagnose one run against ``model``."""
+    """Read (if a path), segment and diagnose one run against ``model``.
+
+    ``simulate_explanations`` is passed to :func:`~pneufdd.diagnosis.engine.diagnose`.
+    """
     task = progress.add_task("diagnosing", total=3) if progress else None
 
     def step() -> None:
@@ -254,6 +258,8 @@ def diagnose_recording(
     step()
     table = run_table(model, recording, where)
     step()
-    result = diagnose(model, table, settings, max_leaks=max_leaks)
+    result = diagnose(
+        model, table, settings, max_leaks=max_leaks, simulate_explanations=simulate_explanations
+    )
     step()
     return table, result

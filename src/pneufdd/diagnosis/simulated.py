@@ -21,7 +21,7 @@ leak by eq. 1.1 (:mod:`pneufdd.diagnosis.cost`) without extra simulations.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
@@ -33,13 +33,14 @@ from scipy.integrate import cumulative_trapezoid
 from pneufdd.diagnosis.adapter import segment_cycles, step_table
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import InputError, describe
-from pneufdd.physics.units import slpm_to_kg_s
+from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.signals.segmentation import StepSpec
 from pneufdd.sim import MachineStalledError, load_machine, run_simulation
 
 __all__ = [
     "SIGNATURE_SEED",
     "SIGNATURE_SIZES_SLPM",
+    "SimulatedLeakEffect",
     "candidate_locations",
     "compute_signatures",
     "mean_leak_flow",
@@ -108,12 +109,19 @@ def _mean_features(
     seed: int,
     sequence: Sequence[StepSpec],
     channels: Sequence[str],
+    leak_flows: bool = True,
 ) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...], dict[str, float]]:
-    """Mean features, leak ground truth, feature names and mean flow of each leak [kg/s]."""
+    """Mean features, leak ground truth, feature names and mean flow of each leak [kg/s].
+
+    Without ``leak_flows`` the simulator keeps no internal states (faster) and the
+    mean flows are not computed (empty dict).
+    """
     # the first simulated cycle starts from rest and the last one has no successor to
     # end its last step: segmentation keeps the cycles in between, and the leaked air
     # is averaged over the same inner cycles
-    sim = run_simulation(machine, cycles=cycles + 2, leaks=leaks, seed=seed, keep_outputs=True)
+    sim = run_simulation(
+        machine, cycles=cycles + 2, leaks=leaks, seed=seed, keep_outputs=leak_flows
+    )
     rec = sim.recording
     found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {leaks}")
     table = step_table(rec, found, machine, channels)
@@ -125,7 +133,7 @@ def _mean_features(
             1,
             cycles + 1,
         )
-        for loc in leaks
+        for loc in (leaks if leak_flows else {})
     }
     return (
         np.mean(table.features(), axis=0),
@@ -330,3 +338,90 @@ def compute_signatures(
         mean_flow,
         flow_interaction,
     )
+
+
+class SimulatedLeakEffect:
+    """Mean feature change of any set of leaks, simulated with the digital twin.
+
+    The signatures (:func:`compute_signatures`) hold single leaks on a size ladder and
+    one interaction point per line; simultaneous large leaks interact far beyond that
+    (a supply drawn down by one leak changes how every other line behaves). This
+    callable simulates the exact set of leaks asked for, with the same seed as its
+    leak-free baseline (common random numbers), and returns the mean feature change
+    over the inner cycles, summarised exactly like a measured run. Results are cached
+    per set of sizes (rounded to 1e-4 SLPM); the baseline is simulated once.
+
+    Parameters
+    ----------
+    machine : str
+        Machine known to the simulator (built-in name or TOML path), as for the
+        signatures.
+    feature_names : sequence of str
+        Features to return, in this order (a reference's feature names).
+    sequence : sequence of StepSpec
+        The reference's PLC step sequence.
+    channels : sequence of str
+        Analog channels of the sensor set.
+    cycles : int
+        Inner cycles averaged per simulation.
+    seed : int
+        Seed shared by every simulation (common random numbers).
+    """
+
+    def __init__(
+        self,
+        machine: str,
+        feature_names: Sequence[str],
+        sequence: Sequence[StepSpec],
+        channels: Sequence[str],
+        cycles: int = 2,
+        seed: int = SIGNATURE_SEED,
+    ) -> None:
+        if cycles < 1:
+            raise InputError(describe("simulated cycles per leak effect", cycles, ">= 1"))
+        self.machine = machine
+        self.feature_names = tuple(feature_names)
+        self.sequence = tuple(sequence)
+        self.channels = tuple(channels)
+        self.cycles = cycles
+        self.seed = seed
+        self.simulations = 0
+        self._columns: npt.NDArray[np.int64] | None = None
+        self._base: npt.NDArray[np.float64] | None = None
+        self._cache: dict[tuple[tuple[str, float], ...], npt.NDArray[np.float64] | None] = {}
+
+    def _features(self, leaks: dict[str, str]) -> npt.NDArray[np.float64]:
+        mean, _, names, _ = _mean_features(
+            self.machine, leaks, self.cycles, self.seed, self.sequence, self.channels, False
+        )
+        self.simulations += 1
+        if self._columns is None:
+            index = {n: i for i, n in enumerate(names)}
+            missing = [n for n in self.feature_names if n not in index]
+            if missing:
+                raise InputError(
+                    describe("features the simulator cannot produce", missing[:5], names[:5])
+                )
+            self._columns = np.array([index[n] for n in self.feature_names], dtype=np.int64)
+        return np.asarray(mean[self._columns], dtype=np.float64)
+
+    def __call__(self, leaks: Mapping[str, float]) -> npt.NDArray[np.float64] | None:
+        """Feature change of ``leaks`` (location -> nominal flow [kg/s]) [feature unit].
+
+        Returns None when the machine cannot run with these leaks (it stalls, or a
+        cycle does not complete).
+        """
+        flows = {loc: float(kg_s_to_slpm(size)) for loc, size in leaks.items() if size > 0}
+        key = tuple(sorted((loc, round(slpm, 4)) for loc, slpm in flows.items()))
+        if key in self._cache:
+            return self._cache[key]
+        if self._base is None:
+            self._base = self._features({})
+        try:
+            change: npt.NDArray[np.float64] | None = (
+                self._features({loc: f"{slpm}slpm" for loc, slpm in key}) - self._base
+            )
+        except (MachineStalledError, InputError):
+            change = None
+        self._cache[key] = change
+        return change
