@@ -95,17 +95,17 @@ def test_probed_second_leak_found_where_the_additive_model_fails():
             out = out + leaks[0] * leaks[2] * inter
         return np.asarray(out, dtype=np.float64)
 
-    def fit(sub, goal, start):
+    def fit(sub, goal):
         A = base[list(sub)].T
         return np.clip(np.linalg.lstsq(A, goal, rcond=None)[0], 0.0, None)
 
     target = sim({0: 3.0, 2: 1.0})
     fits = {}
     for sub in [(0,), (1,), (2,), (3,), (0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]:
-        sizes = fit(sub, target, None)
+        sizes = fit(sub, target)
         r = target - base[list(sub)].T @ sizes
         fits[sub] = (sizes, float(r @ r))
-    out = verify_explanations(target, fits, 4, sim, fit, np.full(4, 10.0), top_pairs=0, probe=1.0)
+    out = verify_explanations(target, fits, 4, sim, np.full(4, 10.0), top_pairs=0, probe=1.0)
     best = min(out, key=lambda s: out[s].rss)
     assert best == (0, 2)
     assert out[best].sizes == pytest.approx([3.0, 1.0], rel=0.01)

@@ -26,7 +26,9 @@ an information-criterion penalty and by a minimum relative gain. Before the choi
 the best additive pairs are refit with a bilinear interaction term
 (:func:`pair_coupling`: a supply leak lowers the pressure every line leak sees, and a
 line leak lowers the supply pressure in proportion to the air it draws), so their
-effects are not taken as additive.
+effects are not taken as additive. When even that leaves a residual well above the
+noise (typically two large leaks), the best explanations are simulated with the digital
+twin and chosen among by their simulated residual (:mod:`pneufdd.diagnosis.verify`).
 
 Ambiguity: for each leak of the chosen model, every other location is tried in its
 place. Alternatives whose fit is nearly as good (Akaike-type weight
@@ -311,14 +313,12 @@ class _PiecewiseModel:
         coupling: FloatArray,
         sizes: tuple[float, float],
         iterations: int = 30,
-        target: FloatArray | None = None,
     ) -> tuple[float, float, float]:
         """Sizes of two leaks with their bilinear interaction ``K``.
 
         Minimises ``|y - E_line(a) - E_supply(b) - a b K|`` by alternating exact
         one-dimensional fits (each piecewise linear in its own size). ``supply`` may be
-        any second location (see :func:`pair_coupling`). ``y`` is the model's target
-        unless ``target`` is given.
+        any second location (see :func:`pair_coupling`).
 
         Returns
         -------
@@ -327,7 +327,7 @@ class _PiecewiseModel:
         rss : float
             Whitened residual [-].
         """
-        y = self.target if target is None else target
+        y = self.target
         a, b = sizes
         rss = np.inf
         for _ in range(iterations):
@@ -574,22 +574,6 @@ def locate(
                 fits[sub] = (np.array([a, b]), rss_i)
                 if rss_i < best[2][2]:
                     best[2] = (sub, fits[sub][0], rss_i)
-    couplings: dict[tuple[int, ...], FloatArray] = {}
-
-    def pair_term(sub: tuple[int, ...]) -> FloatArray:
-        if sub not in couplings:
-            term = None if coupling is None else coupling(*sub)
-            couplings[sub] = np.zeros(target.size) if term is None else whiten(term)[0]
-        return couplings[sub]
-
-    def model_fit(sub: tuple[int, ...], goal: FloatArray, start: FloatArray) -> FloatArray:
-        if len(sub) == 1:
-            return np.array([model._best_1d(sub[0], goal, np.zeros(target.size))[0]])
-        a, b, _ = model.refine_pair(
-            sub[0], sub[1], pair_term(sub), (float(start[0]), float(start[1])), target=goal
-        )
-        return np.array([a, b])
-
     chosen = _choose(best, dof, min(max_leaks, n_loc), min_relative_gain)
     simulated = False
     misfit = best[chosen][2] / max(dof, 1)
@@ -601,9 +585,7 @@ def locate(
     ):
         for sub in itertools.combinations(range(n_loc), 2):
             fits.setdefault(sub, model.fit(sub))
-        checked = verify_explanations(
-            target, fits, n_loc, simulate, model_fit, model.hi[:, -1], min_flow
-        )
+        checked = verify_explanations(target, fits, n_loc, simulate, model.hi[:, -1], min_flow)
         if checked:
             simulated = True
             fits = {sub: (fit.sizes, fit.rss) for sub, fit in checked.items()}

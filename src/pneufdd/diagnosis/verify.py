@@ -37,8 +37,6 @@ FloatArray = npt.NDArray[np.float64]
 Subset = tuple[int, ...]
 SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
 """Whitened effect of leaks ``{location index: size [kg/s]}`` by simulation, or None."""
-ModelFit = Callable[[Subset, FloatArray, FloatArray], FloatArray]
-"""Sizes of a subset fitted to a whitened target by the signature model, from a start."""
 
 
 class SimulatedFit(NamedTuple):
@@ -170,7 +168,6 @@ def verify_explanations(
     model_fits: Mapping[Subset, tuple[FloatArray, float]],
     n_locations: int,
     simulate: SimulatedEffect,
-    model_fit: ModelFit,
     upper: FloatArray,
     min_flow: float = 0.0,
     top_singles: int = 2,
@@ -202,9 +199,6 @@ def verify_explanations(
         Number of candidate locations [-].
     simulate : callable
         See :func:`refine_by_simulation`.
-    model_fit : callable
-        The signature model's fit of a subset's sizes to a whitened target, from a
-        start; gives the starting size of a probed second leak's fit.
     upper : ndarray, shape (n_locations,)
         Largest size of each location [kg/s].
     min_flow : float
@@ -230,12 +224,12 @@ def verify_explanations(
     >>> def sim(leaks):
     ...     a, b = leaks.get(0, 0.0), leaks.get(1, 0.0)
     ...     return a * S[0] + b * S[1] + np.array([0.0, 0.0, 0.3 * a * b])
-    >>> def fit(sub, t, x0):
+    >>> def fit(sub, t):
     ...     A = S[list(sub)].T
     ...     return np.clip(np.linalg.lstsq(A, t, rcond=None)[0], 0.0, None)
     >>> y = sim({0: 2.0, 1: 1.0})
-    >>> fits = {s: (fit(s, y, None), 1.0) for s in [(0,), (1,), (0, 1)]}
-    >>> out = verify_explanations(y, fits, 2, sim, fit, np.array([9.0, 9.0]), probe=0.5)
+    >>> fits = {s: (fit(s, y), 1.0) for s in [(0,), (1,), (0, 1)]}
+    >>> out = verify_explanations(y, fits, 2, sim, np.array([9.0, 9.0]), probe=0.5)
     >>> sizes, rss, _ = out[(0, 1)]
     >>> [round(float(v), 2) for v in sizes], rss < 1e-4
     ([2.0, 1.0], True)
