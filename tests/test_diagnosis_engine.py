@@ -107,6 +107,10 @@ def test_json_has_required_fields(reference):
     assert leak["average_flow_slpm"] == leak["flow_slpm"]
     assert leak["cost_basis"] == COST_BASIS_CONTINUOUS
     assert any("continuously" in note for note in data["notes"])
+    # a single leak the signatures explain is not checked by simulation (and the
+    # synthetic machine is unknown to the simulator anyway)
+    assert data["fit"]["checked_by_simulation"] is False
+    assert not any("digital twin" in note for note in data["notes"])
 
 
 def test_cost_uses_the_average_flow_over_the_cycle(reference):

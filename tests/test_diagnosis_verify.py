@@ -141,6 +141,7 @@ def test_locate_simulates_only_when_the_signatures_misfit():
     # one leak: the signatures explain it; nothing is simulated
     single = locate(sim({2: 1.7}), sig, whiten, simulate=simulate_whitened)
     assert not calls
+    assert not single.simulated
     (leak,) = single.leaks
     assert leak.location == "L2"
     assert leak.mass_flow == pytest.approx(1.7, rel=0.03)  # interpolated between 1 and 2
@@ -150,6 +151,7 @@ def test_locate_simulates_only_when_the_signatures_misfit():
     assert plain.rss > 3.0 * plain.dof
     result = locate(truth, sig, whiten, simulate=simulate_whitened)
     assert calls
+    assert result.simulated
     found = {leak.location: leak.mass_flow for leak in result.leaks}
     assert found == pytest.approx({"L1": 2.5, "L4": 1.2}, rel=0.01)
     assert result.rss < 1e-3 * plain.rss

@@ -166,6 +166,7 @@ class Diagnosis:
                 "rss": num(self.localisation.rss),
                 "rss_without_leak": num(self.localisation.rss_null),
                 "dof": self.localisation.dof,
+                "checked_by_simulation": self.localisation.simulated,
             },
             "cost_settings": {
                 "basis": "annual_cost = eq. 1.1 of average_flow_slpm (mean leaked flow "
@@ -287,6 +288,12 @@ def diagnose(
             localisation = locate(observed, sig, whiten, max_leaks=max_leaks, simulate=simulate)
             if not localisation.leaks:
                 notes.append("leak detected but no combination of leak signatures explains it")
+            if localisation.simulated:
+                notes.append(
+                    "the leak signatures alone did not explain this run (leaks that "
+                    "interact, typically two large ones): locations and sizes were "
+                    "checked by simulating the best explanations with the digital twin"
+                )
             pressures = []
             averages: list[float | None] = []
             for leak in localisation.leaks:

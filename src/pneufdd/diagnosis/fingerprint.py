@@ -129,6 +129,9 @@ class Localisation:
         Other explanations that share no location with the chosen one yet fit about
         as well (e.g. one supply leak versus leaks on both lines of an actuator
         without line sensors), best first; empty when the chosen one stands alone.
+    simulated : bool
+        True when the explanations were checked and sized by simulation
+        (:mod:`pneufdd.diagnosis.verify`); ``rss`` is then the simulated residual.
     """
 
     leaks: tuple[LeakEstimate, ...]
@@ -137,6 +140,7 @@ class Localisation:
     dof: int
     explained: float
     alternatives: tuple[Explanation, ...] = ()
+    simulated: bool = False
 
 
 class _PiecewiseModel:
@@ -719,6 +723,7 @@ def locate(
         dof,
         float(explained),
         tuple(explanations),
+        simulated,
     )
 
 
