@@ -126,10 +126,12 @@ def test_leaky_run_exits_one(files, tmp_path):
             str(out),
             "--hours",
             "8000",
+            "--no-simulate",
         ]
     )
     data = json.loads(out.read_text())
     assert code == 1
+    assert data["fit"] is None or data["fit"]["checked_by_simulation"] is False
     assert data["detected"] is True
     assert data["cost_settings"]["hours"] == 8000.0
     assert any("signatures" in note for note in data["notes"])  # built without them
