@@ -256,3 +256,23 @@ def test_diagnose_checks_two_large_leaks_by_simulation_end_to_end():
     assert plain.localisation is not None
     assert not plain.localisation.simulated
     assert result.localisation.rss < plain.localisation.rss
+
+
+def test_one_leak_at_most_simulates_no_pairs():
+    rng = np.random.default_rng(9)
+    base = np.abs(rng.normal(size=(4, 50)))
+    sig = _synthetic_signatures(base)
+    sim = _pair_simulator(base, 0.3 * rng.normal(size=50))
+    calls = []
+
+    def whiten(delta):
+        return np.atleast_2d(delta) * 100.0
+
+    def simulate_whitened(leaks):
+        calls.append(dict(leaks))
+        return whiten(sim(dict(leaks)))[0]
+
+    result = locate(sim({0: 2.0, 3: 1.5}), sig, whiten, max_leaks=1, simulate=simulate_whitened)
+    assert len(result.leaks) == 1
+    assert calls  # the single-leak fit misfits: simulated
+    assert all(len(c) == 1 for c in calls)  # only single leaks were simulated

@@ -587,9 +587,20 @@ def locate(
         and misfit > misfit_ratio
         and (chosen > 1 or misfit > severe_misfit_ratio)
     ):
-        for sub in itertools.combinations(range(n_loc), 2):
-            fits.setdefault(sub, model.fit(sub))
-        checked = verify_explanations(target, fits, n_loc, simulate, model.hi[:, -1], min_flow)
+        pairs_too = max_leaks > 1
+        if pairs_too:
+            for sub in itertools.combinations(range(n_loc), 2):
+                fits.setdefault(sub, model.fit(sub))
+        checked = verify_explanations(
+            target,
+            fits,
+            n_loc,
+            simulate,
+            model.hi[:, -1],
+            min_flow,
+            top_pairs=3 if pairs_too else 0,
+            partners=3 if pairs_too else 0,
+        )
         if checked:
             simulated = True
             fits = {sub: (fit.sizes, fit.rss) for sub, fit in checked.items()}

@@ -254,7 +254,7 @@ def verify_explanations(
     for _, single in singles[:top_singles]:
         check(single, model_fits[single][0])
     firsts = sorted((fit.rss, sub) for sub, fit in checked.items() if len(sub) == 1)
-    if firsts:
+    if firsts and partners > 0:
         first = firsts[0][1][0]
         size, _, slope = checked[(first,)]
         base = simulate({first: float(size[0])})
