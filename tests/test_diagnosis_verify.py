@@ -123,23 +123,31 @@ def _synthetic_signatures(base: np.ndarray) -> SignatureSet:
     )
 
 
+def _whiten(delta):
+    return np.atleast_2d(delta) * 100.0
+
+
+def _logged_whitened(sim):
+    """The whitened 'simulator' ``locate`` takes, and the list of the leaks it ran."""
+    calls = []
+
+    def simulate_whitened(leaks):
+        calls.append(dict(leaks))
+        return _whiten(sim(dict(leaks)))[0]
+
+    return calls, simulate_whitened
+
+
 def test_locate_simulates_only_when_the_signatures_misfit():
     rng = np.random.default_rng(8)
     base = np.abs(rng.normal(size=(5, 60)))
     sig = _synthetic_signatures(base)
     inter = 0.3 * rng.normal(size=60)  # a direction no single leak has
     sim = _pair_simulator(base, inter)
-    calls = []
-
-    def whiten(delta):
-        return np.atleast_2d(delta) * 100.0
-
-    def simulate_whitened(leaks):
-        calls.append(dict(leaks))
-        return whiten(sim(dict(leaks)))[0]
+    calls, simulate_whitened = _logged_whitened(sim)
 
     # one leak: the signatures explain it; nothing is simulated
-    single = locate(sim({2: 1.7}), sig, whiten, simulate=simulate_whitened)
+    single = locate(sim({2: 1.7}), sig, _whiten, simulate=simulate_whitened)
     assert not calls
     assert not single.simulated
     (leak,) = single.leaks
@@ -147,9 +155,9 @@ def test_locate_simulates_only_when_the_signatures_misfit():
     assert leak.mass_flow == pytest.approx(1.7, rel=0.03)  # interpolated between 1 and 2
     # two interacting leaks: the signature model misfits; simulation finds them
     truth = sim({1: 2.5, 4: 1.2})
-    plain = locate(truth, sig, whiten)
+    plain = locate(truth, sig, _whiten)
     assert plain.rss > 3.0 * plain.dof
-    result = locate(truth, sig, whiten, simulate=simulate_whitened)
+    result = locate(truth, sig, _whiten, simulate=simulate_whitened)
     assert calls
     assert result.simulated
     found = {leak.location: leak.mass_flow for leak in result.leaks}
@@ -263,16 +271,9 @@ def test_one_leak_at_most_simulates_no_pairs():
     base = np.abs(rng.normal(size=(4, 50)))
     sig = _synthetic_signatures(base)
     sim = _pair_simulator(base, 0.3 * rng.normal(size=50))
-    calls = []
+    calls, simulate_whitened = _logged_whitened(sim)
 
-    def whiten(delta):
-        return np.atleast_2d(delta) * 100.0
-
-    def simulate_whitened(leaks):
-        calls.append(dict(leaks))
-        return whiten(sim(dict(leaks)))[0]
-
-    result = locate(sim({0: 2.0, 3: 1.5}), sig, whiten, max_leaks=1, simulate=simulate_whitened)
+    result = locate(sim({0: 2.0, 3: 1.5}), sig, _whiten, max_leaks=1, simulate=simulate_whitened)
     assert len(result.leaks) == 1
     assert calls  # the single-leak fit misfits: simulated
     assert all(len(c) == 1 for c in calls)  # only single leaks were simulated

@@ -32,6 +32,9 @@ from pneufdd.sim import load_machine
 __all__ = ["Diagnosis", "diagnose"]
 
 
+FloatArray = npt.NDArray[np.float64]
+
+
 def _simulated_effect(
     reference: ReferenceModel, whiten: Callable[[FloatArray], FloatArray]
 ) -> Callable[[Mapping[int, float]], FloatArray | None] | None:
@@ -56,9 +59,6 @@ def _simulated_effect(
         return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
 
     return simulate
-
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

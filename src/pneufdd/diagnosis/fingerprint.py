@@ -331,13 +331,12 @@ class _PiecewiseModel:
         rss : float
             Whitened residual [-].
         """
-        y = self.target
         a, b = sizes
         rss = np.inf
         for _ in range(iterations):
             a_old, b_old = a, b
-            a, _ = self._best_1d(line, y - self.effect(supply, b), b * coupling)
-            b, rss = self._best_1d(supply, y - self.effect(line, a), a * coupling)
+            a, _ = self._best_1d(line, self.target - self.effect(supply, b), b * coupling)
+            b, rss = self._best_1d(supply, self.target - self.effect(line, a), a * coupling)
             if abs(a - a_old) <= 1e-4 * max(a, 1e-12) and abs(b - b_old) <= 1e-4 * max(b, 1e-12):
                 break
         return a, b, rss

@@ -9,9 +9,9 @@ signature model was 2-25 times that of a wrong pair). When the best signature fi
 leaves a residual well above the noise (``rss > misfit_ratio * dof``), the best
 explanations are simulated as they stand, with the digital twin:
 
-1. **Candidates**: the best single leaks and pairs of the signature model, and, for
-   each of the best single leaks once it is sized by simulation, the locations that
-   best explain what it leaves unexplained (a greedy second leak, section 5.3.1.5's
+1. **Candidates**: the best single leaks and pairs of the signature model, and, next
+   to the best single leak once it is sized by simulation, the locations that best
+   explain what it leaves unexplained (a greedy second leak, section 5.3.1.5's
    "remove the supply leak's effect, then read the line leak").
 2. **Sizes** by Gauss-Newton on the simulator (:func:`refine_by_simulation`): a
    finite-difference Jacobian of simulations, then Broyden updates, bounded steps.
