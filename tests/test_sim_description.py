@@ -72,7 +72,8 @@ def test_error_names_file_key_value_and_allowed(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("edit", "fragment"),
     [
-        (lambda r: r["supply"].__setitem__("regulator_set_psig", 85.0), "regulator_set_psig"),
+        (lambda r: r["supply"].__setitem__("regulator_set_psig", 96.0), "only reduces pressure"),
+        (lambda r: r["supply"].__setitem__("regulator_set_psig", 150.0), "regulator_set_psig"),
         (lambda r: r["actuator"][0].__setitem__("rod_mm", 40.0), "rod_mm"),
         (lambda r: r["actuator"][0].__setitem__("bore_mm", "big"), "a number"),
         (lambda r: r["actuator"][1].__setitem__("id", "DNC"), "unique"),
@@ -124,3 +125,45 @@ def test_series_restrictions() -> None:
     assert tube_cv(2.0, 4.0) < tube_cv(1.0, 4.0) < tube_cv(1.0, 6.0)
     assert series_cv(0.4, 0.3, 0.1) < 0.1
     assert series_cv(0.4, 0.4) == pytest.approx(0.4 / 2**0.5)
+
+
+def test_six_bar_machine_is_described() -> None:
+    # the 80 psig limit was the rig's flow meter, not a property of machines
+    raw = _raw()
+    raw["supply"]["house_psig"] = 110.0
+    raw["supply"]["regulator_set_psig"] = 87.0  # 6 bar(g)
+    assert parse_description(raw, "six-bar.toml").nominal_supply_psig == 87.0
+
+
+def _monostable(raw: dict[str, Any], ident: str) -> None:
+    index = [a["id"] for a in raw["actuator"]].index(ident)
+    raw["actuator"][index]["valve"]["kind"] = "5/2-monostable"
+
+
+def test_monostable_valve_has_one_solenoid() -> None:
+    raw = _raw()
+    _monostable(raw, "DGPL")
+    # steps 6 and 10 drive DGPL out and back with both solenoids: refused, with the fix
+    with pytest.raises(MachineError, match=r"U_DGPL_B.*reset = \"U_DGPL_A\""):
+        parse_description(raw, "x.toml")
+    for step in raw["step"]:
+        for action in step.get("do", []):
+            if action.get("set") == "U_DGPL_A":
+                action.pop("until")
+            if action.get("set") == "U_DGPL_B":
+                del action["set"], action["until"]
+                action["reset"] = "U_DGPL_A"
+                step["wait"] = ["S_DGPL_A"]
+            elif action.get("set") == "U_DGPL_A" or action.get("reset") == "U_DGPL_A":
+                step["wait"] = ["S_DGPL_B"]
+    m = parse_description(raw, "x.toml")
+    assert "U_DGPL_A" in m.solenoids
+    assert "U_DGPL_B" not in m.solenoids
+    assert {"S_DGPL_A", "S_DGPL_B"} <= set(m.switches)
+
+
+def test_monostable_actuator_rests_retracted() -> None:
+    raw = _raw()
+    _monostable(raw, "DNC")  # DNC starts extended on the rig
+    with pytest.raises(MachineError, match="spring"):
+        parse_description(raw, "x.toml")

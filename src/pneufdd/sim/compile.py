@@ -11,7 +11,7 @@ import numpy.typing as npt
 from pneufdd.physics.constants import KELVIN_OFFSET, PSI, R_AIR
 from pneufdd.physics.units import psig_to_pa
 from pneufdd.sim import layout as lay
-from pneufdd.sim.description import Actuator, MachineDescription
+from pneufdd.sim.description import Actuator, MachineDescription, solenoid_slots
 from pneufdd.sim.leaks import LeakSpec
 
 __all__ = ["DEFAULT_RESOLUTION", "Plant", "Resolution", "compile_plant", "series_cv", "tube_cv"]
@@ -188,7 +188,7 @@ def compile_plant(
             cp[c, lay.CP_XT] = a.valve.xt
             cp[c, lay.CP_LEAK] = leak_by_loc.get(f"{a.id}_{'AB'[side]}", 0.0)
             cp[c, lay.CP_TAU_TH] = a.thermal_time_s
-    solenoids = machine.solenoids
+    solenoids = solenoid_slots(machine)
     switches = machine.switches
     act_start = [0]
     act_sol: list[int] = []

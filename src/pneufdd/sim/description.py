@@ -27,6 +27,7 @@ __all__ = [
     "Vacuum",
     "Valve",
     "parse_description",
+    "solenoid_slots",
 ]
 
 ACTUATOR_KINDS = ("linear", "rodless", "slide", "rotary", "gripper")
@@ -34,6 +35,11 @@ VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre")
 SENSOR_KINDS = ("pressure", "flow", "position")
 SENSOR_UNITS = {"pressure": "bar(g)", "flow": "SLPM", "position": "mm"}
 METER_DIRECTIONS = ("forward", "bidirectional")
+MAX_SUPPLY_PSIG = 145.0
+"""Highest regulated supply pressure a description may ask for: 10 bar(g) [psig].
+
+ISO 4414 machines and their standard components (ISO 15552 cylinders, ISO 5599
+valves) are rated for at most 10 bar(g); most run at 6 bar(g) (87 psig)."""
 
 
 class _Reader:
@@ -207,6 +213,8 @@ class Sensor:
     bits: int
     time_constant_s: float
     direction: str
+    gain: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -268,11 +276,12 @@ class MachineDescription:
 
     @property
     def solenoids(self) -> tuple[str, ...]:
-        """Digital valve outputs ``U_<ACT>_A/B`` (and ``U_<VAC>``)."""
-        names = [f"U_{a.id}_{s}" for a in self.actuators for s in "AB"]
-        if self.vacuum is not None:
-            names.append(f"U_{self.vacuum.id}")
-        return tuple(names)
+        """The PLC's valve outputs ``U_<ACT>_A/B`` (and ``U_<VAC>``), as recorded.
+
+        A 5/2 monostable (spring-return) valve has one solenoid, ``U_<ACT>_A``; the
+        other valves have two.
+        """
+        return tuple(name for name in solenoid_slots(self) if name is not None)
 
     @property
     def switches(self) -> tuple[str, ...]:
@@ -288,6 +297,22 @@ class MachineDescription:
         return self.supply.regulator_set_psig
 
 
+def solenoid_slots(machine: MachineDescription) -> tuple[str | None, ...]:
+    """Two solenoid slots per actuator (A, B), then the vacuum valve's.
+
+    The simulator's valve logic addresses solenoids by slot (``2 i`` and ``2 i + 1``
+    for actuator ``i``); a slot a valve does not have (the B side of a 5/2
+    monostable valve) is None.
+    """
+    slots: list[str | None] = []
+    for a in machine.actuators:
+        slots.append(f"U_{a.id}_A")
+        slots.append(None if a.valve.kind == "5/2-monostable" else f"U_{a.id}_B")
+    if machine.vacuum is not None:
+        slots.append(f"U_{machine.vacuum.id}")
+    return tuple(slots)
+
+
 def _supply(r: _Reader) -> Supply:
     s = Supply(
         house_psig=r.number("house_psig", low=0.0, high=250.0),
@@ -295,7 +320,9 @@ def _supply(r: _Reader) -> Supply:
         house_drift_time_s=r.number("house_drift_time_s", 60.0, low=0.0, low_open=True),
         compressor_band_psi=r.number("compressor_band_psi", 0.0, low=0.0, high=100.0),
         compressor_period_s=r.number("compressor_period_s", 60.0, low=0.0, low_open=True),
-        regulator_set_psig=r.number("regulator_set_psig", low=0.0, high=116.0),
+        regulator_set_psig=r.number(
+            "regulator_set_psig", low=0.0, low_open=True, high=MAX_SUPPLY_PSIG
+        ),
         regulator_cv=r.number("regulator_cv", low=0.0, low_open=True, high=50.0),
         regulator_xt=r.number("regulator_xt", 0.7, low=0.0, low_open=True, high=1.0),
         regulator_supply_effect=r.number("regulator_supply_effect", 0.0, low=0.0, high=1.0),
@@ -305,8 +332,12 @@ def _supply(r: _Reader) -> Supply:
         manifold_volume_l=r.number("manifold_volume_l", low=0.0, low_open=True),
         thermal_time_s=r.number("thermal_time_s", 1.0, low=0.0, low_open=True),
     )
-    if s.regulator_set_psig >= 80.0:
-        raise r.fail("regulator_set_psig", s.regulator_set_psig, "< 80 (section 3.2.1)")
+    if s.regulator_set_psig >= s.house_psig:
+        raise r.fail(
+            "regulator_set_psig",
+            s.regulator_set_psig,
+            f"< house_psig ({s.house_psig:g}): a pressure regulator only reduces pressure",
+        )
     r.finish()
     return s
 
@@ -365,6 +396,13 @@ def _actuator(r: _Reader) -> Actuator:
         initial=r.text("initial", "retracted", choices=("retracted", "extended")),
         valve=_valve(r.table("valve")),
     )
+    if act.valve.kind == "5/2-monostable" and act.initial != "retracted":
+        raise r.fail(
+            "initial",
+            act.initial,
+            "'retracted' (a 5/2-monostable valve's spring holds the actuator retracted "
+            "while no solenoid is energised)",
+        )
     r.finish()
     return act
 
@@ -399,6 +437,7 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
         or not rng[0] < rng[1]
     ):
         raise r.fail("range", rng, "[low, high] with low < high")
+    span = float(rng[1]) - float(rng[0])
     s = Sensor(
         channel=channel,
         kind=kind,
@@ -409,6 +448,8 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
         bits=int(r.number("bits", 12, low=1, high=24)),
         time_constant_s=r.number("time_constant_s", 0.0, low=0.0, high=10.0),
         direction=r.text("direction", "forward", choices=METER_DIRECTIONS),
+        gain=r.number("gain", 1.0, low=0.5, high=1.5),
+        offset=r.number("offset", 0.0, low=-span, high=span),
     )
     r.finish()
     return s
@@ -497,11 +538,25 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     dupc = {c for c in chans if chans.count(c) > 1}
     if dupc:
         raise MachineError(describe(f"{source}: sensor channel", sorted(dupc)[0], "unique"))
-    solenoids = [f"U_{i}_{s}" for i in ids for s in "AB"]
+    solenoids = [f"U_{a.id}_A" for a in actuators] + [
+        f"U_{a.id}_B" for a in actuators if a.valve.kind != "5/2-monostable"
+    ]
     switches = [f"S_{i}_{s}" for i in ids for s in "AB"]
     if vacuum is not None:
         solenoids.append(f"U_{vacuum.id}")
         switches.append(f"S_{vacuum.id}")
+    monostable = {f"U_{a.id}_B": a.id for a in actuators if a.valve.kind == "5/2-monostable"}
+    for k, raw_step in enumerate(top.tables("step")):
+        for a, raw_action in enumerate(raw_step.tables("do")):
+            for verb in ("set", "reset"):
+                sol = raw_action.data.get(verb)
+                if isinstance(sol, str) and sol in monostable:
+                    raise MachineError(
+                        describe(f"{source}: step[{k}].do[{a}].{verb}", sol, "an existing solenoid")
+                        + f"; actuator {monostable[sol]}'s 5/2-monostable valve has one "
+                        f"solenoid, U_{monostable[sol]}_A: it retracts by spring when that "
+                        f'solenoid is released ({{ reset = "U_{monostable[sol]}_A" }})'
+                    )
     steps = tuple(_step(s, solenoids, switches, i) for i, s in enumerate(top.tables("step")))
     for k, step in enumerate(steps):
         for a, act in enumerate(step.actions):

@@ -8,6 +8,10 @@
   the dissertation basis (1.294 kg/m^3). ``bidirectional`` is an idealised research
   meter, not a real SFE1.
 * Position: LVDT on the DNC rod with noticeable noise (Fig. 3.6).
+
+Every sensor reads ``gain * truth + offset`` in its unit before noise and quantisation
+(a calibration error: ``gain`` 1 and ``offset`` 0 for an ideal sensor; the plants of
+:mod:`pneufdd.sim.variation` draw them within the sensors' stated accuracy).
 """
 
 from __future__ import annotations
@@ -54,7 +58,8 @@ def apply_sensor(sensor: Sensor, truth: F64, rng: np.random.Generator, rate_hz: 
     """
     n = truth.size
     if sensor.kind == "pressure":
-        bar_g = (truth - P_ATM) / 1e5 + sensor.noise * rng.standard_normal(n)
+        bar_g = sensor.gain * (truth - P_ATM) / 1e5 + sensor.offset
+        bar_g = bar_g + sensor.noise * rng.standard_normal(n)
         q = _quantise(bar_g, sensor.range_low, sensor.range_high, sensor.bits)
         return q * 1e5 + P_ATM
     if sensor.kind == "flow":
@@ -64,9 +69,9 @@ def apply_sensor(sensor: Sensor, truth: F64, rng: np.random.Generator, rate_hz: 
         if sensor.time_constant_s > 0.0:
             a = float(np.exp(-1.0 / (rate_hz * sensor.time_constant_s)))
             slpm = lfilter([1.0 - a], [1.0, -a], slpm)
-        slpm = slpm + sensor.noise * rng.standard_normal(n)
+        slpm = sensor.gain * slpm + sensor.offset + sensor.noise * rng.standard_normal(n)
         low = sensor.range_low if sensor.direction == "forward" else -sensor.range_high
         q = _quantise(slpm, low, sensor.range_high, sensor.bits)
         return np.asarray(slpm_to_kg_s(q), dtype=np.float64)
-    mm = truth * 1e3 + sensor.noise * rng.standard_normal(n)
+    mm = sensor.gain * truth * 1e3 + sensor.offset + sensor.noise * rng.standard_normal(n)
     return _quantise(mm, sensor.range_low, sensor.range_high, sensor.bits) * 1e-3

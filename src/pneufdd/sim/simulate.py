@@ -16,7 +16,7 @@ from pneufdd.errors import InputError, PneufddError, describe
 from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
 from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
-from pneufdd.sim.description import MachineDescription
+from pneufdd.sim.description import MachineDescription, solenoid_slots
 from pneufdd.sim.kernel import SAMPLE_DT, run_cycle
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import load_machine
@@ -266,8 +266,9 @@ def _assemble(
     cmd = _cat(chunks, "cmd")
     sw = _cat(chunks, "sw")
     digital: dict[str, npt.NDArray[np.uint8]] = {}
-    for j, name in enumerate(desc.solenoids):
-        digital[name] = cmd[:, j]
+    for j, name in enumerate(solenoid_slots(desc)):
+        if name is not None:  # the B slot of a 5/2 monostable valve has no solenoid
+            digital[name] = cmd[:, j]
     for j, name in enumerate(desc.switches):
         digital[name] = sw[:, j]
     metadata = {
