@@ -121,13 +121,13 @@ def _job(
             "seconds": seconds,
             "alternatives": []
             if result.localisation is None
-            else [list(a.locations) for a in result.localisation.alternatives],
+            else [[str(x) for x in a.locations] for a in result.localisation.alternatives],
             "cycles": int(scores.size),
             "cycles_flagged": int(np.sum(scores > det.threshold_)),
             "leaks": [
                 {
-                    "location": leak.location,
-                    "group": list(leak.ambiguity_group),
+                    "location": str(leak.location),
+                    "group": [str(x) for x in leak.ambiguity_group],
                     "group_flows": [],
                     "mass_flow": leak.mass_flow,
                 }
@@ -136,7 +136,7 @@ def _job(
             "fits": None
             if result.localisation is None
             else [
-                (list(e.ambiguity_group), list(e.group_mass_flows))
+                ([str(x) for x in e.ambiguity_group], list(e.group_mass_flows))
                 for e in result.localisation.leaks
             ],
         }
@@ -262,8 +262,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from pneufdd.diagnosis.pipeline import build_reference_from_recordings
     from pneufdd.diagnosis.pnref import save_reference
-    from pneufdd.diagnosis.simulated import candidate_locations
-    from pneufdd.sim import simulate
+    from pneufdd.diagnosis.twin_effects import candidate_locations
+    from pneufdd.sim import load_machine, simulate
 
     start = time.perf_counter()
     os.makedirs(args.out, exist_ok=True)
@@ -282,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
             f"features, built in {time.perf_counter() - t0:.1f} s",
             flush=True,
         )
-    locations = candidate_locations("festo-dsd")
+    locations = [str(x) for x in candidate_locations(load_machine("festo-dsd"))]
     turns = [float(x) for x in args.turns.split(",")]
     rng = np.random.default_rng(offset)
     seed = offset + 1000

@@ -122,3 +122,50 @@ def synth_signatures(sizes=(2e-4, 6e-4, 1.5e-3)) -> SignatureSet:
         table.feature_names(),
         np.full(len(LOCATIONS), 6.0e5),
     )
+
+
+def synth_description() -> dict:
+    """A valid machine description (TOML mapping) named like the synthetic machine."""
+
+    def actuator(ident: str) -> dict:
+        return {
+            "id": ident,
+            "kind": "linear",
+            "bore_mm": 20.0,
+            "rod_mm": 8.0,
+            "stroke_mm": 50.0,
+            "moving_mass_kg": 0.3,
+            "static_friction_n": 10.0,
+            "coulomb_friction_n": 8.0,
+            "viscous_friction_n_s_m": 20.0,
+            "dead_volume_a_cm3": 1.0,
+            "dead_volume_b_cm3": 1.0,
+            "tube_length_m": 1.0,
+            "tube_inner_diameter_mm": 4.0,
+            "valve": {"kind": "5/2-bistable", "cv": 0.2},
+        }
+
+    return {
+        "machine": {"name": "synth"},
+        "supply": {
+            "house_psig": 95.0,
+            "regulator_set_psig": 72.0,
+            "regulator_cv": 0.9,
+            "reservoir_volume_l": 2.0,
+            "line_cv": 0.3,
+            "manifold_volume_l": 0.05,
+        },
+        "actuator": [actuator("X"), actuator("Y")],
+        "sensor": [
+            {"channel": "P_In", "kind": "pressure", "location": "supply", "range": [0, 10]},
+            {"channel": "Q_In", "kind": "flow", "location": "supply", "range": [0, 200]},
+            {"channel": "P_X_A", "kind": "pressure", "location": "X_A", "range": [0, 10]},
+            {"channel": "Q_X_A", "kind": "flow", "location": "X_A", "range": [0, 200]},
+        ],
+        "step": [
+            {"do": [{"set": "U_X_A", "until": "S_X_B"}]},
+            {"do": [{"set": "U_X_B", "until": "S_X_A"}]},
+            {"do": [{"set": "U_Y_A", "until": "S_Y_B"}]},
+            {"do": [{"set": "U_Y_B", "until": "S_Y_A"}]},
+        ],
+    }

@@ -8,7 +8,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from _diag_synth import synth_signatures, synth_table
+from _diag_synth import synth_description, synth_signatures, synth_table
 from pneufdd.diagnosis.pnref import FORMAT_VERSION, load_reference, save_reference
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.diagnosis.signatures import SignatureSet
@@ -31,7 +31,7 @@ def model():
     )
     return ReferenceModel.build(
         synth_table(20, seed=3),
-        machine_description={"name": "synth", "actuators": ["X", "Y"]},
+        machine_description=synth_description(),
         signatures=sig,
         sources=["a.parquet", "b.parquet"],
         sequence=[{"valves": ["U_X_A"], "switches": [["S_X_B", 1]]}],
@@ -109,27 +109,53 @@ def test_wrong_version_rejected(model, tmp_path):
         load_reference(tmp_path / "v99.pnref")
 
 
-def test_version_1_file_asks_for_a_rebuild(model, tmp_path):
-    # a reference written before the mean leak flows were stored (format version 1)
+@pytest.mark.parametrize("version", [1, 2])
+def test_old_versions_ask_for_a_rebuild(model, tmp_path, version):
+    # version 1: before the mean leak flows were stored; version 2: before the machine
+    # description travelled with the reference (signatures looked the machine up by name)
     path = save_reference(model, tmp_path / "ref.pnref")
 
     def downgrade(arrays):
         header = json.loads(str(arrays["header"]))
-        header["version"] = 1
+        header["version"] = version
+        header["machine_description"] = {"name": "synth"}  # v2 kept the metadata form
+        header.pop("localisation")
         arrays["header"] = np.array(json.dumps(header))
-        arrays.pop("sig_mean_flow")
-        arrays.pop("sig_mean_flow_interaction")
+        if version == 1:
+            arrays.pop("sig_mean_flow")
+            arrays.pop("sig_mean_flow_interaction")
 
     _rewrite(path, tmp_path / "old.pnref", downgrade)
     with pytest.raises(FileFormatError) as info:
         load_reference(tmp_path / "old.pnref")
     message = str(info.value)
     assert "old.pnref" in message
-    assert "received 1" in message
+    assert f"received {version}" in message
     assert f"version {FORMAT_VERSION}" in message
-    assert FORMAT_VERSION == 2
+    assert FORMAT_VERSION == 3
     assert "rebuild the reference" in message
     assert "pneufdd reference build" in message
+    assert "--machine" in message
+
+
+def test_reference_keeps_its_machine_description(model, tmp_path):
+    back = load_reference(save_reference(model, tmp_path / "ref.pnref"))
+    assert back.description is not None
+    assert back.description.actuator_ids == ("X", "Y")
+    assert back.localisation == model.localisation
+
+
+def test_invalid_machine_description_rejected(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+
+    def damage(arrays):
+        header = json.loads(str(arrays["header"]))
+        header["machine_description"]["supply"]["regulator_set_psig"] = 200.0
+        arrays["header"] = np.array(json.dumps(header))
+
+    _rewrite(path, tmp_path / "bad.pnref", damage)
+    with pytest.raises(FileFormatError, match=r"bad\.pnref.*regulator_set_psig"):
+        load_reference(tmp_path / "bad.pnref")
 
 
 def test_misshapen_mean_flow_rejected(model, tmp_path):

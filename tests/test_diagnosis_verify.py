@@ -9,13 +9,15 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pneufdd.diagnosis.adapter import machine_sequence, segment_cycles, step_table
-from pneufdd.diagnosis.fingerprint import locate
+from pneufdd.diagnosis.effects import LeakEffectModel
+from pneufdd.diagnosis.localisation import LocalisationSettings, locate
 from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.simulated import SimulatedLeakEffect
+from pneufdd.diagnosis.step_summaries import machine_sequence, segment_cycles, step_table
+from pneufdd.diagnosis.twin_effects import TwinLeakEffect
 from pneufdd.diagnosis.verify import refine_by_simulation, verify_explanations
+from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
-from pneufdd.sim import simulate
+from pneufdd.sim import load_machine, simulate
 
 # --------------------------------------------------------------------------- synthetic
 
@@ -115,7 +117,7 @@ def _synthetic_signatures(base: np.ndarray) -> SignatureSet:
     sizes = np.array([[0.5, 1.0, 2.0, 4.0, 8.0]] * base.shape[0])
     deltas = np.array([[_saturating(s, 3.0) * row for s in sizes[0]] for row in base])
     return SignatureSet(
-        tuple(f"L{i}" for i in range(base.shape[0])),
+        tuple(f"L{i}_A" for i in range(base.shape[0])),
         sizes,
         deltas,
         tuple(f"f{j}" for j in range(base.shape[1])),
@@ -127,15 +129,21 @@ def _whiten(delta):
     return np.atleast_2d(delta) * 100.0
 
 
-def _logged_whitened(sim):
-    """The whitened 'simulator' ``locate`` takes, and the list of the leaks it ran."""
+def _logged_effects(sig, sim):
+    """Leak effects of ``sig`` simulated by ``sim`` (keyed by location index), and the
+    list of the leaks it ran."""
     calls = []
 
-    def simulate_whitened(leaks):
-        calls.append(dict(leaks))
-        return _whiten(sim(dict(leaks)))[0]
+    def simulator(leaks):
+        by_index = {sig.locations.index(loc): size for loc, size in leaks.items()}
+        calls.append(by_index)
+        return sim(by_index)
 
-    return calls, simulate_whitened
+    return calls, LeakEffectModel(sig, simulator)
+
+
+def _found(result):
+    return {str(leak.location): leak.mass_flow for leak in result.leaks}
 
 
 def test_locate_simulates_only_when_the_signatures_misfit():
@@ -144,24 +152,23 @@ def test_locate_simulates_only_when_the_signatures_misfit():
     sig = _synthetic_signatures(base)
     inter = 0.3 * rng.normal(size=60)  # a direction no single leak has
     sim = _pair_simulator(base, inter)
-    calls, simulate_whitened = _logged_whitened(sim)
+    calls, effects = _logged_effects(sig, sim)
 
     # one leak: the signatures explain it; nothing is simulated
-    single = locate(sim({2: 1.7}), sig, _whiten, simulate=simulate_whitened)
+    single = locate(sim({2: 1.7}), effects, _whiten)
     assert not calls
     assert not single.simulated
     (leak,) = single.leaks
-    assert leak.location == "L2"
+    assert leak.location == Location("L2", "A")
     assert leak.mass_flow == pytest.approx(1.7, rel=0.03)  # interpolated between 1 and 2
     # two interacting leaks: the signature model misfits; simulation finds them
     truth = sim({1: 2.5, 4: 1.2})
-    plain = locate(truth, sig, _whiten)
+    plain = locate(truth, LeakEffectModel(sig), _whiten)
     assert plain.rss > 3.0 * plain.dof
-    result = locate(truth, sig, _whiten, simulate=simulate_whitened)
+    result = locate(truth, effects, _whiten)
     assert calls
     assert result.simulated
-    found = {leak.location: leak.mass_flow for leak in result.leaks}
-    assert found == pytest.approx({"L1": 2.5, "L4": 1.2}, rel=0.01)
+    assert _found(result) == pytest.approx({"L1_A": 2.5, "L4_A": 1.2}, rel=0.01)
     assert result.rss < 1e-3 * plain.rss
 
 
@@ -181,7 +188,8 @@ def test_two_large_leaks_on_festo_dsd_sized_by_simulation():
     truth = {"supply": 5.0, "HGD2_A": 3.0}
     rec = simulate("festo-dsd", cycles=4, leaks=truth, seed=7_100_001)
     base = simulate("festo-dsd", cycles=4, seed=7_100_001)
-    sequence = machine_sequence(base, "festo-dsd")
+    machine = load_machine("festo-dsd")
+    sequence = machine_sequence(machine)
     assert sequence is not None
     channels = ("P_In", "Q_In")
 
@@ -191,7 +199,7 @@ def test_two_large_leaks_on_festo_dsd_sized_by_simulation():
 
     observed = mean_features(rec) - mean_features(base)
     table = step_table(base, segment_cycles(base, sequence, "t")[0], "festo-dsd", channels)
-    effect = SimulatedLeakEffect("festo-dsd", table.feature_names(), sequence, channels)
+    effect = TwinLeakEffect(machine, table.feature_names(), sequence, channels)
     flows = {leak["location"]: leak["mass_flow_kg_s"] for leak in rec.metadata["leaks"]}
     assert flows["supply"] == pytest.approx(float(slpm_to_kg_s(152.6)), rel=0.01)
     # whitening: durations by 3 ms, pressures by 500 Pa, flows by 1 SLPM
@@ -206,8 +214,7 @@ def test_two_large_leaks_on_festo_dsd_sized_by_simulation():
         return np.atleast_2d(delta) / scale
 
     y = whiten(observed)[0]
-    index = {"supply": 0, "HGD2_A": 1}
-    names = list(index)
+    names = [SUPPLY, Location("HGD2", "A")]
 
     def sim(leaks):
         change = effect({names[i]: size for i, size in leaks.items()})
@@ -231,23 +238,23 @@ def test_diagnose_checks_two_large_leaks_by_simulation_end_to_end():
     signature fit misfits, the engine simulates the best explanations and reports
     both leaks within 10 % of the truth, and says so.
     """
-    from pneufdd.diagnosis.adapter import sequence_from_records
     from pneufdd.diagnosis.engine import diagnose
     from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
-    from pneufdd.diagnosis.simulated import compute_signatures
+    from pneufdd.diagnosis.step_summaries import sequence_from_records
+    from pneufdd.diagnosis.twin_effects import compute_signatures
 
     leak_free = simulate("festo-dsd", cycles=14, seed=7_200_001)
     model = build_reference_from_recordings(
         [leak_free], channels=("P_In", "Q_In"), with_signatures=False
     )
     signatures = compute_signatures(
-        "festo-dsd",
+        load_machine("festo-dsd"),
         model.feature_names,
         sequence_from_records(model.sequence),
         channels=model.channels,
         sizes_slpm=(15.0, 50.0, 120.0, 230.0),
         workers=1,
-        locations=("supply", "DNC_B", "HGD2_A", "HGD2_B"),
+        locations=tuple(Location.parse(x) for x in ("supply", "DNC_B", "HGD2_A", "HGD2_B")),
     )
     model = model.with_signatures(signatures)
     run = simulate("festo-dsd", cycles=8, leaks={"supply": 5.0, "HGD2_A": 3.0}, seed=7_200_002)
@@ -258,9 +265,8 @@ def test_diagnose_checks_two_large_leaks_by_simulation_end_to_end():
     assert result.localisation is not None
     assert result.localisation.simulated
     assert any("digital twin" in note for note in result.notes)
-    found = {leak.location: leak.mass_flow for leak in result.leaks}
-    assert found == pytest.approx(truth, rel=0.1)
-    plain = diagnose(model, table, simulate_explanations=False)
+    assert _found(result) == pytest.approx(truth, rel=0.1)
+    plain = diagnose(model, table, localisation=LocalisationSettings(simulate_explanations=False))
     assert plain.localisation is not None
     assert not plain.localisation.simulated
     assert result.localisation.rss < plain.localisation.rss
@@ -271,9 +277,9 @@ def test_one_leak_at_most_simulates_no_pairs():
     base = np.abs(rng.normal(size=(4, 50)))
     sig = _synthetic_signatures(base)
     sim = _pair_simulator(base, 0.3 * rng.normal(size=50))
-    calls, simulate_whitened = _logged_whitened(sim)
+    calls, effects = _logged_effects(sig, sim)
 
-    result = locate(sim({0: 2.0, 3: 1.5}), sig, _whiten, max_leaks=1, simulate=simulate_whitened)
+    result = locate(sim({0: 2.0, 3: 1.5}), effects, _whiten, LocalisationSettings(max_leaks=1))
     assert len(result.leaks) == 1
     assert calls  # the single-leak fit misfits: simulated
     assert all(len(c) == 1 for c in calls)  # only single leaks were simulated

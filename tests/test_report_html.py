@@ -73,7 +73,7 @@ def test_report_contains_table_values(case):
     text = render_report(ref, run, result)
     assert len(result.leaks) == 2
     for leak in result.leaks:
-        assert leak.location in text
+        assert str(leak.location) in text
         assert f"{leak.flow_slpm:,.1f}" in text
         assert f"{leak.orifice_mm:,.2f}" in text
         assert f"{leak.annual_cost:,.0f}" in text

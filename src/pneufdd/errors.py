@@ -16,6 +16,7 @@ __all__ = [
     "InputError",
     "MachineError",
     "MissingFileError",
+    "NoCompleteCycleError",
     "PneufddError",
     "UnitError",
     "describe",
@@ -52,6 +53,10 @@ class UnitError(InputError):
 
 class MachineError(InputError):
     """An invalid machine description."""
+
+
+class NoCompleteCycleError(InputError):
+    """A recording holds no complete machine cycle (truncated, stopped, or too slow)."""
 
 
 def describe(what: str, received: object, allowed: Iterable[object] | str | None = None) -> str:

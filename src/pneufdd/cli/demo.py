@@ -17,10 +17,10 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.console import Console
-from rich.progress import Progress
 from rich.table import Table
 
 from pneufdd.cli.diagnose import leak_table
+from pneufdd.cli.progress_bar import progress_bars
 from pneufdd.diagnosis.engine import diagnose
 from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
 from pneufdd.diagnosis.pnref import save_reference
@@ -45,21 +45,21 @@ def demo(
     console = Console()
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    with Progress(console=Console(stderr=True), transient=True) as progress:
-        task = progress.add_task("simulating leak-free reference cycles", total=2)
+    with progress_bars() as progress:
         half = max(reference_cycles // 2, 5)
         refs = []
         for k in (1, 2):
+            progress("simulating leak-free reference cycles", k - 1, 2)
             refs.append(simulate("festo-dsd", cycles=half + 2, seed=DEMO_SEED + k))
-            progress.advance(task)
+        progress("simulating leak-free reference cycles", 2, 2)
         model = build_reference_from_recordings(
             refs, names=["demo reference A", "demo reference B"], progress=progress
         )
-        task = progress.add_task("simulating the leaky run", total=1)
+        progress("simulating the leaky run", 0, 1)
         # the same recording simulate() gives, plus the true leak flows
         sim = run_simulation("festo-dsd", cycles=12, leaks=DEMO_LEAKS, seed=DEMO_SEED + 3)
         run = sim.recording
-        progress.advance(task)
+        progress("simulating the leaky run", 1, 1)
     table = run_table(model, run, "demo run")
     table = table.take(list(range(min(10, table.n_cycles))))
     result = diagnose(model, table)
@@ -100,7 +100,7 @@ def demo(
     t0, t1 = sim.cycle_start[1], sim.cycle_start[-1]
     inner = (sim.time >= t0) & (sim.time <= t1)
     for loc, leak in truth.items():
-        found = [x for x in result.leaks if loc in x.ambiguity_group]
+        found = [x for x in result.leaks if loc in {str(g) for g in x.ambiguity_group}]
         est = float(kg_s_to_slpm(found[0].mass_flow)) if found else float("nan")
         est_avg = found[0].average_flow_slpm if found else float("nan")
         lost = np.trapezoid(sim.outputs[f"mdot_leak_{loc}"][inner], sim.time[inner])

@@ -9,15 +9,16 @@ error never leaves a partial file behind.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import Progress
 from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
+from pneufdd.cli.progress_bar import progress_bars
 from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE, CostSettings
 from pneufdd.diagnosis.engine import Diagnosis
 from pneufdd.diagnosis.pipeline import diagnose_recording
@@ -48,8 +49,8 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
     for i, leak in enumerate(result.leaks, start=1):
         table.add_row(
             str(i),
-            leak.location,
-            ", ".join(leak.ambiguity_group),
+            str(leak.location),
+            ", ".join(str(x) for x in leak.ambiguity_group),
             f"{leak.flow_slpm:.1f}",
             f"{leak.average_flow_slpm:.1f}",
             f"{leak.orifice_mm:.2f}",
@@ -80,30 +81,31 @@ def diagnose(
     kw_per_100cfm: Annotated[
         float, typer.Option("--kw-per-100cfm", help="Compressor kW per 100 cfm (eq. 1.1).")
     ] = 18.0,
-    max_leaks: Annotated[int, typer.Option(help="Most simultaneous leaks considered.")] = 2,
+    max_leaks: Annotated[
+        int | None,
+        typer.Option(help="Most simultaneous leaks considered, 1 or 2 (default: the reference's)."),
+    ] = None,
     simulate: Annotated[
-        bool,
+        bool | None,
         typer.Option(
             "--simulate/--no-simulate",
             help="When the leak signatures do not explain the run (typically two large "
             "leaks), check the best explanations with the digital twin (a few seconds "
-            "more).",
+            "more). Default: the reference's setting.",
         ),
-    ] = True,
+    ] = None,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
     console = Console()
     settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
     model = load_reference(reference)
-    with Progress(console=Console(stderr=True), transient=True) as progress:
-        table, result = diagnose_recording(
-            model,
-            run,
-            settings,
-            max_leaks=max_leaks,
-            progress=progress,
-            simulate_explanations=simulate,
-        )
+    localisation = model.localisation
+    if max_leaks is not None:
+        localisation = replace(localisation, max_leaks=max_leaks)
+    if simulate is not None:
+        localisation = replace(localisation, simulate_explanations=simulate)
+    with progress_bars() as progress:
+        table, result = diagnose_recording(model, run, settings, progress, localisation)
     # render everything first, write afterwards: no partial output on error
     outputs: list[tuple[Path, str]] = []
     if json_out is not None:

@@ -8,8 +8,8 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import Progress
 
+from pneufdd.cli.progress_bar import progress_bars
 from pneufdd.diagnosis.pipeline import build_reference, parse_channels
 from pneufdd.diagnosis.pnref import save_reference
 from pneufdd.errors import InputError, describe
@@ -27,6 +27,15 @@ def build(
         list[Path], typer.Argument(help="Leak-free recordings (.parquet) of one machine.")
     ],
     out: Annotated[Path, typer.Option("--out", help="Reference file to write (.pnref).")],
+    machine: Annotated[
+        str | None,
+        typer.Option(
+            help="The machine's description: a TOML file (docs/machine-format.md) or a "
+            "built-in name (see `pneufdd machines`). Needed for recordings that carry no "
+            "description (CSV, TDMS); overrides the one simulated recordings carry. The "
+            "reference keeps it: signatures, checks by simulation and costs come from it."
+        ),
+    ] = None,
     channels: Annotated[
         str | None,
         typer.Option(
@@ -68,17 +77,23 @@ def build(
             ) from exc
         if not ladder or any(b <= a for a, b in itertools.pairwise(ladder)):
             raise InputError(describe("--signature-sizes", signature_sizes, "increasing sizes"))
-    with Progress(console=console, transient=True) as progress:
+    with progress_bars(console) as progress:
         model = build_reference(
             recordings,
             parse_channels(channels),
+            machine=machine,
             with_signatures=signatures,
             signature_cycles=signature_cycles,
             signature_sizes=ladder,
             progress=progress,
         )
     save_reference(model, out, overwrite=overwrite)
-    sig = "none" if model.signatures is None else f"{len(model.signatures.locations)} locations"
+    if model.signatures is not None:
+        sig = f"{len(model.signatures.locations)} locations"
+    elif model.description is None:
+        sig = "none (no machine description: pass --machine to locate and size leaks)"
+    else:
+        sig = "none"
     console.print(
         f"reference: {model.n_cycles} leak-free cycles of {model.machine!r}, "
         f"{model.n_steps} steps, channels {list(model.channels) or 'digital only'}, "

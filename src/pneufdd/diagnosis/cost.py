@@ -39,6 +39,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from pneufdd.errors import InputError, describe
+from pneufdd.location import Location
 from pneufdd.physics.constants import P_ATM, T_ROOM
 from pneufdd.physics.economics import leak_annual_cost
 from pneufdd.physics.leaks import SHARP_EDGE_CD, equivalent_orifice_diameter
@@ -164,7 +165,7 @@ class CostedLeak:
 
     Attributes
     ----------
-    location : str
+    location : Location
         Most likely location.
     mass_flow : float
         Nominal leak flow: while its line is pressurised, at the machine's supply
@@ -177,7 +178,7 @@ class CostedLeak:
         Cost per year by eq. 1.1 of the average flow [$].
     confidence : float
         Confidence that a leak lies in the ambiguity group [-].
-    ambiguity_group : tuple of str
+    ambiguity_group : tuple of Location
         Locations the sensors cannot tell apart.
     average_mass_flow : float
         Mean leaked flow over an operating cycle [kg/s].
@@ -187,24 +188,24 @@ class CostedLeak:
         :data:`COST_BASIS_AVERAGE` or :data:`COST_BASIS_CONTINUOUS`.
     """
 
-    location: str
+    location: Location
     mass_flow: float
     flow_slpm: float
     orifice_mm: float
     annual_cost: float
     confidence: float
-    ambiguity_group: tuple[str, ...]
+    ambiguity_group: tuple[Location, ...]
     average_mass_flow: float
     average_flow_slpm: float
     cost_basis: str
 
 
 def cost_leaks(
-    locations: Sequence[str],
+    locations: Sequence[Location],
     mass_flows: Sequence[float],
     pressures: Sequence[float],
     confidences: Sequence[float],
-    groups: Sequence[tuple[str, ...]],
+    groups: Sequence[tuple[Location, ...]],
     settings: CostSettings,
     average_flows: Sequence[float | None] | None = None,
 ) -> tuple[list[CostedLeak], float]:
@@ -212,7 +213,7 @@ def cost_leaks(
 
     Parameters
     ----------
-    locations : sequence of str
+    locations : sequence of Location
         Most likely location of each leak.
     mass_flows : sequence of float
         Nominal leak flows, at the leak's nominal pressure [kg/s].
@@ -220,7 +221,7 @@ def cost_leaks(
         Nominal absolute pressure of each leak [Pa].
     confidences : sequence of float
         Confidence of each leak [-].
-    groups : sequence of tuple of str
+    groups : sequence of tuple of Location
         Ambiguity group of each leak.
     settings : CostSettings
         Economic inputs of eq. 1.1.
@@ -237,16 +238,18 @@ def cost_leaks(
 
     Examples
     --------
-    >>> leaks, total = cost_leaks(["supply", "DNC_B"], [6.0e-4, 1.2e-3], [6e5, 6e5],
-    ...                           [0.9, 0.8], [("supply",), ("DNC_B",)], CostSettings())
-    >>> [leak.location for leak in leaks], round(total, 2) == round(sum(
+    >>> from pneufdd.location import SUPPLY, Location
+    >>> dnc_b = Location("DNC", "B")
+    >>> leaks, total = cost_leaks([SUPPLY, dnc_b], [6.0e-4, 1.2e-3], [6e5, 6e5],
+    ...                           [0.9, 0.8], [(SUPPLY,), (dnc_b,)], CostSettings())
+    >>> [str(leak.location) for leak in leaks], round(total, 2) == round(sum(
     ...     leak.annual_cost for leak in leaks), 2)
     (['DNC_B', 'supply'], True)
 
     A line leak that loses on average a twentieth of its nominal flow costs a
     twentieth as much:
 
-    >>> leaks, _ = cost_leaks(["DNC_B"], [1.2e-3], [6e5], [0.9], [("DNC_B",)],
+    >>> leaks, _ = cost_leaks([dnc_b], [1.2e-3], [6e5], [0.9], [(dnc_b,)],
     ...                       CostSettings(), average_flows=[6.0e-5])
     >>> round(leaks[0].flow_slpm, 1), round(leaks[0].average_flow_slpm, 2)
     (55.6, 2.78)

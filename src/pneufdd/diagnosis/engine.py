@@ -4,61 +4,40 @@
    :class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`, decided over the whole
    run (mean of its cycles); the band method of eq. 5.21 is reported alongside.
 2. **Locate and size** (sections 5.3.1.2-5.3.1.5, eqs. 5.23-5.24): the run's mean
-   feature change is decomposed into non-negative leak signatures
-   (:func:`~pneufdd.diagnosis.fingerprint.locate`).
+   feature change is decomposed into non-negative leak effects
+   (:func:`~pneufdd.diagnosis.localisation.locate`) of the reference's
+   :class:`~pneufdd.diagnosis.effects.LeakEffectModel`.
 3. **Cost** (eq. 1.1): :mod:`pneufdd.diagnosis.cost`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from pneufdd.diagnosis.adapter import sequence_from_records
 from pneufdd.diagnosis.cost import CostedLeak, CostSettings, cost_leaks
-from pneufdd.diagnosis.fingerprint import Localisation, locate
+from pneufdd.diagnosis.localisation import (
+    LeakEstimate,
+    Localisation,
+    LocalisationSettings,
+    Whitener,
+    locate,
+)
 from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.simulated import SimulatedLeakEffect
+from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
+from pneufdd.location import SUPPLY
 from pneufdd.physics.units import kg_s_to_slpm
-from pneufdd.sim import load_machine
 
-__all__ = ["Diagnosis", "diagnose"]
+__all__ = ["Diagnosis", "diagnose", "whitener"]
 
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def _simulated_effect(
-    reference: ReferenceModel, whiten: Callable[[FloatArray], FloatArray]
-) -> Callable[[Mapping[int, float]], FloatArray | None] | None:
-    """Whitened simulated effect of leaks on the reference's machine, or None."""
-    sig = reference.signatures
-    if sig is None or not reference.sequence:
-        return None
-    try:
-        load_machine(reference.machine)
-    except InputError:
-        return None  # the simulator does not know this machine
-    effect = SimulatedLeakEffect(
-        reference.machine,
-        reference.feature_names,
-        sequence_from_records(reference.sequence),
-        reference.channels,
-    )
-    locations = sig.locations
-
-    def simulate(leaks: Mapping[int, float]) -> FloatArray | None:
-        change = effect({locations[i]: size for i, size in leaks.items()})
-        return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
-
-    return simulate
 
 
 @dataclass(frozen=True)
@@ -125,14 +104,14 @@ class Diagnosis:
             "cycles_analyzed": self.cycles_analyzed,
             "leaks": [
                 {
-                    "location": leak.location,
+                    "location": str(leak.location),
                     "flow_slpm": num(leak.flow_slpm),
                     "average_flow_slpm": num(leak.average_flow_slpm),
                     "orifice_mm": num(leak.orifice_mm),
                     "annual_cost": num(leak.annual_cost),
                     "cost_basis": leak.cost_basis,
                     "confidence": num(leak.confidence),
-                    "ambiguity_group": list(leak.ambiguity_group),
+                    "ambiguity_group": [str(x) for x in leak.ambiguity_group],
                 }
                 for leak in self.leaks
             ],
@@ -140,7 +119,7 @@ class Diagnosis:
             if self.localisation is None
             else [
                 {
-                    "locations": list(alt.locations),
+                    "locations": [str(x) for x in alt.locations],
                     "flows_slpm": [num(float(kg_s_to_slpm(f))) for f in alt.mass_flows],
                     "rss": num(alt.rss),
                 }
@@ -215,12 +194,113 @@ def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "ru
     return run.select(list(reference.channels))
 
 
+def whitener(reference: ReferenceModel, n_cycles: int) -> Whitener:
+    """Weighting of a run's mean feature change: unit noise per residual component.
+
+    Each feature is divided by its reference spread (floored at the sensor
+    resolution), the house-air fluctuation directions are projected out (section
+    4.4.1) and the result scaled to unit variance for the mean of ``n_cycles`` run
+    cycles against the mean of the reference's cycles (``1 / sqrt(1/m + 1/n)``).
+    """
+    det = reference.detector
+    gain = 1.0 / math.sqrt(1.0 / n_cycles + 1.0 / reference.n_cycles)
+
+    def whiten(delta: FloatArray) -> FloatArray:
+        return np.asarray(det.project(np.atleast_2d(delta) / det.scale_) * gain)
+
+    return whiten
+
+
+def _average_flows(signatures: SignatureSet, found: tuple[LeakEstimate, ...]) -> list[float | None]:
+    """Mean leaked flow of each leak over the operating cycle [kg/s] (None: unknown)."""
+    averages = [
+        signatures.average_flow(signatures.locations.index(leak.location), leak.mass_flow)
+        for leak in found
+    ]
+    supply = [leak for leak in found if leak.location == SUPPLY]
+    if len(found) == 2 and len(supply) == 1:
+        # a line leak next to a supply leak blows from a lower pressure
+        line_leak = next(leak for leak in found if leak.location != SUPPLY)
+        both = signatures.average_flows_with_supply(
+            signatures.locations.index(line_leak.location),
+            line_leak.mass_flow,
+            supply[0].mass_flow,
+        )
+        if both is not None:
+            averages = [both[0] if leak is line_leak else both[1] for leak in found]
+    return averages
+
+
+def _nominal_pressures(
+    reference: ReferenceModel, signatures: SignatureSet, found: tuple[LeakEstimate, ...]
+) -> list[float]:
+    """Pressure at which each leak's nominal flow is stated [Pa]."""
+    pressures = []
+    for leak in found:
+        p = float(signatures.nominal_pressure[signatures.locations.index(leak.location)])
+        if not math.isfinite(p) or p <= 0:
+            p = reference.supply_pressure
+        pressures.append(p if math.isfinite(p) and p > 0 else 6.0e5)
+    return pressures
+
+
+def _locate_and_cost(
+    reference: ReferenceModel,
+    observed: FloatArray,
+    n_cycles: int,
+    settings: CostSettings,
+    localisation_settings: LocalisationSettings,
+    notes: list[str],
+) -> tuple[Localisation | None, list[CostedLeak], float]:
+    """Location, size and cost of the leaks behind a detected deviation."""
+    effects = reference.leak_effects()
+    if effects is None:
+        notes.append(
+            "leak detected but the reference holds no leak signatures: location and size "
+            "cannot be estimated (rebuild the reference with signatures; recordings "
+            "without a machine description need --machine DESCRIPTION)"
+        )
+        return None, [], 0.0
+    sig = effects.signatures
+    localisation = locate(observed, effects, whitener(reference, n_cycles), localisation_settings)
+    if not localisation.leaks:
+        notes.append("leak detected but no combination of leak signatures explains it")
+    if localisation.simulated:
+        notes.append(
+            "the leak signatures alone did not explain this run (leaks that interact, "
+            "typically two large ones): locations and sizes were checked by simulating "
+            "the best explanations with the digital twin"
+        )
+    found = localisation.leaks
+    leaks, total = cost_leaks(
+        [leak.location for leak in found],
+        [leak.mass_flow for leak in found],
+        _nominal_pressures(reference, sig, found),
+        [leak.confidence for leak in found],
+        [leak.ambiguity_group for leak in found],
+        settings,
+        _average_flows(sig, found),
+    )
+    if found and sig.mean_flow is None:
+        notes.append(
+            "the reference holds no mean leak flows per cycle: costs assume the leaks blow "
+            "continuously at their nominal flow (an upper bound for leaks on actuator "
+            "lines; rebuild the reference with signatures)"
+        )
+    if localisation.explained < 0.5:
+        notes.append(
+            f"the leak model explains only {100 * localisation.explained:.0f} % of the "
+            "deviation: another fault (or a leak outside the candidate locations) may be "
+            "present"
+        )
+    return localisation, leaks, total
+
+
 def diagnose(
     reference: ReferenceModel,
     run: StepTable,
     settings: CostSettings | None = None,
-    max_leaks: int = 2,
-    simulate_explanations: bool = True,
+    localisation: LocalisationSettings | None = None,
 ) -> Diagnosis:
     """Detect, locate, size and cost leaks in ``run`` against ``reference``.
 
@@ -232,14 +312,10 @@ def diagnose(
         Complete cycles of the run to judge (10 make a run in the acceptance tests).
     settings : CostSettings, optional
         Economic inputs of eq. 1.1.
-    max_leaks : int
-        Largest number of simultaneous leaks considered.
-    simulate_explanations : bool
-        When the leak signatures do not explain the run to noise level (typically two
-        large leaks, whose effects are far from additive), simulate the best
-        explanations with the digital twin and choose among them
-        (:mod:`pneufdd.diagnosis.verify`); a few seconds more. Needs a machine the
-        simulator knows; skipped otherwise.
+    localisation : LocalisationSettings, optional
+        Overrides the reference's localisation settings (e.g. ``max_leaks``, or
+        ``simulate_explanations=False`` to skip the check by simulation of the best
+        explanations when the signatures do not explain the run).
 
     Returns
     -------
@@ -266,77 +342,13 @@ def diagnose(
         band_alarms = int(np.sum(band_fraction > band.alarm_fraction))
     observed = np.asarray(np.mean(X, axis=0) - det.mean_, dtype=np.float64)
     notes: list[str] = []
-    localisation = None
+    found: Localisation | None = None
     leaks: list[CostedLeak] = []
     total = 0.0
     if detected:
-        sig = reference.signatures
-        if sig is None:
-            notes.append(
-                "leak detected but the reference holds no leak signatures: location and "
-                "size cannot be estimated (rebuild the reference with signatures)"
-            )
-        else:
-            gain = 1.0 / math.sqrt(1.0 / m + 1.0 / reference.n_cycles)
-
-            def whiten(delta: FloatArray) -> FloatArray:
-                return det.project(np.atleast_2d(delta) / det.scale_) * gain
-
-            simulate = None
-            if simulate_explanations:
-                simulate = _simulated_effect(reference, whiten)
-            localisation = locate(observed, sig, whiten, max_leaks=max_leaks, simulate=simulate)
-            if not localisation.leaks:
-                notes.append("leak detected but no combination of leak signatures explains it")
-            if localisation.simulated:
-                notes.append(
-                    "the leak signatures alone did not explain this run (leaks that "
-                    "interact, typically two large ones): locations and sizes were "
-                    "checked by simulating the best explanations with the digital twin"
-                )
-            pressures = []
-            averages: list[float | None] = []
-            for leak in localisation.leaks:
-                averages.append(
-                    sig.average_flow(sig.locations.index(leak.location), leak.mass_flow)
-                )
-                p = float(sig.nominal_pressure[sig.locations.index(leak.location)])
-                if not math.isfinite(p) or p <= 0:
-                    p = reference.supply_pressure
-                pressures.append(p if math.isfinite(p) and p > 0 else 6.0e5)
-            found = localisation.leaks
-            if len(found) == 2 and sum(leak.location == "supply" for leak in found) == 1:
-                # a line leak next to a supply leak blows from a lower pressure
-                line_leak = next(leak for leak in found if leak.location != "supply")
-                supply_leak = next(leak for leak in found if leak.location == "supply")
-                both = sig.average_flows_with_supply(
-                    sig.locations.index(line_leak.location),
-                    line_leak.mass_flow,
-                    supply_leak.mass_flow,
-                )
-                if both is not None:
-                    averages = [both[0] if leak is line_leak else both[1] for leak in found]
-            leaks, total = cost_leaks(
-                [leak.location for leak in localisation.leaks],
-                [leak.mass_flow for leak in localisation.leaks],
-                pressures,
-                [leak.confidence for leak in localisation.leaks],
-                [leak.ambiguity_group for leak in localisation.leaks],
-                settings,
-                averages,
-            )
-            if localisation.leaks and sig.mean_flow is None:
-                notes.append(
-                    "the reference holds no mean leak flows per cycle: costs assume the "
-                    "leaks blow continuously at their nominal flow (an upper bound for "
-                    "leaks on actuator lines; rebuild the reference with signatures)"
-                )
-            if localisation.explained < 0.5:
-                notes.append(
-                    f"the leak model explains only {100 * localisation.explained:.0f} % of the "
-                    "deviation: another fault (or a leak outside the candidate locations) "
-                    "may be present"
-                )
+        found, leaks, total = _locate_and_cost(
+            reference, observed, m, settings, localisation or reference.localisation, notes
+        )
     return Diagnosis(
         detected=bool(detected),
         cycles_analyzed=int(m),
@@ -350,7 +362,7 @@ def diagnose(
         band_alarms=band_alarms,
         leaks=leaks,
         total_annual_cost=total,
-        localisation=localisation,
+        localisation=found,
         observed_change=observed,
         settings=settings,
         notes=notes,

@@ -1,8 +1,9 @@
 """File-level pipeline: recordings -> reference model; recording -> diagnosis.
 
-Used by the ``pneufdd reference build`` and ``pneufdd diagnose`` commands and by the
-demo. Errors name the file and the problem: another machine, a missing channel, too
-few complete cycles.
+Used by :class:`pneufdd.LeakDiagnoser`, the ``pneufdd reference build`` and
+``pneufdd diagnose`` commands and the demo. Errors name the file and the problem:
+another machine, PLC channels that do not match the machine description, a missing
+channel, too few complete cycles.
 """
 
 from __future__ import annotations
@@ -12,10 +13,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rich.progress import Progress
 
-from pneufdd.diagnosis.adapter import (
-    machine_name,
+from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.localisation import LocalisationSettings
+from pneufdd.diagnosis.machine import (
+    MachineLike,
+    check_plc_channels,
+    recording_machine_name,
+    resolve_machine,
+)
+from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
+from pneufdd.diagnosis.step_summaries import (
     machine_sequence,
     segment_cycles,
     sequence_from_records,
@@ -23,18 +32,12 @@ from pneufdd.diagnosis.adapter import (
     step_table,
     trace_offsets,
 )
-from pneufdd.diagnosis.cost import CostSettings
-from pneufdd.diagnosis.engine import Diagnosis, diagnose
-from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
-from pneufdd.diagnosis.simulated import (
-    SIGNATURE_SIZES_SLPM,
-    candidate_locations,
-    compute_signatures,
-)
 from pneufdd.diagnosis.steps import StepTable
+from pneufdd.diagnosis.twin_effects import SIGNATURE_SIZES_SLPM, compute_signatures
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
+from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
-from pneufdd.signals.segmentation import Cycle, StepSpec
+from pneufdd.signals.segmentation import Cycle
 
 __all__ = [
     "build_reference",
@@ -66,19 +69,19 @@ def parse_channels(text: str | None) -> tuple[str, ...] | None:
     return names
 
 
-def _read(path: Path) -> Recording:
-    return Recording.read(path)
-
-
 def build_reference_from_recordings(
     recordings: Sequence[Recording],
     channels: Sequence[str] | None = None,
     names: Sequence[str] | None = None,
+    *,
+    machine: MachineLike | None = None,
     with_signatures: bool = True,
     signature_cycles: int = 2,
-    settings: DetectionSettings | None = None,
-    progress: Progress | None = None,
     signature_sizes: Sequence[float] | None = None,
+    settings: DetectionSettings | None = None,
+    localisation: LocalisationSettings | None = None,
+    progress: Progress | None = None,
+    workers: int | None = None,
 ) -> ReferenceModel:
     """Build a reference model from leak-free recordings already in memory.
 
@@ -90,17 +93,27 @@ def build_reference_from_recordings(
         Analog channels of the sensor set (None: all; empty: digital only).
     names : sequence of str, optional
         Names of the recordings (files) for messages and the reference's sources.
+    machine : str, Path, MachineDescription or mapping, optional
+        The machine's description (a built-in name is a shorthand for its
+        description); needed for recordings that carry none (CSV, TDMS), and
+        overrides the one simulated recordings carry. Its PLC channels must be the
+        recordings'.
     with_signatures : bool
-        Compute leak signatures with the simulator.
+        Compute leak signatures with the machine's digital twin (needs a
+        description).
     signature_cycles : int
         Simulated cycles per signature point.
-    settings : DetectionSettings, optional
-        Detector tuning.
-    progress : rich Progress, optional
-        Progress display.
     signature_sizes : sequence of float, optional
         Signature ladder [SLPM at nominal supply pressure]; the default ladder of
-        :mod:`pneufdd.diagnosis.simulated` when omitted.
+        :mod:`pneufdd.diagnosis.twin_effects` when omitted.
+    settings : DetectionSettings, optional
+        Detector tuning.
+    localisation : LocalisationSettings, optional
+        Tuning of leak location and sizing, stored with the reference.
+    progress : callable, optional
+        ``progress(task, done, total)`` (:mod:`pneufdd.progress`).
+    workers : int, optional
+        Processes simulating signatures in parallel (default: one per CPU).
 
     Returns
     -------
@@ -111,15 +124,7 @@ def build_reference_from_recordings(
     labels = (
         list(names) if names is not None else [f"recording {i + 1}" for i in range(len(recordings))]
     )
-    machines = [machine_name(r, where) for r, where in zip(recordings, labels, strict=True)]
-    if len(set(machines)) > 1:
-        raise MachineError(
-            describe(
-                "machines of the reference recordings",
-                dict(zip(labels, machines, strict=True)),
-                "one machine",
-            )
-        )
+    machine_name, description = resolve_machine(recordings, labels, machine)
     first = recordings[0]
     analog = tuple(first.analog_channels) if channels is None else tuple(channels)
     for rec, where in zip(recordings, labels, strict=True):
@@ -129,77 +134,69 @@ def build_reference_from_recordings(
                 f"{where} lacks analog channel(s) {missing} of the requested sensor set; "
                 f"it has {list(rec.analog_channels)}"
             )
-    task = progress.add_task("segmenting reference", total=len(recordings)) if progress else None
+    advance = counter(progress, "segmenting reference", len(recordings))
     # from the machine description when there is one, else learned from the first
-    sequence: tuple[StepSpec, ...] | None = machine_sequence(first, machines[0])
+    sequence = machine_sequence(description)
     all_cycles: list[list[Cycle]] = []
     for rec, where in zip(recordings, labels, strict=True):
         cycles, sequence, _ = segment_cycles(rec, sequence, where)
         all_cycles.append(cycles)
-        if progress is not None and task is not None:
-            progress.advance(task)
-    assert sequence is not None
+        advance()
+    if sequence is None:  # pragma: no cover - segment_cycles always returns one
+        raise InputError(describe("PLC sequence", None, "a sequence"))
     # each step's template length: the median over recordings of its median length
     lengths = np.stack([np.diff(trace_offsets(c, TRACE_RATE_HZ)) for c in all_cycles])
     offsets = np.concatenate([[0], np.cumsum(np.median(lengths, axis=0).round().astype(np.int64))])
     tables = [
-        step_table(rec, cycles, machines[0], analog, offsets if analog else None, TRACE_RATE_HZ)
+        step_table(rec, cycles, machine_name, analog, offsets if analog else None, TRACE_RATE_HZ)
         for rec, cycles in zip(recordings, all_cycles, strict=True)
     ]
     table = StepTable.concatenate(tables)
     signatures = None
-    if with_signatures:
-        try:
-            candidate_locations(machines[0])
-        except InputError:
-            with_signatures = False  # the simulator does not know this machine
-    if with_signatures:
+    if with_signatures and description is not None:
         signatures = compute_signatures(
-            machines[0],
+            description,
             table.feature_names(),
             sequence=sequence,
             cycles=signature_cycles,
             channels=analog,
             sizes_slpm=SIGNATURE_SIZES_SLPM if signature_sizes is None else signature_sizes,
             progress=progress,
+            workers=workers,
         )
-    meta = first.metadata.get("machine")
-    description: dict[str, Any] = dict(meta) if isinstance(meta, dict) else {"name": machines[0]}
     return ReferenceModel.build(
         table,
-        machine_description=description,
+        machine_description=None if description is None else description.raw,
         signatures=signatures,
         settings=settings,
         sources=labels,
         sequence=sequence_to_records(sequence),
+        localisation=localisation,
     )
 
 
 def build_reference(
     paths: Sequence[Path],
     channels: Sequence[str] | None = None,
-    with_signatures: bool = True,
-    signature_cycles: int = 2,
-    settings: DetectionSettings | None = None,
+    *,
     progress: Progress | None = None,
-    signature_sizes: Sequence[float] | None = None,
+    **options: Any,
 ) -> ReferenceModel:
-    """Read leak-free recordings from ``paths`` and build a reference model."""
-    task = progress.add_task("reading recordings", total=len(paths)) if progress else None
+    """Read leak-free recordings from ``paths`` and build a reference model.
+
+    ``options`` are those of :func:`build_reference_from_recordings`.
+    """
+    advance = counter(progress, "reading recordings", len(paths))
     recordings = []
     for path in paths:
-        recordings.append(_read(Path(path)))
-        if progress is not None and task is not None:
-            progress.advance(task)
+        recordings.append(Recording.read(Path(path)))
+        advance()
     return build_reference_from_recordings(
         recordings,
         channels,
         [str(p) for p in paths],
-        with_signatures,
-        signature_cycles,
-        settings,
-        progress,
-        signature_sizes,
+        progress=progress,
+        **options,
     )
 
 
@@ -209,16 +206,19 @@ def run_table(model: ReferenceModel, recording: Recording, where: str = "run") -
     Raises
     ------
     MachineError
-        If the run comes from another machine.
+        If the run names another machine.
     ChannelError
-        If the run lacks a channel of the reference's sensor set or sequence.
+        If the run's PLC channels are not those of the reference's machine
+        description, or it lacks a channel of the reference's sensor set.
     """
-    machine = machine_name(recording, where)
-    if machine != model.machine:
+    name = recording_machine_name(recording)
+    if name is not None and name != model.machine:
         raise MachineError(
-            describe(f"machine of {where}", machine, [model.machine])
+            describe(f"machine of {where}", name, [model.machine])
             + " (the reference was built for another machine)"
         )
+    if model.description is not None:
+        check_plc_channels(recording, model.description, where)
     sequence = sequence_from_records(model.sequence) if model.sequence else None
     needed = list(model.channels)
     if sequence:
@@ -231,7 +231,7 @@ def run_table(model: ReferenceModel, recording: Recording, where: str = "run") -
         )
     cycles, _, _ = segment_cycles(recording, sequence, where)
     return step_table(
-        recording, cycles, machine, model.channels, model.trace_offsets, model.trace_rate_hz
+        recording, cycles, model.machine, model.channels, model.trace_offsets, model.trace_rate_hz
     )
 
 
@@ -239,27 +239,19 @@ def diagnose_recording(
     model: ReferenceModel,
     path: Path | Recording,
     settings: CostSettings | None = None,
-    max_leaks: int = 2,
     progress: Progress | None = None,
-    simulate_explanations: bool = True,
+    localisation: LocalisationSettings | None = None,
 ) -> tuple[StepTable, Diagnosis]:
     """Read (if a path), segment and diagnose one run against ``model``.
 
-    ``simulate_explanations`` is passed to :func:`~pneufdd.diagnosis.engine.diagnose`.
+    ``localisation`` overrides the reference's localisation settings.
     """
-    task = progress.add_task("diagnosing", total=3) if progress else None
-
-    def step() -> None:
-        if progress is not None and task is not None:
-            progress.advance(task)
-
-    recording = path if isinstance(path, Recording) else _read(Path(path))
+    advance = counter(progress, "diagnosing", 3)
+    recording = path if isinstance(path, Recording) else Recording.read(Path(path))
     where = "run" if isinstance(path, Recording) else str(path)
-    step()
+    advance()
     table = run_table(model, recording, where)
-    step()
-    result = diagnose(
-        model, table, settings, max_leaks=max_leaks, simulate_explanations=simulate_explanations
-    )
-    step()
+    advance()
+    result = diagnose(model, table, settings, localisation)
+    advance()
     return table, result

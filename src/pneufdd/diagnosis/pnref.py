@@ -6,9 +6,11 @@ Layout (format ``pneufdd-reference``, version :data:`FORMAT_VERSION`):
 entry                  content
 =====================  ===========================================================
 ``header``             0-d unicode array holding a JSON object: format, version,
-                       machine, machine description, channels, units, n_steps,
-                       n_cycles, feature names, detection settings, sources,
-                       supply pressure, trace rate, signature locations
+                       machine, machine description (the TOML mapping of
+                       docs/machine-format.md, or null), channels, units, n_steps,
+                       n_cycles, feature names, detection settings, localisation
+                       settings, sources, supply pressure, trace rate, signature
+                       locations, PLC sequence
 ``features``           (n_cycles, n_features) float64 reference feature vectors
 ``band_mean``          (n_channels, n_samples) float64, optional
 ``band_std``           (n_channels, n_samples) float64, optional
@@ -26,8 +28,10 @@ entry                  content
 
 Version history: 1 (issue 5); 2 adds ``sig_mean_flow`` and
 ``sig_mean_flow_interaction`` (a leak is priced by the air it loses over a cycle, not
-by its flow while its line is pressurised). A file of another version is refused with
-a message asking to rebuild the reference.
+by its flow while its line is pressurised); 3 holds the machine description itself
+(signatures, the simulation check and the cost duties come from it, never from a
+machine looked up by name) and the localisation settings. A file of another version
+is refused with a message asking to rebuild the reference.
 
 The file is written to a temporary name and renamed into place; it is read with
 ``allow_pickle=False`` and every entry's presence, dtype and shape is checked.
@@ -46,6 +50,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.diagnosis.localisation import LocalisationSettings
 from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.errors import (
@@ -59,7 +64,7 @@ from pneufdd.errors import (
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
 
 FORMAT_NAME = "pneufdd-reference"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 
 
 def _header(model: ReferenceModel) -> dict[str, Any]:
@@ -68,17 +73,18 @@ def _header(model: ReferenceModel) -> dict[str, Any]:
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "machine": model.machine,
-        "machine_description": model.machine_description,
+        "machine_description": model.machine_description or None,
         "channels": list(model.channels),
         "units": list(model.units),
         "n_steps": model.n_steps,
         "n_cycles": model.n_cycles,
         "feature_names": list(model.feature_names),
         "settings": model.settings.to_dict(),
+        "localisation": model.localisation.to_dict(),
         "sources": list(model.sources),
         "supply_pressure": None if math.isnan(model.supply_pressure) else model.supply_pressure,
         "trace_rate_hz": model.trace_rate_hz,
-        "signature_locations": None if sig is None else list(sig.locations),
+        "signature_locations": None if sig is None else [str(x) for x in sig.locations],
         "sequence": list(model.sequence),
     }
 
@@ -202,7 +208,8 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                         f"version {FORMAT_VERSION} (the version this pneufdd reads)",
                     )
                     + "; rebuild the reference with 'pneufdd reference build' from its "
-                    "leak-free recordings"
+                    "leak-free recordings (add --machine DESCRIPTION when they carry no "
+                    "machine description)"
                 )
             try:
                 channels = tuple(str(c) for c in header["channels"])
@@ -211,6 +218,10 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 n_cycles = int(header["n_cycles"])
                 names = tuple(str(n) for n in header["feature_names"])
                 settings = DetectionSettings.from_dict(header["settings"])
+                localisation = LocalisationSettings.from_dict(header["localisation"])
+                description = header["machine_description"]
+                if description is not None and not isinstance(description, dict):
+                    raise TypeError("machine_description is not a table")
                 machine = str(header["machine"])
                 rate = float(header["trace_rate_hz"])
             except (KeyError, TypeError, ValueError) as exc:
@@ -256,7 +267,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
             supply = header.get("supply_pressure")
             model = ReferenceModel(
                 machine=machine,
-                machine_description=dict(header.get("machine_description") or {}),
+                machine_description=dict(description or {}),
                 channels=channels,
                 units=units,
                 n_steps=n_steps,
@@ -270,6 +281,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 settings=settings,
                 sources=tuple(str(s) for s in header.get("sources", [])),
                 sequence=tuple(dict(step) for step in header.get("sequence", [])),
+                localisation=localisation,
             )
     except FileFormatError:
         raise

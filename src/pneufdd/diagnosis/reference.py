@@ -8,8 +8,12 @@ It holds what section 5.3 compares new cycles against:
   of each analog channel over each step) from which the detectors of
   :mod:`pneufdd.diagnosis.statistic` are fitted (deterministically, so they are refit
   on load rather than stored);
-- the machine's name and description, and the sensor set (analog channels used; the
-  PLC's digital signals are always used, for segmentation and step timing);
+- the machine's name and **description** (the TOML mapping of
+  ``docs/machine-format.md``): its digital twin computes the leak signatures, checks
+  explanations by simulation and gives the leaks' duty for their cost, so a
+  reference of any machine a user can describe locates and sizes its leaks;
+- the sensor set (analog channels used; the PLC's digital signals are always used,
+  for segmentation and step timing);
 - optionally the leak signatures of every candidate location
   (:class:`~pneufdd.diagnosis.signatures.SignatureSet`), computed once per machine and
   sensor set.
@@ -21,7 +25,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -29,10 +33,14 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.diagnosis.band import BandDetector
+from pneufdd.diagnosis.effects import LeakEffectModel
+from pneufdd.diagnosis.localisation import LocalisationSettings
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.statistic import CycleDistanceDetector
+from pneufdd.diagnosis.step_summaries import sequence_from_records
 from pneufdd.diagnosis.steps import StepTable, feature_floor, feature_names
-from pneufdd.errors import InputError, describe
+from pneufdd.errors import InputError, MachineError, describe
+from pneufdd.sim import MachineDescription, parse_description
 
 __all__ = ["MIN_REFERENCE_CYCLES", "DetectionSettings", "ReferenceModel"]
 
@@ -90,9 +98,11 @@ class ReferenceModel:
     Attributes
     ----------
     machine : str
-        Machine name (from the recordings' metadata).
+        Machine name.
     machine_description : dict
-        JSON-compatible machine description, as the recordings carry it.
+        The machine description the reference was built with: the TOML mapping of
+        ``docs/machine-format.md`` (JSON-compatible); empty when none was known
+        (then nothing can be located or sized). See :attr:`description`.
     channels : tuple of str
         Analog channels of the sensor set (empty: digital signals only).
     units : tuple of str
@@ -119,6 +129,8 @@ class ReferenceModel:
         The machine's PLC step sequence as JSON-compatible records
         ``{"valves": [...], "switches": [[channel, state], ...]}``, used to segment runs
         exactly as the reference was segmented (empty: learn it from each run).
+    localisation : LocalisationSettings
+        Tuning of leak location and sizing.
     """
 
     machine: str
@@ -136,6 +148,7 @@ class ReferenceModel:
     settings: DetectionSettings = field(default_factory=DetectionSettings)
     sources: tuple[str, ...] = ()
     sequence: tuple[dict[str, Any], ...] = ()
+    localisation: LocalisationSettings = field(default_factory=LocalisationSettings)
 
     def __post_init__(self) -> None:
         feats = np.asarray(self.features, dtype=np.float64)
@@ -161,6 +174,13 @@ class ReferenceModel:
             raise InputError(
                 describe("signature features", "a different feature set", "the reference's")
             )
+        description = self.description  # validates the description (cached)
+        if description is not None and description.name != self.machine:
+            raise MachineError(
+                describe(
+                    "name in the reference's machine description", description.name, [self.machine]
+                )
+            )
         object.__setattr__(self, "features", feats)
         object.__setattr__(self, "channels", tuple(self.channels))
         object.__setattr__(self, "units", tuple(self.units))
@@ -176,6 +196,7 @@ class ReferenceModel:
         settings: DetectionSettings | None = None,
         sources: Sequence[str] = (),
         sequence: Sequence[Mapping[str, Any]] = (),
+        localisation: LocalisationSettings | None = None,
     ) -> ReferenceModel:
         """Build a reference from the step table of leak-free cycles.
 
@@ -184,7 +205,7 @@ class ReferenceModel:
         table : StepTable
             Leak-free cycles; at least :data:`MIN_REFERENCE_CYCLES`.
         machine_description : mapping, optional
-            JSON-compatible description of the machine.
+            The machine description (TOML mapping, ``MachineDescription.raw``).
         channels : sequence of str, optional
             Analog channels to keep (all of the table's by default; empty for the
             PLC's digital signals only).
@@ -196,6 +217,8 @@ class ReferenceModel:
             Names of the recordings used.
         sequence : sequence of mapping
             The PLC step sequence (see :attr:`sequence`).
+        localisation : LocalisationSettings, optional
+            Tuning of leak location and sizing.
 
         Returns
         -------
@@ -237,6 +260,7 @@ class ReferenceModel:
             settings=settings or DetectionSettings(),
             sources=tuple(sources),
             sequence=tuple(dict(step) for step in sequence),
+            localisation=localisation or LocalisationSettings(),
         )
 
     # ----------------------------------------------------------- derived
@@ -257,6 +281,28 @@ class ReferenceModel:
         for unit in self.units:
             units.extend([unit] * (3 * self.n_steps))
         return tuple(units)
+
+    @cached_property
+    def description(self) -> MachineDescription | None:
+        """The machine description, parsed and validated; None when there is none."""
+        if not self.machine_description:
+            return None
+        return parse_description(
+            self.machine_description, f"machine description of reference {self.machine!r}"
+        )
+
+    def leak_effects(self, simulation_cycles: int = 2) -> LeakEffectModel | None:
+        """The leak-effect model of this machine and sensor set; None without signatures.
+
+        Its signatures are :attr:`signatures`; its simulations run the digital twin of
+        :attr:`description` (none without a description or a PLC sequence).
+        """
+        if self.signatures is None:
+            return None
+        sequence = sequence_from_records(self.sequence) if self.sequence else ()
+        return LeakEffectModel.from_description(
+            self.signatures, self.description, sequence, self.channels, simulation_cycles
+        )
 
     @cached_property
     def detector(self) -> CycleDistanceDetector:
@@ -289,20 +335,6 @@ class ReferenceModel:
 
     def with_signatures(self, signatures: SignatureSet | None) -> ReferenceModel:
         """A copy with ``signatures`` (restricted to this reference's features)."""
-        return ReferenceModel(
-            machine=self.machine,
-            machine_description=self.machine_description,
-            channels=self.channels,
-            units=self.units,
-            n_steps=self.n_steps,
-            features=self.features,
-            band_mean=self.band_mean,
-            band_std=self.band_std,
-            trace_offsets=self.trace_offsets,
-            trace_rate_hz=self.trace_rate_hz,
-            supply_pressure=self.supply_pressure,
-            signatures=None if signatures is None else signatures.select(self.feature_names),
-            settings=self.settings,
-            sources=self.sources,
-            sequence=self.sequence,
+        return replace(
+            self, signatures=None if signatures is None else signatures.select(self.feature_names)
         )

@@ -11,18 +11,21 @@ linear in the size (the flow meters saturate, leaks slow actuators), so the effe
 any size is interpolated piecewise linearly through the computed sizes and the origin.
 
 Signatures are computed once per machine and sensor set, with the simulator (see
-:mod:`pneufdd.diagnosis.simulated`), and stored in the reference file.
+:mod:`pneufdd.diagnosis.twin_effects`), and stored in the reference file.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.diagnosis.piecewise import PiecewiseLinear
 from pneufdd.errors import InputError, describe
+from pneufdd.location import SUPPLY, Location
 
 __all__ = ["SignatureSet"]
 
@@ -35,8 +38,9 @@ class SignatureSet:
 
     Attributes
     ----------
-    locations : tuple of str
-        Candidate locations: ``supply``, ``<ACT>_A``, ``<ACT>_B``.
+    locations : tuple of Location
+        Candidate locations: ``supply``, ``<ACT>_A``, ``<ACT>_B`` (names are accepted
+        and parsed).
     sizes : ndarray, shape (n_locations, n_sizes)
         Leak sizes simulated, as the leak's mass flow at its nominal pressure,
         increasing along each row [kg/s].
@@ -79,7 +83,7 @@ class SignatureSet:
     [7.0, 40.0]
     """
 
-    locations: tuple[str, ...]
+    locations: tuple[Location, ...]
     sizes: FloatArray
     deltas: FloatArray
     feature_names: tuple[str, ...]
@@ -90,14 +94,18 @@ class SignatureSet:
     mean_flow_interaction: FloatArray | None = None
 
     def __post_init__(self) -> None:
-        locations = tuple(self.locations)
+        locations = tuple(
+            loc if isinstance(loc, Location) else Location.parse(loc) for loc in self.locations
+        )
         sizes = np.asarray(self.sizes, dtype=np.float64)
         deltas = np.asarray(self.deltas, dtype=np.float64)
         pressure = np.asarray(self.nominal_pressure, dtype=np.float64)
         names = tuple(self.feature_names)
         n_loc = len(locations)
         if len(set(locations)) != n_loc or n_loc == 0:
-            raise InputError(describe("signature locations", locations, "unique, at least one"))
+            raise InputError(
+                describe("signature locations", [str(x) for x in locations], "unique, at least one")
+            )
         if sizes.ndim != 2 or sizes.shape[0] != n_loc or sizes.shape[1] < 1:
             raise InputError(describe("shape of signature sizes", sizes.shape, f"({n_loc}, >=1)"))
         if not np.all(np.isfinite(sizes)) or np.any(sizes <= 0) or np.any(np.diff(sizes) <= 0):
@@ -177,12 +185,12 @@ class SignatureSet:
         ndarray, shape (n_features,)
             Feature change [feature unit].
         """
-        size = max(float(size), 0.0)
-        knots = np.concatenate([[0.0], self.sizes[location]])
-        values = np.concatenate([np.zeros((1, self.n_features)), self.deltas[location]])
-        k = min(int(np.searchsorted(knots, size, side="right")) - 1, knots.size - 2)
-        w = (size - knots[k]) / (knots[k + 1] - knots[k])
-        return np.asarray((1.0 - w) * values[k] + w * values[k + 1], dtype=np.float64)
+        return self.piecewise(location, size)
+
+    @cached_property
+    def piecewise(self) -> PiecewiseLinear:
+        """The signatures as one :class:`PiecewiseLinear` function per location."""
+        return PiecewiseLinear(self.sizes, self.deltas)
 
     def slope(self, location: int, size: float | None = None) -> FloatArray:
         """Secant signature per unit size, ``effect(size) / size`` [feature unit per kg/s].
@@ -294,10 +302,10 @@ class SignatureSet:
         if (
             self.mean_flow_interaction is None
             or self.interaction_sizes is None
-            or "supply" not in self.locations
+            or SUPPLY not in self.locations
         ):
             return None
-        supply = self.locations.index("supply")
+        supply = self.locations.index(SUPPLY)
         line_alone = self.average_flow(line, line_size)
         supply_alone = self.average_flow(supply, supply_size)
         if line_alone is None or supply_alone is None:

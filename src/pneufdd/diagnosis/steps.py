@@ -9,7 +9,7 @@ section 5.3.1.1 (Figs. 5.6 -> 5.7): step ``j`` of any cycle is comparable with s
 
 The diagnosis engine only ever sees step tables; turning a
 :class:`~pneufdd.recording.Recording` into one is the job of a thin adapter
-(:mod:`pneufdd.diagnosis.adapter`) over the segmentation of :mod:`pneufdd.signals`.
+(:mod:`pneufdd.diagnosis.step_summaries`) over the segmentation of :mod:`pneufdd.signals`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Check the best leak explanations by simulating them (analysis by synthesis).
 
-The signature model of :mod:`pneufdd.diagnosis.fingerprint` interpolates single-leak
+The signature model of :mod:`pneufdd.diagnosis.localisation` interpolates single-leak
 effects and adds a bilinear interaction measured at one pair of sizes. Two large
 leaks together break it: a supply drawn down by one leak changes how every other
 line fills, exhausts and times out, so the effects are far from additive (on

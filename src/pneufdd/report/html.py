@@ -163,7 +163,7 @@ def _leak_table(diagnosis: Diagnosis) -> str:
         return "<p>No leak located.</p>"
     rows = []
     for i, leak in enumerate(diagnosis.leaks, start=1):
-        group = ", ".join(leak.ambiguity_group)
+        group = ", ".join(str(x) for x in leak.ambiguity_group)
         rows.append(
             "<tr>"
             f"<td>{i}</td><td class='l'>{_e(leak.location)}</td><td class='l'>{_e(group)}</td>"
@@ -174,7 +174,7 @@ def _leak_table(diagnosis: Diagnosis) -> str:
         )
     s = diagnosis.settings
     continuous = [
-        leak.location for leak in diagnosis.leaks if leak.cost_basis != COST_BASIS_AVERAGE
+        str(leak.location) for leak in diagnosis.leaks if leak.cost_basis != COST_BASIS_AVERAGE
     ]
     basis = (
         "<p><b>Costs assume continuous leakage at the nominal flow</b> for "
@@ -270,7 +270,7 @@ def render_report(
             "<ul>"
             + "".join(
                 f"<li>{_e(leak.location)}: cannot be told apart from "
-                f"{_e(', '.join(leak.ambiguity_group[1:]))} with sensors "
+                f"{_e(', '.join(str(x) for x in leak.ambiguity_group[1:]))} with sensors "
                 f"{_e(', '.join(reference.channels) or 'digital only')}</li>"
                 for leak in ambiguous
             )
@@ -278,6 +278,11 @@ def render_report(
         )
     notes = "".join(f"<p class='note'>{_e(n)}</p>" for n in diagnosis.notes)
     sources = ", ".join(reference.sources) or "n/a"
+    signature_locations = (
+        ", ".join(str(x) for x in reference.signatures.locations)
+        if reference.signatures
+        else "none"
+    )
     meta = (
         "<table>"
         f"<tr><th class='l'>machine</th><td class='l'>{_e(reference.machine)}</td></tr>"
@@ -288,7 +293,7 @@ def render_report(
         f"{_e(', '.join(reference.channels) or 'none')} + PLC digital signals</td></tr>"
         f"<tr><th class='l'>steps per cycle</th><td class='l'>{reference.n_steps}</td></tr>"
         f"<tr><th class='l'>leak signatures</th><td class='l'>"
-        f"{_e(', '.join(reference.signatures.locations)) if reference.signatures else 'none'}"
+        f"{_e(signature_locations)}"
         "</td></tr></table>"
     )
     figures = "".join(_figures(reference, run, diagnosis))

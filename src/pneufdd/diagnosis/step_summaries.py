@@ -1,4 +1,4 @@
-"""Thin adapter: a :class:`~pneufdd.recording.Recording` -> a :class:`StepTable`.
+"""Step summaries: a :class:`~pneufdd.recording.Recording` -> a :class:`StepTable`.
 
 Segmentation into cycles and steps comes from :mod:`pneufdd.signals` (steps start at
 their valve firing, section 5.3.1.1); this module only slices each analog channel
@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.diagnosis.steps import StepTable
-from pneufdd.errors import InputError, describe
+from pneufdd.errors import NoCompleteCycleError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.filtering import fill_gaps
 from pneufdd.signals.segmentation import (
@@ -25,12 +25,11 @@ from pneufdd.signals.segmentation import (
     learn_sequence,
     segment,
     sequence_from_machine,
-    sequence_from_metadata,
 )
 from pneufdd.signals.synchronisation import sample_bounds
+from pneufdd.sim import MachineDescription
 
 __all__ = [
-    "machine_name",
     "machine_sequence",
     "segment_cycles",
     "sequence_from_records",
@@ -43,33 +42,13 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 
-def machine_name(recording: Recording, where: str = "recording") -> str:
-    """The machine named in a recording's metadata (``machine``: a name or a description)."""
-    machine = recording.metadata.get("machine")
-    if isinstance(machine, Mapping):
-        machine = machine.get("name")
-    if not isinstance(machine, str) or not machine:
-        raise InputError(describe(f"metadata 'machine' of {where}", machine, "the machine's name"))
-    return machine
+def machine_sequence(machine: MachineDescription | None) -> tuple[StepSpec, ...] | None:
+    """The PLC sequence of a machine description; None without one (then it is learned).
 
-
-def machine_sequence(recording: Recording, machine: str) -> tuple[StepSpec, ...] | None:
-    """The PLC sequence from the machine description, when there is one.
-
-    The description stored in the recording's metadata first, else the simulator's
-    built-in machine of that name; None when neither exists (then the sequence is
-    learned). The description's sequence awaits exactly the switches the PLC waits
-    for, which a slow, leaky actuator still reaches inside its step.
+    The description's sequence awaits exactly the switches the PLC waits for, which a
+    slow, leaky actuator still reaches inside its step.
     """
-    sequence = sequence_from_metadata(recording.metadata)
-    if sequence is not None:
-        return sequence
-    from pneufdd.sim import load_machine
-
-    try:
-        return sequence_from_machine(load_machine(machine))
-    except InputError:
-        return None
+    return None if machine is None else sequence_from_machine(machine)
 
 
 def sequence_to_records(sequence: Sequence[StepSpec]) -> list[dict[str, Any]]:
@@ -101,7 +80,7 @@ def segment_cycles(
 
     Raises
     ------
-    InputError
+    NoCompleteCycleError
         If the recording holds no complete cycle.
     """
     specs = tuple(sequence) if sequence else learn_sequence(recording)
@@ -109,7 +88,7 @@ def segment_cycles(
     cycles = list(seg.complete)
     reasons = [f"cycle {c.index}: {c.reason}" for c in seg.rejected]
     if not cycles:
-        raise InputError(
+        raise NoCompleteCycleError(
             describe(
                 f"complete machine cycles in {where}",
                 0,

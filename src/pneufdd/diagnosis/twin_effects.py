@@ -10,7 +10,11 @@ signature point. Sizes are given as the leak's flow at the machine's nominal sup
 pressure (the ground-truth convention of :mod:`pneufdd.sim`); the stored size is the
 simulator's resolved nominal mass flow.
 
-A leak so large that the machine stalls is retried at a smaller size.
+A leak so large that the machine stalls (or no longer completes a cycle) is retried
+at a smaller size; any other error is an error and propagates.
+
+Everything here is computed from the machine *description* it is given (the one the
+reference carries), never from a machine looked up by name.
 
 The same simulations also give the air each leak really loses: the simulator's
 cumulative leaked mass over the judged cycles divided by their duration (the mean
@@ -27,20 +31,21 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from rich.progress import Progress
 from scipy.integrate import cumulative_trapezoid
 
-from pneufdd.diagnosis.adapter import segment_cycles, step_table
 from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.errors import InputError, describe
+from pneufdd.diagnosis.step_summaries import segment_cycles, step_table
+from pneufdd.errors import InputError, NoCompleteCycleError, describe
+from pneufdd.location import SUPPLY, Location, locations_of
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
+from pneufdd.progress import Progress, counter
 from pneufdd.signals.segmentation import StepSpec
-from pneufdd.sim import MachineStalledError, load_machine, run_simulation
+from pneufdd.sim import MachineDescription, MachineStalledError, run_simulation
 
 __all__ = [
     "SIGNATURE_SEED",
     "SIGNATURE_SIZES_SLPM",
-    "SimulatedLeakEffect",
+    "TwinLeakEffect",
     "candidate_locations",
     "compute_signatures",
     "mean_leak_flow",
@@ -56,10 +61,13 @@ SIGNATURE_SEED = 5_300_001
 """Seed of the signature simulations (section number 5.3 + 1; never used elsewhere)."""
 
 
-def candidate_locations(machine: str) -> tuple[str, ...]:
+MACHINE_CANNOT_RUN = (MachineStalledError, NoCompleteCycleError)
+"""What a leak too large for the machine causes: a stall, or no complete cycle."""
+
+
+def candidate_locations(machine: MachineDescription) -> tuple[Location, ...]:
     """``supply`` and both lines of every actuator of ``machine``."""
-    desc = load_machine(machine)
-    return ("supply", *[f"{a}_{side}" for a in desc.actuator_ids for side in ("A", "B")])
+    return locations_of(machine.actuator_ids)
 
 
 def mean_leak_flow(
@@ -102,29 +110,41 @@ def mean_leak_flow(
     return float((m1 - m0) / (t1 - t0))
 
 
+def _leak_sizes(leaks: Mapping[Location, float]) -> dict[str, str]:
+    """Leaks as the simulator takes them: ``{"DNC_B": "55.0slpm"}`` [SLPM]."""
+    return {str(loc): f"{slpm}slpm" for loc, slpm in leaks.items()}
+
+
 def _mean_features(
-    machine: str,
-    leaks: dict[str, str],
+    machine: MachineDescription,
+    leaks: Mapping[Location, float],
     cycles: int,
     seed: int,
     sequence: Sequence[StepSpec],
     channels: Sequence[str],
     leak_flows: bool = True,
-) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...], dict[str, float]]:
+) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...], dict[Location, float]]:
     """Mean features, leak ground truth, feature names and mean flow of each leak [kg/s].
 
+    ``leaks`` maps each location to its size [SLPM at nominal supply pressure].
     Without ``leak_flows`` the simulator keeps no internal states (faster) and the
     mean flows are not computed (empty dict).
+
+    Raises
+    ------
+    MachineStalledError, NoCompleteCycleError
+        When the machine cannot run with these leaks.
     """
     # the first simulated cycle starts from rest and the last one has no successor to
     # end its last step: segmentation keeps the cycles in between, and the leaked air
     # is averaged over the same inner cycles
+    sizes = _leak_sizes(leaks)
     sim = run_simulation(
-        machine, cycles=cycles + 2, leaks=leaks, seed=seed, keep_outputs=leak_flows
+        machine, cycles=cycles + 2, leaks=sizes, seed=seed, keep_outputs=leak_flows
     )
     rec = sim.recording
-    found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {leaks}")
-    table = step_table(rec, found, machine, channels)
+    found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {sizes}")
+    table = step_table(rec, found, machine.name, channels)
     leaked = {
         loc: mean_leak_flow(
             sim.time,
@@ -143,8 +163,19 @@ def _mean_features(
     )
 
 
+LadderJob = tuple[
+    MachineDescription,
+    Location,
+    tuple[float, ...],
+    int,
+    int,
+    tuple[StepSpec, ...],
+    tuple[str, ...],
+]
+
+
 def _location_ladder(
-    job: tuple[str, str, tuple[float, ...], int, int, tuple[StepSpec, ...], tuple[str, ...]],
+    job: LadderJob,
 ) -> tuple[
     npt.NDArray[np.float64],
     npt.NDArray[np.float64],
@@ -172,15 +203,20 @@ def _location_ladder(
         for _ in range(6):
             try:
                 mean, truth, _, flows = _mean_features(
-                    machine, {loc: f"{trial}slpm"}, cycles, seed, sequence, channels
+                    machine, {loc: trial}, cycles, seed, sequence, channels
                 )
                 leaked[k] = flows[loc]
                 break
-            except (MachineStalledError, InputError):
+            except MACHINE_CANNOT_RUN:
                 trial = previous + 0.6 * (trial - previous)
         else:
             raise InputError(
-                describe(f"leak signature at {loc}", f"{slpm} SLPM", "a size the machine runs")
+                describe(
+                    f"leak signature of machine {machine.name!r} at {loc}",
+                    f"{slpm} SLPM",
+                    "a size the machine runs with (it stalls even at "
+                    f"{trial:.3g} SLPM; give smaller --signature-sizes)",
+                )
             )
         sizes[k] = float(truth[0]["mass_flow_kg_s"])
         pressure = float(truth[0]["at_pressure_pa"])
@@ -188,26 +224,21 @@ def _location_ladder(
         previous = trial
     pair = np.full_like(means[0], np.nan)
     pair_flows = np.full(3, np.nan)
-    if loc != "supply":
+    if not loc.is_supply:
         line, supply = INTERACTION_SIZES_SLPM
         both, _, _, both_flows = _mean_features(
-            machine,
-            {loc: f"{line}slpm", "supply": f"{supply}slpm"},
-            cycles,
-            seed,
-            sequence,
-            channels,
+            machine, {loc: line, SUPPLY: supply}, cycles, seed, sequence, channels
         )
         alone, _, _, alone_flows = _mean_features(
-            machine, {loc: f"{line}slpm"}, cycles, seed, sequence, channels
+            machine, {loc: line}, cycles, seed, sequence, channels
         )
         pair = both - alone
-        pair_flows[:] = (alone_flows[loc], both_flows[loc], both_flows["supply"])
+        pair_flows[:] = (alone_flows[loc], both_flows[loc], both_flows[SUPPLY])
     return sizes, np.stack(means), pressure, pair, leaked, pair_flows
 
 
 def compute_signatures(
-    machine: str,
+    machine: MachineDescription,
     feature_names: Sequence[str],
     sequence: Sequence[StepSpec],
     cycles: int = 2,
@@ -216,14 +247,14 @@ def compute_signatures(
     seed: int = SIGNATURE_SEED,
     progress: Progress | None = None,
     workers: int | None = None,
-    locations: Sequence[str] | None = None,
+    locations: Sequence[Location] | None = None,
 ) -> SignatureSet:
     """Simulate single leaks at every candidate location and size; return the signatures.
 
     Parameters
     ----------
-    machine : str
-        Machine known to the simulator (``pneufdd machines``).
+    machine : MachineDescription
+        The machine's description (its digital twin is simulated).
     feature_names : sequence of str
         Features of the reference the signatures must cover.
     sequence : sequence of StepSpec
@@ -236,49 +267,39 @@ def compute_signatures(
         Leak sizes at nominal supply pressure [SLPM].
     seed : int
         Seed of the simulations.
-    progress : rich Progress, optional
-        Progress display.
+    progress : callable, optional
+        ``progress(task, done, total)`` (:mod:`pneufdd.progress`).
     workers : int, optional
         Processes simulating in parallel (default: one per CPU).
-    locations : sequence of str, optional
+    locations : sequence of Location, optional
         Candidate locations (default: all of the machine's).
 
     Returns
     -------
     SignatureSet
     """
-    try:
-        known = candidate_locations(machine)
-    except InputError as exc:
-        raise InputError(
-            describe("machine for leak signatures", machine, "a machine the simulator knows")
-            + f" ({exc})"
-        ) from exc
-    if locations is None:
-        locations = known
-    unknown = [loc for loc in locations if loc not in known]
+    known = candidate_locations(machine)
+    locations = known if locations is None else tuple(locations)
+    unknown = [str(loc) for loc in locations if loc not in known]
     if unknown:
-        raise InputError(describe(f"leak locations of {machine!r}", unknown, known))
-    locations = tuple(locations)
+        raise InputError(
+            describe(f"leak locations of {machine.name!r}", unknown, [str(k) for k in known])
+        )
     if cycles < 1:
         raise InputError(describe("signature cycles", cycles, ">= 1"))
-    task = (
-        progress.add_task("simulating leak signatures", total=1 + len(locations) * len(sizes_slpm))
-        if progress is not None
-        else None
-    )
-
-    def advance() -> None:
-        if progress is not None and task is not None:
-            progress.advance(task)
-
+    advance = counter(progress, "simulating leak signatures", 1 + len(locations))
     base, _, names, _ = _mean_features(machine, {}, cycles, seed, sequence, channels)
     advance()
     index = {n: i for i, n in enumerate(names)}
     missing = [n for n in feature_names if n not in index]
     if missing:
         raise InputError(
-            describe("reference features the simulator cannot produce", missing[:5], names[:5])
+            describe(
+                f"reference features the twin of {machine.name!r} cannot produce",
+                missing[:5],
+                names[:5],
+            )
+            + " (the recordings and the description differ in steps or channels)"
         )
     cols = np.array([index[n] for n in feature_names], dtype=np.int64)
     sizes = np.zeros((len(locations), len(sizes_slpm)))
@@ -286,7 +307,7 @@ def compute_signatures(
     pressure = np.zeros(len(locations))
     mean_flow = np.zeros((len(locations), len(sizes_slpm)))
     flow_interaction = np.zeros((len(locations), 2))
-    jobs = [
+    jobs: list[LadderJob] = [
         (
             machine,
             loc,
@@ -300,12 +321,7 @@ def compute_signatures(
     ]
     interaction = np.zeros((len(locations), len(feature_names)))
     supply_alone, _, _, supply_alone_flows = _mean_features(
-        machine,
-        {"supply": f"{INTERACTION_SIZES_SLPM[1]}slpm"},
-        cycles,
-        seed,
-        sequence,
-        channels,
+        machine, {SUPPLY: INTERACTION_SIZES_SLPM[1]}, cycles, seed, sequence, channels
     )
     workers = max(1, min(workers or (os.cpu_count() or 1), len(jobs)))
     pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
@@ -314,16 +330,15 @@ def compute_signatures(
         for i, (loc_sizes, loc_means, p, pair, loc_leaked, pair_flows) in enumerate(results):
             sizes[i], deltas[i], pressure[i] = loc_sizes, loc_means[:, cols] - base[cols], p
             mean_flow[i] = loc_leaked
-            if locations[i] != "supply":
+            if not locations[i].is_supply:
                 # M(l+s) - M(l) - M(s) + M(0)
                 interaction[i] = (pair - supply_alone + base)[cols]
                 # each leak's mean flow with the other minus without it
                 flow_interaction[i] = (
                     pair_flows[1] - pair_flows[0],
-                    pair_flows[2] - supply_alone_flows["supply"],
+                    pair_flows[2] - supply_alone_flows[SUPPLY],
                 )
-            for _ in sizes_slpm:
-                advance()
+            advance()
     finally:
         if pool is not None:
             pool.shutdown()
@@ -340,7 +355,7 @@ def compute_signatures(
     )
 
 
-class SimulatedLeakEffect:
+class TwinLeakEffect:
     """Mean feature change of any set of leaks, simulated with the digital twin.
 
     The signatures (:func:`compute_signatures`) hold single leaks on a size ladder and
@@ -353,9 +368,8 @@ class SimulatedLeakEffect:
 
     Parameters
     ----------
-    machine : str
-        Machine known to the simulator (built-in name or TOML path), as for the
-        signatures.
+    machine : MachineDescription
+        The machine's description, as for the signatures.
     feature_names : sequence of str
         Features to return, in this order (a reference's feature names).
     sequence : sequence of StepSpec
@@ -370,7 +384,7 @@ class SimulatedLeakEffect:
 
     def __init__(
         self,
-        machine: str,
+        machine: MachineDescription,
         feature_names: Sequence[str],
         sequence: Sequence[StepSpec],
         channels: Sequence[str],
@@ -390,7 +404,7 @@ class SimulatedLeakEffect:
         self._base: npt.NDArray[np.float64] | None = None
         self._cache: dict[tuple[tuple[str, float], ...], npt.NDArray[np.float64] | None] = {}
 
-    def _features(self, leaks: dict[str, str]) -> npt.NDArray[np.float64]:
+    def _features(self, leaks: Mapping[Location, float]) -> npt.NDArray[np.float64]:
         mean, _, names, _ = _mean_features(
             self.machine, leaks, self.cycles, self.seed, self.sequence, self.channels, False
         )
@@ -405,23 +419,23 @@ class SimulatedLeakEffect:
             self._columns = np.array([index[n] for n in self.feature_names], dtype=np.int64)
         return np.asarray(mean[self._columns], dtype=np.float64)
 
-    def __call__(self, leaks: Mapping[str, float]) -> npt.NDArray[np.float64] | None:
+    def __call__(self, leaks: Mapping[Location, float]) -> npt.NDArray[np.float64] | None:
         """Feature change of ``leaks`` (location -> nominal flow [kg/s]) [feature unit].
 
         Returns None when the machine cannot run with these leaks (it stalls, or a
         cycle does not complete).
         """
         flows = {loc: float(kg_s_to_slpm(size)) for loc, size in leaks.items() if size > 0}
-        key = tuple(sorted((loc, round(slpm, 4)) for loc, slpm in flows.items()))
+        key = tuple(sorted((str(loc), round(slpm, 4)) for loc, slpm in flows.items()))
         if key in self._cache:
             return self._cache[key]
         if self._base is None:
             self._base = self._features({})
         try:
             change: npt.NDArray[np.float64] | None = (
-                self._features({loc: f"{slpm}slpm" for loc, slpm in key}) - self._base
+                self._features({Location.parse(name): slpm for name, slpm in key}) - self._base
             )
-        except (MachineStalledError, InputError):
+        except MACHINE_CANNOT_RUN:
             change = None
         self._cache[key] = change
         return change

@@ -1,11 +1,11 @@
-"""Recording -> StepTable adapter and simulator-computed signatures on festo-dsd."""
+"""Recording -> StepTable summaries and twin-computed signatures on festo-dsd."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pneufdd.diagnosis.adapter import (
+from pneufdd.diagnosis.step_summaries import (
     machine_sequence,
     segment_cycles,
     sequence_from_records,
@@ -13,9 +13,10 @@ from pneufdd.diagnosis.adapter import (
     step_table,
     trace_offsets,
 )
-from pneufdd.diagnosis.simulated import compute_signatures
+from pneufdd.diagnosis.twin_effects import compute_signatures
+from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
-from pneufdd.sim import run_simulation, simulate
+from pneufdd.sim import load_machine, run_simulation, simulate
 
 SEED = 32_000
 
@@ -26,7 +27,7 @@ def recording():
 
 
 def test_machine_sequence_segments_every_inner_cycle(recording):
-    seq = machine_sequence(recording, "festo-dsd")
+    seq = machine_sequence(load_machine("festo-dsd"))
     assert all(spec.valves for spec in seq)
     assert sequence_from_records(sequence_to_records(seq)) == seq
     cycles, _used, rejected = segment_cycles(recording, seq)
@@ -39,7 +40,7 @@ def test_machine_sequence_segments_every_inner_cycle(recording):
 
 
 def test_step_summaries_equal_direct_slicing(recording):
-    seq = machine_sequence(recording, "festo-dsd")
+    seq = machine_sequence(load_machine("festo-dsd"))
     cycles, _, _ = segment_cycles(recording, seq)
     offsets = trace_offsets(cycles, 100.0)
     table = step_table(recording, cycles, "festo-dsd", ["P_In", "Q_DNC_B"], offsets)
@@ -66,17 +67,17 @@ SIG_SIZES_SLPM = (30.0, 55.0)
 def signatures():
     """Simulated signatures of a supply and a DNC_B leak at 30 and 55 SLPM (Q_In only)."""
     rec = simulate("festo-dsd", cycles=3, seed=SEED + 2)
-    seq = machine_sequence(rec, "festo-dsd")
+    seq = machine_sequence(load_machine("festo-dsd"))
     cycles, _, _ = segment_cycles(rec, seq)
     names = step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
     sig = compute_signatures(
-        "festo-dsd",
+        load_machine("festo-dsd"),
         names,
         seq,
         cycles=1,
         channels=["Q_In"],
         sizes_slpm=SIG_SIZES_SLPM,
-        locations=("supply", "DNC_B"),
+        locations=(SUPPLY, Location("DNC", "B")),
         workers=1,
     )
     return sig, len(seq)

@@ -1,0 +1,34 @@
+"""Progress bars for the library's ``progress(task, done, total)`` callbacks (rich)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
+
+from pneufdd.progress import Progress as ProgressCallback
+
+__all__ = ["progress_bars"]
+
+
+@contextmanager
+def progress_bars(console: Console | None = None) -> Iterator[ProgressCallback]:
+    """A rich display with one bar per task; yields the callback to pass to the library."""
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(),
+        console=console or Console(stderr=True),
+        transient=True,
+    ) as bars:
+        tasks: dict[str, TaskID] = {}
+
+        def update(task: str, done: int, total: int) -> None:
+            if task not in tasks:
+                tasks[task] = bars.add_task(task, total=total)
+            bars.update(tasks[task], completed=done, total=total)
+
+        yield update

@@ -1,0 +1,512 @@
+"""Locate and size leaks: a non-negative decomposition into leak effects.
+
+The observed change of the per-step features of a run against the leak-free
+reference, :math:`\\Delta x`, is explained as the vector sum of the effects of one or
+two leaks (eqs. 5.23-5.24, generalised from the 2-D vectorized map to all features):
+
+.. math::
+
+    \\Delta x \\approx \\sum_{l \\in M} e_l(a_l), \\qquad a_l \\ge 0,
+
+where :math:`e_l(a)` is location ``l``'s effect at size ``a``
+(:class:`~pneufdd.diagnosis.effects.LeakEffectModel`). The fit is weighted
+(``whiten``): each feature divided by its reference spread, the house-air
+fluctuation directions projected out (the space of
+:class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`), the residual scaled to
+unit variance for a run mean of ``m`` cycles. Steps:
+
+1. **Signature fits** of every set of one or two locations, exact for the piecewise
+   linear effects (:class:`~pneufdd.diagnosis.piecewise.WhitenedEffects`).
+2. **Interaction**: the best pairs are refit with their bilinear interaction
+   (:meth:`LeakEffectModel.pair_coupling`), so their effects are not taken as additive.
+3. **Model choice** (:func:`~pneufdd.diagnosis.model_choice.choose_leak_count`).
+4. **Check by simulation** (:mod:`pneufdd.diagnosis.verify`): when even that leaves a
+   residual well above the noise (typically two large leaks), the best explanations
+   are simulated with the digital twin and chosen among by their simulated residual.
+5. **Ambiguity groups and confidence**
+   (:func:`~pneufdd.diagnosis.model_choice.ambiguity_group`) and **alternative
+   explanations** (:func:`~pneufdd.diagnosis.model_choice.alternative_explanations`,
+   :func:`~pneufdd.diagnosis.model_choice.both_lines_alternative`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.diagnosis.effects import LeakEffectModel
+from pneufdd.diagnosis.model_choice import (
+    Best,
+    Explanation,
+    Fits,
+    Subset,
+    alternative_explanations,
+    ambiguity_group,
+    both_lines_alternative,
+    choose_leak_count,
+    same_actuator_pair,
+)
+from pneufdd.diagnosis.piecewise import WhitenedEffects
+from pneufdd.diagnosis.verify import SimulatedEffect, refine_by_simulation, verify_explanations
+from pneufdd.errors import InputError, describe
+from pneufdd.location import SUPPLY, Location
+
+__all__ = ["LeakEstimate", "Localisation", "LocalisationSettings", "locate"]
+
+FloatArray = npt.NDArray[np.float64]
+Whitener = Callable[[FloatArray], FloatArray]
+
+
+@dataclass(frozen=True)
+class LocalisationSettings:
+    """Tuning of leak location and sizing, stored with the reference.
+
+    Attributes
+    ----------
+    max_leaks : int
+        Largest number of simultaneous leaks considered (1 or 2) [-].
+    min_relative_gain : float
+        A model with one more leak must lower the weighted residual by at least this
+        fraction [-].
+    group_ratio : float
+        Alternatives whose Akaike-type weight is at least this fraction of the best
+        join the ambiguity group [-].
+    collinear_cos : float
+        Alternatives whose weighted signature has at least this cosine similarity
+        with the chosen one join the group [-].
+    min_flow : float
+        Smallest leak reported; a model needing a smaller leak is not considered
+        (2 SLPM by default, below the leak valve's first turn) [kg/s].
+    relative_tolerance : float
+        Alternatives whose weighted residual is at most ``1 + relative_tolerance``
+        times the best join the group, and disjoint explanations within it are listed:
+        the fit barely changes when they are swapped in, which matters when the
+        residual is dominated by model error rather than noise [-].
+    max_extrapolation : float
+        Largest size considered, as a multiple of the largest simulated size: beyond
+        the ladder the effects are extrapolated linearly, and an unbounded
+        extrapolation lets one huge leak absorb a second, real one [-].
+    refine_top : int
+        Number of best additive pairs refined with their bilinear interaction before
+        the model is chosen [-].
+    max_alternatives : int
+        Largest number of disjoint alternative explanations reported [-].
+    both_lines_max_ratio : float
+        A supply leak's alternative "both lines of one actuator" is offered only when
+        the additive residual of those two leaks is at most this multiple of the
+        chosen model's (the largest multiple among development pairs where it held
+        the truth was 27.6) [-].
+    simulate_explanations : bool
+        Check explanations by simulation when the signatures misfit (needs the
+        machine's description) [-].
+    misfit_ratio : float
+        Residual per component above which the signature model is deemed not to
+        describe the run, when the signatures chose two leaks [-].
+    severe_misfit_ratio : float
+        The same when the signatures chose one leak: single leaks are interpolated
+        from simulations of that very leak and fit well (development: at most 51 for
+        6-turn leaks), a pair whose interaction the signatures miss leaves 30-1,500 [-].
+    added_leak_gain : float
+        When the signatures chose one leak, simulated explanations add a second only
+        if it lowers the residual by this fraction (on development single leaks a
+        spurious 3-7 SLPM second leak lowered it by 10-44 %) [-].
+    group_checks : int
+        With simulated explanations, alternatives simulated per leak for its
+        ambiguity group (the signature model's best in that slot) [-].
+
+    Examples
+    --------
+    >>> LocalisationSettings.from_dict(LocalisationSettings(max_leaks=1).to_dict()).max_leaks
+    1
+    """
+
+    max_leaks: int = 2
+    min_relative_gain: float = 0.1
+    group_ratio: float = 0.05
+    collinear_cos: float = 0.995
+    min_flow: float = 4.3e-5
+    relative_tolerance: float = 0.5
+    max_extrapolation: float = 1.25
+    refine_top: int = 20
+    max_alternatives: int = 3
+    both_lines_max_ratio: float = 30.0
+    simulate_explanations: bool = True
+    misfit_ratio: float = 3.0
+    severe_misfit_ratio: float = 20.0
+    added_leak_gain: float = 0.5
+    group_checks: int = 3
+
+    def __post_init__(self) -> None:
+        if isinstance(self.max_leaks, bool) or self.max_leaks not in (1, 2):
+            raise InputError(describe("max_leaks", self.max_leaks, "1 or 2"))
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("max_leaks", "simulate_explanations"):
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise InputError(describe(f"localisation setting {f.name}", value, "a number"))
+            if not np.isfinite(value) or value < 0:
+                raise InputError(
+                    describe(f"localisation setting {f.name}", value, "a finite number >= 0")
+                )
+        if not isinstance(self.simulate_explanations, bool):
+            raise InputError(
+                describe("simulate_explanations", self.simulate_explanations, [True, False])
+            )
+
+    def to_dict(self) -> dict[str, float | int | bool]:
+        """JSON-compatible form."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, object]) -> LocalisationSettings:
+        """Inverse of :meth:`to_dict`; unknown keys are an error."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise InputError(describe("localisation settings", unknown, sorted(known)))
+        return cls(**data)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class LeakEstimate:
+    """One leak found by the decomposition.
+
+    Attributes
+    ----------
+    location : Location
+        Most likely location.
+    mass_flow : float
+        Estimated leak flow at the location's nominal pressure [kg/s].
+    ambiguity_group : tuple of Location
+        Locations the sensors cannot tell apart from ``location`` (best first,
+        ``location`` included); one element when unambiguous.
+    group_mass_flows : tuple of float
+        Leak flow each group member would need to explain the data [kg/s].
+    confidence : float
+        Probability-like confidence that a leak lies in the ambiguity group [-].
+    """
+
+    location: Location
+    mass_flow: float
+    ambiguity_group: tuple[Location, ...]
+    group_mass_flows: tuple[float, ...]
+    confidence: float
+
+
+@dataclass(frozen=True)
+class Localisation:
+    """Result of :func:`locate`.
+
+    Attributes
+    ----------
+    leaks : tuple of LeakEstimate
+        Leaks found, largest flow first.
+    rss_null : float
+        Weighted residual sum of squares without any leak [-].
+    rss : float
+        Weighted residual sum of squares of the chosen model [-].
+    dof : int
+        Number of weighted residual components [-].
+    explained : float
+        ``1 - rss / rss_null``, the fraction of the deviation explained [-].
+    alternatives : tuple of Explanation
+        Other explanations that share no location with the chosen one yet fit about
+        as well (e.g. one supply leak versus leaks on both lines of an actuator
+        without line sensors), best first; empty when the chosen one stands alone.
+    simulated : bool
+        True when the explanations were checked and sized by simulation
+        (:mod:`pneufdd.diagnosis.verify`); ``rss`` is then the simulated residual.
+    """
+
+    leaks: tuple[LeakEstimate, ...]
+    rss_null: float
+    rss: float
+    dof: int
+    explained: float
+    alternatives: tuple[Explanation, ...] = ()
+    simulated: bool = False
+
+
+def _signature_fits(
+    model: WhitenedEffects, n_loc: int, max_leaks: int, min_flow: float, rss_null: float
+) -> tuple[Fits, Best]:
+    """Fits of every set of one or two locations, and the best of each size."""
+    best: Best = {0: ((), np.zeros(0), rss_null)}
+    fits: Fits = {}
+    for k in range(1, min(max_leaks, n_loc) + 1):
+        for subset in itertools.combinations(range(n_loc), k):
+            coef, rss = model.fit(subset)
+            fits[subset] = (coef, rss)
+            if np.any(coef < min_flow):
+                continue
+            if k not in best or rss < best[k][2]:
+                best[k] = (subset, coef, rss)
+    return fits, best
+
+
+def _refit_pairs_with_interaction(
+    effects: LeakEffectModel,
+    model: WhitenedEffects,
+    whiten: Whitener,
+    fits: Fits,
+    best: Best,
+    settings: LocalisationSettings,
+) -> None:
+    """Refit the best additive pairs with their bilinear interaction (in place)."""
+    coupling = effects.pair_coupling()
+    if coupling is None or 2 not in best:
+        return
+    ranked = sorted(
+        (fit[1], sub)
+        for sub, fit in fits.items()
+        if len(sub) == 2 and np.all(fit[0] >= settings.min_flow)
+    )
+    for _, sub in ranked[: settings.refine_top]:
+        term = coupling(*sub)
+        if term is None:
+            continue
+        start = (float(fits[sub][0][0]), float(fits[sub][0][1]))
+        a, b, rss = model.refine_pair(sub[0], sub[1], whiten(term)[0], start)
+        if rss < fits[sub][1] and min(a, b) >= settings.min_flow:
+            fits[sub] = (np.array([a, b]), rss)
+            if rss < best[2][2]:
+                best[2] = (sub, fits[sub][0], rss)
+
+
+def _check_by_simulation(
+    target: FloatArray,
+    model: WhitenedEffects,
+    fits: Fits,
+    best: Best,
+    chosen: int,
+    simulate: SimulatedEffect,
+    n_loc: int,
+    dof: int,
+    settings: LocalisationSettings,
+) -> tuple[Fits, Best, int] | None:
+    """Simulated explanations and the choice among them, or None if none ran."""
+    pairs_too = settings.max_leaks > 1
+    if pairs_too:
+        for sub in itertools.combinations(range(n_loc), 2):
+            fits.setdefault(sub, model.fit(sub))
+    checked = verify_explanations(
+        target,
+        fits,
+        n_loc,
+        simulate,
+        model.size_cap,
+        settings.min_flow,
+        top_pairs=3 if pairs_too else 0,
+        partners=3 if pairs_too else 0,
+    )
+    if not checked:
+        return None
+    sim_fits: Fits = {sub: (fit.sizes, fit.rss) for sub, fit in checked.items()}
+    sim_best: Best = {0: best[0]}
+    for cand, (cand_sizes, cand_rss) in sim_fits.items():
+        k = len(cand)
+        if (
+            k <= settings.max_leaks
+            and np.all(cand_sizes >= settings.min_flow)
+            and (k not in sim_best or cand_rss < sim_best[k][2])
+        ):
+            sim_best[k] = (cand, cand_sizes, cand_rss)
+    # a second leak the signatures did not ask for must explain much more: the
+    # simulated residual also holds the run's own random conditions, which a small
+    # extra leak can partly absorb
+    gain = settings.min_relative_gain
+    if chosen <= 1:
+        gain = max(gain, settings.added_leak_gain)
+    count = choose_leak_count(sim_best, dof, min(settings.max_leaks, n_loc), gain)
+    return sim_fits, sim_best, count
+
+
+def _simulate_group_competitors(
+    target: FloatArray,
+    model: WhitenedEffects,
+    fits: Fits,
+    subset: Subset,
+    sizes: FloatArray,
+    simulate: SimulatedEffect,
+    n_loc: int,
+    checks: int,
+) -> None:
+    """Size by simulation the locations the signatures rank best in each slot (in place)."""
+    for slot, loc in enumerate(subset):
+        others = tuple(x for x in subset if x != loc)
+        ranked = sorted(
+            (model.fit(tuple(sorted((*others, alt))))[1], alt)
+            for alt in range(n_loc)
+            if alt not in subset
+        )
+        for _, alt in ranked[:checks]:
+            trial = tuple(sorted((*others, alt)))
+            if trial in fits:
+                continue
+            start = np.array(
+                [sizes[subset.index(i)] if i in others else sizes[slot] for i in trial]
+            )
+            refined = refine_by_simulation(
+                trial, start, target, simulate, model.size_cap[list(trial)]
+            )
+            if refined is not None:
+                fits[trial] = (refined.sizes, refined.rss)
+
+
+def locate(
+    observed: FloatArray,
+    effects: LeakEffectModel,
+    whiten: Whitener,
+    settings: LocalisationSettings | None = None,
+) -> Localisation:
+    """Decompose an observed feature change into non-negative leak contributions.
+
+    Parameters
+    ----------
+    observed : ndarray, shape (n_features,)
+        Mean feature change of the run against the leak-free reference
+        [feature unit].
+    effects : LeakEffectModel
+        The machine's leak effects over the same features.
+    whiten : callable
+        Maps feature-change vectors (rows, feature unit) to weighted residual
+        components of unit noise variance [-]: standardisation by the reference
+        spread, the supply-fluctuation projection and the run-length scaling.
+    settings : LocalisationSettings, optional
+        Tuning (defaults as documented there).
+
+    Returns
+    -------
+    Localisation
+        The leaks, largest first, with ambiguity groups and confidences.
+
+    Examples
+    --------
+    >>> from pneufdd.diagnosis.signatures import SignatureSet
+    >>> sig = SignatureSet(("supply", "X_A"), np.array([[4.0], [4.0]]),
+    ...     np.array([[[4.0, 4.0, 4.0]], [[0.0, 8.0, 0.0]]]), ("f1", "f2", "f3"),
+    ...     np.array([6e5, 6e5]))
+    >>> result = locate(np.array([3.0, 7.0, 3.0]), LeakEffectModel(sig),
+    ...                 lambda d: np.atleast_2d(d) * 100.0)
+    >>> [(str(leak.location), round(leak.mass_flow, 6)) for leak in result.leaks]
+    [('supply', 3.0), ('X_A', 2.0)]
+    """
+    settings = settings or LocalisationSettings()
+    signatures = effects.signatures
+    obs = np.asarray(observed, dtype=np.float64)
+    if obs.shape != (signatures.n_features,):
+        raise InputError(
+            describe("shape of observed feature change", obs.shape, [(signatures.n_features,)])
+        )
+    if not np.all(np.isfinite(obs)):
+        raise InputError(describe("observed feature change", "NaN or infinite", "finite"))
+    locations = effects.locations
+    n_loc = len(locations)
+    target = whiten(obs)[0]
+    model = WhitenedEffects(
+        signatures.sizes, signatures.deltas, whiten, target, settings.max_extrapolation
+    )
+    rss_null = float(target @ target)
+    dof = int(target.size)
+    fits, best = _signature_fits(model, n_loc, settings.max_leaks, settings.min_flow, rss_null)
+    _refit_pairs_with_interaction(effects, model, whiten, fits, best, settings)
+    chosen = choose_leak_count(
+        best, dof, min(settings.max_leaks, n_loc), settings.min_relative_gain
+    )
+    simulate: SimulatedEffect | None = None
+    if settings.simulate_explanations and effects.can_simulate:
+
+        def simulate(leaks: Mapping[int, float]) -> FloatArray | None:
+            change = effects.simulate(leaks)
+            return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
+
+    simulated = False
+    misfit = best[chosen][2] / max(dof, 1)
+    if (
+        simulate is not None
+        and chosen > 0
+        and misfit > settings.misfit_ratio
+        and (chosen > 1 or misfit > settings.severe_misfit_ratio)
+    ):
+        checked = _check_by_simulation(
+            target, model, fits, best, chosen, simulate, n_loc, dof, settings
+        )
+        if checked is not None:
+            fits, best, chosen = checked
+            simulated = True
+    subset, coef, rss = best[chosen]
+    if simulated and simulate is not None:
+        # only simulated explanations are compared: check the alternatives the
+        # signature model ranks best in each slot
+        _simulate_group_competitors(
+            target, model, fits, subset, coef, simulate, n_loc, settings.group_checks
+        )
+    else:
+        for loc in subset:
+            others = tuple(x for x in subset if x != loc)
+            for alt in range(n_loc):
+                if alt not in others:
+                    trial = tuple(sorted((*others, alt)))
+                    fits.setdefault(trial, model.fit(trial))
+    s2 = max(1.0, rss / max(dof - len(subset), 1))
+    explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
+    leaks: list[LeakEstimate] = []
+    for slot, loc in enumerate(subset):
+        forced = None
+        if (
+            slot == int(np.argmin(coef))
+            and same_actuator_pair(locations, subset)
+            and SUPPLY in locations
+        ):
+            supply = locations.index(SUPPLY)
+            others = tuple(x for x in subset if x != loc)
+            trial = tuple(sorted((*others, supply)))
+            forced = (supply, float(model.fit(trial)[0][trial.index(supply)]))
+        group = ambiguity_group(
+            slot,
+            subset,
+            coef,
+            fits,
+            n_loc,
+            model.secant,
+            s2,
+            settings.min_flow,
+            settings.group_ratio,
+            settings.relative_tolerance,
+            settings.collinear_cos,
+            forced,
+        )
+        leaks.append(
+            LeakEstimate(
+                location=locations[group.members[0]],
+                mass_flow=float(group.sizes[0]),
+                ambiguity_group=tuple(locations[a] for a in group.members),
+                group_mass_flows=group.sizes,
+                confidence=float(np.clip(group.weight * explained, 0.0, 1.0)),
+            )
+        )
+    leaks.sort(key=lambda leak: -leak.mass_flow)
+    explanations = alternative_explanations(
+        fits,
+        locations,
+        subset,
+        rss,
+        settings.min_flow,
+        settings.relative_tolerance,
+        settings.max_alternatives,
+    )
+    both_lines = both_lines_alternative(
+        locations, subset, coef, model, rss, settings.min_flow, settings.both_lines_max_ratio
+    )
+    if both_lines is not None and all(
+        set(both_lines.locations) != set(e.locations) for e in explanations
+    ):
+        explanations.append(both_lines)
+    return Localisation(
+        tuple(leaks), rss_null, float(rss), dof, float(explained), tuple(explanations), simulated
+    )

@@ -1,0 +1,296 @@
+"""Choosing among leak explanations: how many leaks, which are indistinguishable, what else fits.
+
+Given the fits of every set of one or two candidate locations (sizes and whitened
+residual, from the signatures or by simulation), three decisions remain, each a
+function here:
+
+- :func:`choose_leak_count`: one more leak only when the residual drops by an
+  information-criterion penalty *and* a minimum relative gain;
+- :func:`ambiguity_group`: for each chosen leak, the locations the sensors cannot tell
+  apart from it (nearly the same residual, Akaike-type weight, or collinear whitened
+  signature) and the confidence of the group;
+- :func:`alternative_explanations` and :func:`both_lines_alternative`: explanations
+  that share no location with the chosen one yet fit about as well (a supply leak
+  versus leaks on both lines of one actuator draw air alike).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from pneufdd.diagnosis.piecewise import WhitenedEffects
+from pneufdd.location import SUPPLY, Location
+
+__all__ = [
+    "Explanation",
+    "Fits",
+    "Group",
+    "alternative_explanations",
+    "ambiguity_group",
+    "both_lines_alternative",
+    "choose_leak_count",
+    "same_actuator_pair",
+]
+
+FloatArray = npt.NDArray[np.float64]
+Subset = tuple[int, ...]
+Fits = dict[Subset, tuple[FloatArray, float]]
+"""``subset of location indices -> (sizes [kg/s], whitened residual [-])``."""
+Best = dict[int, tuple[Subset, FloatArray, float]]
+"""``number of leaks -> (subset, sizes [kg/s], residual [-])`` of the best fit."""
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """An alternative set of one or two leaks that explains the data about as well.
+
+    Attributes
+    ----------
+    locations : tuple of Location
+        Leak locations of the explanation.
+    mass_flows : tuple of float
+        Their fitted flows [kg/s].
+    rss : float
+        Weighted residual sum of squares of the explanation [-].
+    """
+
+    locations: tuple[Location, ...]
+    mass_flows: tuple[float, ...]
+    rss: float
+
+
+@dataclass(frozen=True)
+class Group:
+    """The ambiguity group of one chosen leak.
+
+    Attributes
+    ----------
+    members : tuple of int
+        Location indices, most likely first.
+    sizes : tuple of float
+        The size each member would need to explain the data [kg/s].
+    weight : float
+        Share of the Akaike-type weight of all alternatives held by the group [-].
+    """
+
+    members: tuple[int, ...]
+    sizes: tuple[float, ...]
+    weight: float
+
+
+def choose_leak_count(best: Best, dof: int, max_leaks: int, min_relative_gain: float) -> int:
+    """Number of leaks: one more only when the residual drops by the penalty and gain.
+
+    The penalty is ``2 ln(dof) s^2`` (an information criterion with the residual scale
+    ``s^2 = max(1, rss / (dof - k))`` estimated from the larger model); the gain is a
+    relative drop of the residual by at least ``min_relative_gain``.
+
+    Examples
+    --------
+    >>> best = {0: ((), np.zeros(0), 500.0), 1: ((0,), np.ones(1), 60.0),
+    ...         2: ((0, 1), np.ones(2), 57.0)}
+    >>> choose_leak_count(best, 50, 2, 0.1)
+    1
+    """
+    chosen = 0
+    for k in range(1, max_leaks + 1):
+        if k not in best:
+            break
+        rss_prev = best[chosen][2]
+        rss_k = best[k][2]
+        s2 = max(1.0, rss_k / max(dof - k, 1))
+        penalty = 2.0 * np.log(max(dof, 2)) * s2
+        if rss_prev - rss_k > penalty and rss_k < (1.0 - min_relative_gain) * rss_prev:
+            chosen = k
+        else:
+            break
+    return chosen
+
+
+def same_actuator_pair(locations: Sequence[Location], subset: Subset) -> bool:
+    """True when ``subset`` is the extend and the retract line of one actuator."""
+    if len(subset) != 2:
+        return False
+    a, b = (locations[i] for i in subset)
+    return a.same_actuator(b) and a.side != b.side
+
+
+def ambiguity_group(
+    slot: int,
+    subset: Subset,
+    sizes: FloatArray,
+    fits: Mapping[Subset, tuple[FloatArray, float]],
+    n_locations: int,
+    column: Callable[[int, float], FloatArray],
+    s2: float,
+    min_flow: float,
+    group_ratio: float,
+    relative_tolerance: float,
+    collinear_cos: float,
+    forced: tuple[int, float] | None = None,
+) -> Group:
+    """The locations that explain the data as well as the chosen leak in ``slot``.
+
+    Every other location is put in the slot's place (the other chosen leak kept);
+    those with a fit in ``fits`` compete. A competitor joins the group when its
+    Akaike-type weight ``exp(-(RSS - RSS_min) / 2 s^2)`` is at least ``group_ratio``
+    of the best, or its residual is at most ``1 + relative_tolerance`` times the best
+    (when model error rather than noise dominates the residual, the weights are
+    over-confident), or its whitened signature has cosine similarity at least
+    ``collinear_cos`` with the chosen one (the sensors cannot tell them apart).
+
+    Parameters
+    ----------
+    slot : int
+        Position of the leak in ``subset``.
+    subset : tuple of int
+        Chosen locations.
+    sizes : ndarray
+        Their sizes [kg/s].
+    fits : mapping
+        Fits of subsets with one location swapped (missing ones do not compete).
+    n_locations : int
+        Number of candidate locations.
+    column : callable
+        ``column(location, size)``: whitened effect per unit size [-].
+    s2 : float
+        Residual scale [-].
+    min_flow : float
+        Competitors needing a smaller leak do not join [kg/s].
+    group_ratio, relative_tolerance, collinear_cos : float
+        The three joining rules above [-].
+    forced : (int, float), optional
+        A location that joins the group in any case, last, and the size it would
+        need [kg/s] when ``fits`` has no fit with it (it then adds no weight): the
+        supply for the smaller of two leaks on both lines of one actuator, which
+        draw air like a supply leak (see :func:`both_lines_alternative`).
+
+    Returns
+    -------
+    Group
+    """
+    loc = subset[slot]
+    others = tuple(x for x in subset if x != loc)
+    competitors: list[tuple[float, int, float]] = []
+    for alt in range(n_locations):
+        if alt in others:
+            continue
+        trial = tuple(sorted((*others, alt)))
+        if trial not in fits:
+            continue
+        alt_sizes, alt_rss = fits[trial]
+        competitors.append((alt_rss, alt, float(alt_sizes[trial.index(alt)])))
+    rss_min = min(c[0] for c in competitors)
+    weights = {alt: float(np.exp(-(r - rss_min) / (2.0 * s2))) for r, alt, _ in competitors}
+    rss_of = {alt: r for r, alt, _ in competitors}
+    size_of = {alt: size for _, alt, size in competitors}
+    chosen_col = column(loc, float(sizes[slot]))
+    members = []
+    for alt, w in weights.items():
+        if size_of[alt] < min_flow and alt != loc:
+            continue
+        alt_col = column(alt, size_of[alt])
+        norm = float(np.linalg.norm(chosen_col) * np.linalg.norm(alt_col))
+        cos = float(chosen_col @ alt_col) / norm if norm > 0 else 0.0
+        close = rss_of[alt] <= (1.0 + relative_tolerance) * rss_min
+        if alt == loc or w >= group_ratio * max(weights.values()) or close or cos >= collinear_cos:
+            members.append(alt)
+    members.sort(key=lambda a: -weights[a])
+    if forced is not None:
+        extra, fallback = forced
+        if extra not in members:
+            members.append(extra)
+        if extra not in size_of:
+            size_of[extra], weights[extra] = fallback, 0.0
+    total = sum(weights.values())
+    share = sum(weights[a] for a in members) / total if total > 0 else 0.0
+    return Group(tuple(members), tuple(size_of[a] for a in members), share)
+
+
+def alternative_explanations(
+    fits: Mapping[Subset, tuple[FloatArray, float]],
+    locations: Sequence[Location],
+    subset: Subset,
+    rss: float,
+    min_flow: float,
+    relative_tolerance: float,
+    max_alternatives: int,
+) -> list[Explanation]:
+    """Sets of one or two locations disjoint from ``subset`` that fit about as well.
+
+    Those whose sizes are all at least ``min_flow`` and whose residual is at most
+    ``1 + relative_tolerance`` times ``rss``, best first, at most ``max_alternatives``.
+    """
+    if not subset:
+        return []
+    disjoint = sorted(
+        (fit[1], sub, fit[0])
+        for sub, fit in fits.items()
+        if not set(sub) & set(subset)
+        and np.all(fit[0] >= min_flow)
+        and fit[1] <= (1.0 + relative_tolerance) * rss
+    )[:max_alternatives]
+    return [
+        Explanation(
+            tuple(locations[i] for i in sub), tuple(float(x) for x in flows), float(fit_rss)
+        )
+        for fit_rss, sub, flows in disjoint
+    ]
+
+
+def both_lines_alternative(
+    locations: Sequence[Location],
+    subset: Subset,
+    sizes: FloatArray,
+    model: WhitenedEffects,
+    chosen_rss: float,
+    min_flow: float,
+    max_ratio: float,
+) -> Explanation | None:
+    """A supply leak re-explained as leaks on both lines of one actuator.
+
+    Leaks on the extend and the retract line of one actuator draw air in every step,
+    like a supply leak; with supply sensors (and without line sensors on that
+    actuator) the two explanations are physically near-indistinguishable, and their
+    simultaneous effect is far from the additive model, so residuals cannot separate
+    them. When the chosen model holds a supply leak, the actuator whose two lines fit
+    best (additive residual, the same model for every actuator) replaces it; the
+    chosen model's other leaks are kept (a kept leak on one of those lines adds to
+    its flow). An actuator whose fit needs a size at the size cap cannot produce the
+    supply leak's effect and is not offered, nor one whose additive residual exceeds
+    ``max_ratio`` times the chosen model's ``chosen_rss`` (only the residual of the
+    two line leaks is compared, not the kept leaks).
+    """
+    if SUPPLY not in locations:
+        return None
+    supply = locations.index(SUPPLY)
+    if supply not in subset:
+        return None
+    keep = [i for i in subset if i != supply]
+    best: tuple[float, int, int] | None = None
+    for a, loc in enumerate(locations):
+        if loc.side != "A" or loc.other_line() not in locations:
+            continue
+        b = locations.index(loc.other_line())
+        flows, rss = model.fit((a, b))
+        at_cap = np.any(flows >= (1.0 - 1e-9) * model.size_cap[[a, b]])
+        if np.all(flows >= min_flow) and not at_cap and (best is None or rss < best[0]):
+            best = (rss, a, b)
+    if best is None:
+        return None
+    rss, a, b = best
+    if rss > max_ratio * chosen_rss:
+        return None
+    pair_flows = model.fit((a, b))[0]
+    fitted = {a: float(pair_flows[0]), b: float(pair_flows[1])}
+    for i in keep:
+        fitted[i] = fitted.get(i, 0.0) + float(sizes[subset.index(i)])
+    return Explanation(
+        tuple(locations[i] for i in fitted),
+        tuple(fitted.values()),
+        float(rss),
+    )
