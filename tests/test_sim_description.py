@@ -46,7 +46,7 @@ def test_festo_dsd_matches_the_dissertation() -> None:
     }  # fmt: skip
     assert "U_VAC" in m.solenoids
     assert "S_VAC" in m.switches
-    assert builtin_machines() == ("festo-dsd",)
+    assert builtin_machines() == ("carton-sorter", "festo-dsd", "press-fit-cell")
 
 
 def test_load_from_path(tmp_path: Path) -> None:

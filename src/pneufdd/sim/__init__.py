@@ -2,7 +2,7 @@
 
 >>> from pneufdd.sim import builtin_machines
 >>> builtin_machines()
-('festo-dsd',)
+('carton-sorter', 'festo-dsd', 'press-fit-cell')
 """
 
 from __future__ import annotations
