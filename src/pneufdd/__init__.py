@@ -4,12 +4,37 @@ The package follows the ISO 13374 condition-monitoring chain; imports flow one w
 
     physics -> sim -> signals -> features -> diagnosis -> monitor/report -> cli
 
-``pneufdd.Recording`` is the data model every layer shares.
+``pneufdd.Recording`` is the data model every layer shares; ``pneufdd.LeakDiagnoser``
+is the diagnosis (fit on leak-free recordings, ``diagnose`` a run), ``pneufdd.Location``
+names a leak's place (the supply, or one line of one actuator). They are imported on
+first use, so ``import pneufdd`` stays light.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from pneufdd.recording import Recording
 
-__all__ = ["Recording", "__version__"]
+if TYPE_CHECKING:
+    from pneufdd.diagnosis.diagnoser import LeakDiagnoser
+    from pneufdd.diagnosis.engine import Diagnosis
+    from pneufdd.location import Location
+
+__all__ = ["Diagnosis", "LeakDiagnoser", "Location", "Recording", "__version__"]
 __version__ = "0.1.0"
+
+_LAZY = {
+    "LeakDiagnoser": "pneufdd.diagnosis.diagnoser",
+    "Diagnosis": "pneufdd.diagnosis.engine",
+    "Location": "pneufdd.location",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pneufdd' has no attribute {name!r}")
+    from importlib import import_module
+
+    return getattr(import_module(module), name)

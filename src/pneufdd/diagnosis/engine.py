@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -33,6 +33,9 @@ from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.location import SUPPLY
 from pneufdd.physics.units import kg_s_to_slpm
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["Diagnosis", "diagnose", "whitener"]
 
@@ -92,6 +95,42 @@ class Diagnosis:
     observed_change: FloatArray
     settings: CostSettings
     notes: list[str] = field(default_factory=list)
+
+    def to_pandas(self) -> pd.DataFrame:
+        """The leaks as a table, one row per leak, largest annual cost first.
+
+        Columns: ``location``, ``ambiguity_group`` (comma separated),
+        ``flow_slpm`` (while the line is pressurised) and ``average_flow_slpm`` (over
+        the operating cycle) [SLPM: 0 degC, 1013 mbar], ``orifice_mm`` [mm],
+        ``annual_cost`` [$/yr], ``confidence`` [-], ``cost_basis``.
+        """
+        import pandas as pd
+
+        return pd.DataFrame(
+            [
+                {
+                    "location": str(leak.location),
+                    "ambiguity_group": ", ".join(str(x) for x in leak.ambiguity_group),
+                    "flow_slpm": leak.flow_slpm,
+                    "average_flow_slpm": leak.average_flow_slpm,
+                    "orifice_mm": leak.orifice_mm,
+                    "annual_cost": leak.annual_cost,
+                    "confidence": leak.confidence,
+                    "cost_basis": leak.cost_basis,
+                }
+                for leak in self.leaks
+            ],
+            columns=[
+                "location",
+                "ambiguity_group",
+                "flow_slpm",
+                "average_flow_slpm",
+                "orifice_mm",
+                "annual_cost",
+                "confidence",
+                "cost_basis",
+            ],
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible summary (the ``--json`` output of ``pneufdd diagnose``)."""

@@ -1,0 +1,229 @@
+"""``LeakDiagnoser``: the public face of leak diagnosis, fitted once per machine.
+
+It follows scikit-learn's conventions: settings are stored by ``__init__`` as given,
+:meth:`LeakDiagnoser.fit` learns from leak-free recordings of one machine and returns
+the diagnoser, learned attributes end in ``_`` (``reference_``), and
+:meth:`LeakDiagnoser.diagnose` refuses to run before ``fit``. The fitted state is the
+reference model, saved and loaded as a ``.pnref`` file (JSON header + arrays, never
+pickle).
+
+Examples
+--------
+>>> from pneufdd import LeakDiagnoser
+>>> from pneufdd.sim import simulate
+>>> free = [simulate("festo-dsd", cycles=7, seed=s) for s in (1, 2)]
+>>> diagnoser = LeakDiagnoser(channels=["P_In", "Q_In"], signature_sizes_slpm=(20, 80),
+...                           workers=1).fit(free)                  # doctest: +SKIP
+>>> result = diagnoser.diagnose(simulate("festo-dsd", cycles=12,
+...                             leaks={"DNC_B": "50slpm"}, seed=3))  # doctest: +SKIP
+>>> [(str(leak.location), round(leak.flow_slpm)) for leak in result.leaks]  # doctest: +SKIP
+[('DNC_B', 50)]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.localisation import LocalisationSettings
+from pneufdd.diagnosis.machine import MachineLike
+from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.pnref import load_reference, save_reference
+from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
+from pneufdd.diagnosis.twin_effects import SIGNATURE_SIZES_SLPM
+from pneufdd.errors import InputError, describe
+from pneufdd.progress import Progress
+from pneufdd.recording.model import Recording
+
+__all__ = ["LeakDiagnoser", "NotFittedError"]
+
+RecordingLike = Recording | str | Path
+
+
+class NotFittedError(InputError):
+    """``diagnose`` or ``save`` was called before ``fit`` (or ``load``)."""
+
+
+def _recordings(items: Sequence[RecordingLike]) -> tuple[list[Recording], list[str]]:
+    recordings, names = [], []
+    for k, item in enumerate(items):
+        if isinstance(item, Recording):
+            recordings.append(item)
+            names.append(f"recording {k + 1}")
+        elif isinstance(item, str | Path):
+            recordings.append(Recording.read(Path(item)))
+            names.append(str(item))
+        else:
+            raise InputError(
+                describe(
+                    f"leak-free recording {k + 1}", type(item).__name__, "a Recording or a path"
+                )
+            )
+    return recordings, names
+
+
+class LeakDiagnoser:
+    """Detect, locate, size and cost compressed-air leaks on one machine.
+
+    Parameters
+    ----------
+    channels : sequence of str, optional
+        Analog channels of the sensor set (``["P_In", "Q_In"]``: the supply meter);
+        None uses every analog channel of the recordings, an empty sequence only the
+        PLC's digital signals.
+    max_leaks : int
+        Largest number of simultaneous leaks considered (1 or 2) [-].
+    simulate_explanations : bool
+        When the leak signatures do not explain a run (typically two large leaks),
+        check the best explanations with the machine's digital twin.
+    signature_sizes_slpm : sequence of float
+        Ladder of leak sizes simulated per location [SLPM at the nominal supply
+        pressure; 0 degC, 1013 mbar basis].
+    signature_cycles : int
+        Simulated cycles per signature point [-].
+    detection : DetectionSettings, optional
+        Detector tuning (false-alarm rate, fluctuation directions, band method).
+    localisation : LocalisationSettings, optional
+        Tuning of location and sizing; ``max_leaks`` and ``simulate_explanations``
+        above take precedence over its fields of the same name.
+    workers : int, optional
+        Processes simulating signatures in parallel (default: one per CPU).
+    progress : callable, optional
+        ``progress(task, done, total)`` while fitting (:mod:`pneufdd.progress`).
+
+    Attributes
+    ----------
+    reference_ : ReferenceModel
+        The leak-free reference learned by :meth:`fit`: detector statistics, the
+        machine description, leak signatures and settings.
+    """
+
+    def __init__(
+        self,
+        channels: Sequence[str] | None = None,
+        max_leaks: int = 2,
+        simulate_explanations: bool = True,
+        signature_sizes_slpm: Sequence[float] = SIGNATURE_SIZES_SLPM,
+        signature_cycles: int = 2,
+        detection: DetectionSettings | None = None,
+        localisation: LocalisationSettings | None = None,
+        workers: int | None = None,
+        progress: Progress | None = None,
+    ) -> None:
+        self.channels = channels
+        self.max_leaks = max_leaks
+        self.simulate_explanations = simulate_explanations
+        self.signature_sizes_slpm = signature_sizes_slpm
+        self.signature_cycles = signature_cycles
+        self.detection = detection
+        self.localisation = localisation
+        self.workers = workers
+        self.progress = progress
+
+    def _localisation_settings(self) -> LocalisationSettings:
+        return replace(
+            self.localisation or LocalisationSettings(),
+            max_leaks=self.max_leaks,
+            simulate_explanations=self.simulate_explanations,
+        )
+
+    def fit(
+        self,
+        recordings: Sequence[RecordingLike],
+        machine: MachineLike | None = None,
+    ) -> LeakDiagnoser:
+        """Learn the leak-free reference of one machine from its recordings.
+
+        Parameters
+        ----------
+        recordings : sequence of Recording or path
+            Leak-free recordings of one machine; together at least 10 complete
+            cycles.
+        machine : str, Path, MachineDescription or mapping, optional
+            The machine's description (``docs/machine-format.md``; a built-in name
+            is a shorthand). Needed when the recordings carry none (CSV, TDMS
+            exports); without any, leaks are detected but not located or sized.
+
+        Returns
+        -------
+        LeakDiagnoser
+            ``self``, fitted.
+        """
+        if isinstance(recordings, Recording | str | Path):
+            raise InputError(
+                describe("recordings", type(recordings).__name__, "a list of recordings or paths")
+            )
+        loaded, names = _recordings(recordings)
+        self.reference_ = build_reference_from_recordings(
+            loaded,
+            None if self.channels is None else tuple(self.channels),
+            names,
+            machine=machine,
+            signature_cycles=self.signature_cycles,
+            signature_sizes=tuple(float(x) for x in self.signature_sizes_slpm),
+            settings=self.detection,
+            localisation=self._localisation_settings(),
+            progress=self.progress,
+            workers=self.workers,
+        )
+        return self
+
+    def _fitted(self) -> ReferenceModel:
+        reference: ReferenceModel | None = getattr(self, "reference_", None)
+        if reference is None:
+            raise NotFittedError(
+                "this LeakDiagnoser is not fitted: call fit(leak_free_recordings) or "
+                "LeakDiagnoser.load('reference.pnref') first"
+            )
+        return reference
+
+    def diagnose(self, recording: RecordingLike, cost: CostSettings | None = None) -> Diagnosis:
+        """Detect, locate, size and cost the leaks of one run.
+
+        Parameters
+        ----------
+        recording : Recording or path
+            A run of the machine (complete cycles are judged; 10 make a good run).
+        cost : CostSettings, optional
+            Operating hours, electricity price and compressor efficiency of eq. 1.1.
+
+        Returns
+        -------
+        Diagnosis
+        """
+        reference = self._fitted()
+        if isinstance(recording, Recording):
+            run, where = recording, "run"
+        else:
+            run, where = Recording.read(Path(recording)), str(recording)
+        table = run_table(reference, run, where)
+        return diagnose(reference, table, cost, reference.localisation)
+
+    def save(self, path: str | Path, overwrite: bool = False) -> Path:
+        """Write the fitted reference to a ``.pnref`` file (atomically)."""
+        return save_reference(self._fitted(), path, overwrite=overwrite)
+
+    @classmethod
+    def load(cls, path: str | Path) -> LeakDiagnoser:
+        """A fitted diagnoser from a ``.pnref`` file, with the settings it was built with."""
+        reference = load_reference(path)
+        diagnoser = cls(
+            channels=reference.channels,
+            max_leaks=reference.localisation.max_leaks,
+            simulate_explanations=reference.localisation.simulate_explanations,
+            detection=reference.settings,
+            localisation=reference.localisation,
+        )
+        diagnoser.reference_ = reference
+        return diagnoser
+
+    def __repr__(self) -> str:
+        fitted = getattr(self, "reference_", None)
+        state = f"fitted on {fitted.machine!r}" if fitted is not None else "not fitted"
+        return (
+            f"LeakDiagnoser(channels={self.channels!r}, max_leaks={self.max_leaks}, "
+            f"simulate_explanations={self.simulate_explanations}) [{state}]"
+        )
