@@ -17,6 +17,7 @@ from pneufdd.sim.simulate import (
     run_simulation,
     simulate,
 )
+from pneufdd.sim.variation import machine_to_toml, vary_machine, write_machine
 
 __all__ = [
     "SIMULATOR_VERSION",
@@ -28,8 +29,11 @@ __all__ = [
     "Stroke",
     "builtin_machines",
     "load_machine",
+    "machine_to_toml",
     "parse_description",
     "parse_leak_size",
     "run_simulation",
     "simulate",
+    "vary_machine",
+    "write_machine",
 ]
