@@ -18,4 +18,8 @@ def test_readme_python_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     for block in blocks:
         exec(compile(block, str(README), "exec"), namespace)
     assert (tmp_path / "run.parquet").is_file()
+    assert (tmp_path / "press-fit-cell.pnref").is_file()
     assert namespace["q_in"].size == namespace["t"].size  # type: ignore[attr-defined]
+    result = namespace["result"]
+    assert [str(leak.location) for leak in result.leaks] == ["FEED_A"]  # type: ignore[attr-defined]
+    assert result.leaks[0].flow_slpm == pytest.approx(40.0, rel=0.15)  # type: ignore[attr-defined]

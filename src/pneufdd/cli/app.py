@@ -9,7 +9,7 @@ import typer
 from rich.console import Console
 
 from pneufdd import __version__
-from pneufdd.cli import demo, diagnose, features, machine, reference, simulate, steps
+from pneufdd.cli import campaign, demo, diagnose, features, machine, reference, simulate, steps
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.errors import InputError, PneufddError
 
@@ -23,7 +23,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-for module in (demo, simulate, machine, steps, features, reference, diagnose):
+for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
 
 

@@ -59,6 +59,15 @@ def build(
             "comma separated (default 3,8,15,30,50,80,120,170,230)."
         ),
     ] = None,
+    uncertainty_plants: Annotated[
+        int | None,
+        typer.Option(
+            min=0,
+            help="Plausible plants drawn around the description to measure how far a real "
+            "machine's leak effects may differ from the twin's (0: trust the twin exactly; "
+            "default 4).",
+        ),
+    ] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
 ) -> None:
     """Build a reference from leak-free RECORDINGS and write it to OUT."""
@@ -86,6 +95,7 @@ def build(
             signature_cycles=signature_cycles,
             signature_sizes=ladder,
             progress=progress,
+            **({} if uncertainty_plants is None else {"uncertainty_plants": uncertainty_plants}),
         )
     save_reference(model, out, overwrite=overwrite)
     if model.signatures is not None:

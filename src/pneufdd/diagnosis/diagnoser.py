@@ -33,7 +33,7 @@ from pneufdd.diagnosis.machine import MachineLike
 from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
 from pneufdd.diagnosis.pnref import load_reference, save_reference
 from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
-from pneufdd.diagnosis.twin_effects import SIGNATURE_SIZES_SLPM
+from pneufdd.diagnosis.twin_effects import SIGNATURE_SIZES_SLPM, UNCERTAINTY_PLANTS
 from pneufdd.errors import InputError, describe
 from pneufdd.progress import Progress
 from pneufdd.recording.model import Recording
@@ -84,6 +84,10 @@ class LeakDiagnoser:
         pressure; 0 degC, 1013 mbar basis].
     signature_cycles : int
         Simulated cycles per signature point [-].
+    uncertainty_plants : int
+        Plausible plants drawn around the machine description to measure how far a
+        real machine's leak effects may differ from the twin's (0: trust the twin
+        exactly) [-].
     detection : DetectionSettings, optional
         Detector tuning (false-alarm rate, fluctuation directions, band method).
     localisation : LocalisationSettings, optional
@@ -108,6 +112,7 @@ class LeakDiagnoser:
         simulate_explanations: bool = True,
         signature_sizes_slpm: Sequence[float] = SIGNATURE_SIZES_SLPM,
         signature_cycles: int = 2,
+        uncertainty_plants: int = UNCERTAINTY_PLANTS,
         detection: DetectionSettings | None = None,
         localisation: LocalisationSettings | None = None,
         workers: int | None = None,
@@ -118,6 +123,7 @@ class LeakDiagnoser:
         self.simulate_explanations = simulate_explanations
         self.signature_sizes_slpm = signature_sizes_slpm
         self.signature_cycles = signature_cycles
+        self.uncertainty_plants = uncertainty_plants
         self.detection = detection
         self.localisation = localisation
         self.workers = workers
@@ -164,6 +170,7 @@ class LeakDiagnoser:
             machine=machine,
             signature_cycles=self.signature_cycles,
             signature_sizes=tuple(float(x) for x in self.signature_sizes_slpm),
+            uncertainty_plants=self.uncertainty_plants,
             settings=self.detection,
             localisation=self._localisation_settings(),
             progress=self.progress,

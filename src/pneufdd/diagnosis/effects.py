@@ -122,6 +122,23 @@ class LeakEffectModel:
         """
         return self.signatures.effect(location, size)
 
+    def change(self, leaks: Mapping[int, float]) -> FloatArray:
+        """Signature-model feature change of leaks ``{location index: size [kg/s]}``.
+
+        The sum of the single effects plus, for two leaks, their bilinear interaction
+        (:meth:`pair_coupling`) [feature unit].
+        """
+        total = np.zeros(self.signatures.n_features)
+        for i, size in leaks.items():
+            total = total + self.effect(i, size)
+        if len(leaks) == 2:
+            coupling = self.pair_coupling()
+            (a, size_a), (b, size_b) = leaks.items()
+            term = None if coupling is None else coupling(a, b)
+            if term is not None:
+                total = total + size_a * size_b * term
+        return total
+
     def simulate(self, leaks: Mapping[int, float]) -> FloatArray | None:
         """Simulated feature change of leaks ``{location index: size [kg/s]}``.
 

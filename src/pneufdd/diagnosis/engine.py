@@ -13,13 +13,15 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from pneufdd.diagnosis.cost import CostedLeak, CostSettings, cost_leaks
+from pneufdd.diagnosis.effects import LeakEffectModel
 from pneufdd.diagnosis.localisation import (
     LeakEstimate,
     Localisation,
@@ -37,7 +39,7 @@ from pneufdd.physics.units import kg_s_to_slpm
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["Diagnosis", "diagnose", "whitener"]
+__all__ = ["Diagnosis", "diagnose", "run_whitener", "whitener"]
 
 
 FloatArray = npt.NDArray[np.float64]
@@ -233,19 +235,65 @@ def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "ru
     return run.select(list(reference.channels))
 
 
-def whitener(reference: ReferenceModel, n_cycles: int) -> Whitener:
-    """Weighting of a run's mean feature change: unit noise per residual component.
+def whitener(
+    reference: ReferenceModel,
+    n_cycles: int,
+    magnitude: FloatArray | None = None,
+    leaks: Sequence[tuple[int, float]] = (),
+    model_error_floor: float = 0.0,
+) -> Whitener:
+    r"""Weighting of a run's mean feature change: unit variance per residual component.
 
-    Each feature is divided by its reference spread (floored at the sensor
-    resolution), the house-air fluctuation directions are projected out (section
-    4.4.1) and the result scaled to unit variance for the mean of ``n_cycles`` run
-    cycles against the mean of the reference's cycles (``1 / sqrt(1/m + 1/n)``).
+    The change :math:`\Delta x` a correct leak model leaves unexplained has three
+    parts; the weighting divides by their covariance :math:`C` (``W^T W = C^{-1}``):
+
+    - noise: the mean of ``m`` run cycles against the mean of the reference's ``n``
+      cycles, :math:`\sigma_j^2 (1/m + 1/n)` with :math:`\sigma_j` the reference
+      spread (floored at the sensor resolution);
+    - the model error of the signatures on a real machine, sampled on ``K``
+      plausible plants (:attr:`SignatureSet.plant_deviations`): for each leak
+      ``(location, size)`` of ``leaks`` the plants' deviations :math:`d^{(k)}` from
+      its signature, coherent across features;
+    - a floor of independent error per feature, ``model_error_floor`` of the effect's
+      size :math:`|e_j|` (``magnitude`` [feature unit]):
+
+    .. math::
+
+        C = \operatorname{diag}\left(\sigma_j^2 \left(\frac{1}{m} + \frac{1}{n}\right)
+            + (\rho\, e_j)^2\right)
+            + \sum_{l} \frac{1}{K} \sum_k d^{(k)}_l d^{(k)T}_l
+
+    Then the house-air fluctuation directions (section 4.4.1) are projected out in the
+    weighted space (free nuisance amplitudes). Without ``leaks`` and ``magnitude`` this
+    is the detector's statistic scaled to unit noise.
     """
     det = reference.detector
-    gain = 1.0 / math.sqrt(1.0 / n_cycles + 1.0 / reference.n_cycles)
+    sigma = np.asarray(det.scale_, dtype=np.float64)
+    variance = sigma**2 * (1.0 / n_cycles + 1.0 / reference.n_cycles)
+    if magnitude is not None:
+        variance = variance + (model_error_floor * magnitude) ** 2
+    sig = reference.signatures
+    blocks = []
+    for location, size in leaks:
+        deviations = None if sig is None else sig.deviations(location, size)
+        if deviations is not None:
+            blocks.append(deviations.T / np.sqrt(deviations.shape[0]))
+    columns = np.hstack(blocks) if blocks else np.zeros((sigma.size, 0))
+    weight = 1.0 / np.sqrt(variance)
+    # (A + B B^T)^(-1/2) applied as (I + B~ B~^T)^(-1/2) A^(-1/2), B~ = A^(-1/2) B
+    basis_b, singular, _ = np.linalg.svd(columns * weight[:, None], full_matrices=False)
+    shrink = 1.0 / np.sqrt(1.0 + singular**2) - 1.0
+
+    def weighted(delta: FloatArray) -> FloatArray:
+        r = np.atleast_2d(delta) * weight
+        return np.asarray(r + ((r @ basis_b) * shrink) @ basis_b.T)
+
+    nuisance = weighted(det.components_ * sigma).T  # fluctuation directions, weighted
+    basis = np.linalg.qr(nuisance)[0] if nuisance.size else nuisance
 
     def whiten(delta: FloatArray) -> FloatArray:
-        return np.asarray(det.project(np.atleast_2d(delta) / det.scale_) * gain)
+        r = weighted(delta)
+        return np.asarray(r - (r @ basis) @ basis.T)
 
     return whiten
 
@@ -283,6 +331,37 @@ def _nominal_pressures(
     return pressures
 
 
+def run_whitener(
+    reference: ReferenceModel,
+    effects: LeakEffectModel,
+    observed: FloatArray,
+    n_cycles: int,
+    settings: LocalisationSettings,
+) -> Whitener:
+    """The weighting of one run's change, with the model error of the leaks behind it.
+
+    Without plausible-plant deviations in the signatures: noise only. With them, the
+    model error belongs to the leaks behind the change: first the best explanation
+    under noise-only weights, then the weighting with the model error of those leaks
+    (what plausible plants do differently from the twin) and a floor relative to the
+    larger of the predicted and the observed change (a feature the twin expects to
+    move but the plant barely moves is model error too, not evidence at noise level).
+    """
+    whiten = whitener(reference, n_cycles)
+    if not effects.signatures.n_plants:
+        return whiten
+    first = locate(observed, effects, whiten, replace(settings, simulate_explanations=False))
+    leaks = [(effects.locations.index(leak.location), leak.mass_flow) for leak in first.leaks]
+    predicted = effects.change(dict(leaks)) if leaks else np.zeros_like(observed)
+    return whitener(
+        reference,
+        n_cycles,
+        np.maximum(np.abs(observed), np.abs(predicted)),
+        leaks,
+        settings.model_error_floor,
+    )
+
+
 def _locate_and_cost(
     reference: ReferenceModel,
     observed: FloatArray,
@@ -301,7 +380,8 @@ def _locate_and_cost(
         )
         return None, [], 0.0
     sig = effects.signatures
-    localisation = locate(observed, effects, whitener(reference, n_cycles), localisation_settings)
+    whiten = run_whitener(reference, effects, observed, n_cycles, localisation_settings)
+    localisation = locate(observed, effects, whiten, localisation_settings)
     if not localisation.leaks:
         notes.append("leak detected but no combination of leak signatures explains it")
     if localisation.simulated:

@@ -83,11 +83,15 @@ class Group:
 
 
 def choose_leak_count(best: Best, dof: int, max_leaks: int, min_relative_gain: float) -> int:
-    """Number of leaks: one more only when the residual drops by the penalty and gain.
+    """Number of leaks: more only when the residual drops by the penalty and the gain.
 
-    The penalty is ``2 ln(dof) s^2`` (an information criterion with the residual scale
-    ``s^2 = max(1, rss / (dof - k))`` estimated from the larger model); the gain is a
-    relative drop of the residual by at least ``min_relative_gain``.
+    Against the model chosen so far (at first: no leak), a model with ``k`` leaks is
+    taken when its residual is lower by more than ``2 ln(dof) s^2`` per added leak (an
+    information criterion with the residual scale ``s^2 = max(1, rss / (dof - k))``
+    of the larger model) *and* by at least ``min_relative_gain`` of the chosen one. Every
+    ``k`` is tried, so two leaks that only together explain the data (their effects
+    interact, or one alone leaves most of the other's misfit) are not missed because no
+    single leak did.
 
     Examples
     --------
@@ -95,19 +99,20 @@ def choose_leak_count(best: Best, dof: int, max_leaks: int, min_relative_gain: f
     ...         2: ((0, 1), np.ones(2), 57.0)}
     >>> choose_leak_count(best, 50, 2, 0.1)
     1
+    >>> choose_leak_count({0: ((), np.zeros(0), 500.0), 1: ((0,), np.ones(1), 490.0),
+    ...                    2: ((0, 1), np.ones(2), 60.0)}, 50, 2, 0.1)
+    2
     """
     chosen = 0
     for k in range(1, max_leaks + 1):
         if k not in best:
-            break
+            continue
         rss_prev = best[chosen][2]
         rss_k = best[k][2]
         s2 = max(1.0, rss_k / max(dof - k, 1))
-        penalty = 2.0 * np.log(max(dof, 2)) * s2
+        penalty = 2.0 * np.log(max(dof, 2)) * s2 * (k - chosen)
         if rss_prev - rss_k > penalty and rss_k < (1.0 - min_relative_gain) * rss_prev:
             chosen = k
-        else:
-            break
     return chosen
 
 
@@ -132,6 +137,7 @@ def ambiguity_group(
     relative_tolerance: float,
     collinear_cos: float,
     forced: tuple[int, float] | None = None,
+    composite_rss: Sequence[float] = (),
 ) -> Group:
     """The locations that explain the data as well as the chosen leak in ``slot``.
 
@@ -168,6 +174,10 @@ def ambiguity_group(
         need [kg/s] when ``fits`` has no fit with it (it then adds no weight): the
         supply for the smaller of two leaks on both lines of one actuator, which
         draw air like a supply leak (see :func:`both_lines_alternative`).
+    composite_rss : sequence of float
+        Residuals of explanations that compete with this leak but are not one location
+        (two line leaks standing for a supply leak): their weights count against the
+        group's share, so the confidence says they fit too [-].
 
     Returns
     -------
@@ -206,7 +216,9 @@ def ambiguity_group(
             members.append(extra)
         if extra not in size_of:
             size_of[extra], weights[extra] = fallback, 0.0
-    total = sum(weights.values())
+    # a composite may fit better than every single location: cap the exponent
+    composite = sum(float(np.exp(min((rss_min - r) / (2.0 * s2), 700.0))) for r in composite_rss)
+    total = sum(weights.values()) + composite
     share = sum(weights[a] for a in members) / total if total > 0 else 0.0
     return Group(tuple(members), tuple(size_of[a] for a in members), share)
 

@@ -33,7 +33,12 @@ from pneufdd.diagnosis.step_summaries import (
     trace_offsets,
 )
 from pneufdd.diagnosis.steps import StepTable
-from pneufdd.diagnosis.twin_effects import SIGNATURE_SIZES_SLPM, compute_signatures
+from pneufdd.diagnosis.twin_effects import (
+    SIGNATURE_SIZES_SLPM,
+    UNCERTAINTY_PLANTS,
+    compute_signatures,
+    signature_spread,
+)
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
@@ -78,6 +83,7 @@ def build_reference_from_recordings(
     with_signatures: bool = True,
     signature_cycles: int = 2,
     signature_sizes: Sequence[float] | None = None,
+    uncertainty_plants: int = UNCERTAINTY_PLANTS,
     settings: DetectionSettings | None = None,
     localisation: LocalisationSettings | None = None,
     progress: Progress | None = None,
@@ -106,6 +112,10 @@ def build_reference_from_recordings(
     signature_sizes : sequence of float, optional
         Signature ladder [SLPM at nominal supply pressure]; the default ladder of
         :mod:`pneufdd.diagnosis.twin_effects` when omitted.
+    uncertainty_plants : int
+        Plausible plants drawn around the description to measure the signatures'
+        model uncertainty (:func:`~pneufdd.diagnosis.twin_effects.signature_spread`);
+        0 trusts the twin exactly (as if the machine matched its description).
     settings : DetectionSettings, optional
         Detector tuning.
     localisation : LocalisationSettings, optional
@@ -164,6 +174,19 @@ def build_reference_from_recordings(
             progress=progress,
             workers=workers,
         )
+        if uncertainty_plants > 0:
+            signatures = signatures.with_plant_deviations(
+                *signature_spread(
+                    description,
+                    signatures,
+                    sequence,
+                    analog,
+                    cycles=signature_cycles,
+                    plants=uncertainty_plants,
+                    workers=workers,
+                    progress=progress,
+                )
+            )
     return ReferenceModel.build(
         table,
         machine_description=None if description is None else description.raw,

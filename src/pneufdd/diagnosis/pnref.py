@@ -24,6 +24,10 @@ entry                  content
                        flow per machine cycle at each signature size [kg/s]
 ``sig_mean_flow_interaction`` (n_locations, 2) float64, optional: change of the
                        line and supply leaks' mean flows when both leak [kg/s]
+``sig_plant_deviations`` (n_plants, n_locations, n_dev_sizes, n_features) float32,
+                       optional: each plausible plant's leak effect minus the
+                       signature's (the model uncertainty) [feature unit]
+``sig_deviation_sizes`` (n_dev_sizes,) float64, with the above [kg/s]
 =====================  ===========================================================
 
 Version history: 1 (issue 5); 2 adds ``sig_mean_flow`` and
@@ -130,6 +134,11 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
             arrays["sig_mean_flow"] = model.signatures.mean_flow
         if model.signatures.mean_flow_interaction is not None:
             arrays["sig_mean_flow_interaction"] = model.signatures.mean_flow_interaction
+        sig = model.signatures
+        if sig.plant_deviations is not None and sig.deviation_sizes is not None:
+            # float32: 7 significant digits, far beyond the deviations' own precision
+            arrays["sig_plant_deviations"] = sig.plant_deviations.astype(np.float32)
+            arrays["sig_deviation_sizes"] = sig.deviation_sizes
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
@@ -253,6 +262,16 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 flow_inter = None
                 if "sig_mean_flow_interaction" in data.files:
                     flow_inter = _array(data, source, "sig_mean_flow_interaction", "f", (n_loc, 2))
+                deviations = deviation_sizes = None
+                if "sig_plant_deviations" in data.files:
+                    deviation_sizes = _array(data, source, "sig_deviation_sizes", "f", (None,))
+                    deviations = _array(
+                        data,
+                        source,
+                        "sig_plant_deviations",
+                        "f",
+                        (None, n_loc, deviation_sizes.size, n_feat),
+                    )
                 signatures = SignatureSet(
                     tuple(locations),
                     sizes,
@@ -263,6 +282,8 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                     inter_sizes,
                     mean_flow,
                     flow_inter,
+                    deviations,
+                    deviation_sizes,
                 )
             supply = header.get("supply_pressure")
             model = ReferenceModel(

@@ -17,7 +17,7 @@ Signatures are computed once per machine and sensor set, with the simulator (see
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -69,6 +69,15 @@ class SignatureSet:
         (a supply leak lowers the pressure the line leak blows from). Modelled as
         bilinear in the two sizes (:meth:`average_flows_with_supply`); zero for
         ``supply`` itself. Needs ``mean_flow`` and ``interaction_sizes``.
+    plant_deviations : ndarray, shape (n_plants, n_locations, n_dev_sizes, n_features), optional
+        Model uncertainty of the signatures: on each of ``n_plants`` plausible plants
+        drawn around the description (:func:`pneufdd.sim.vary_machine`; a real machine
+        differs from its catalogue description), the effect of the same leak minus
+        the signature's, at every location and at :attr:`deviation_sizes`
+        (:func:`~pneufdd.diagnosis.twin_effects.signature_spread`) [feature unit].
+        Their spread is the covariance of the signatures' error on a real machine.
+    deviation_sizes : ndarray, shape (n_dev_sizes,), optional
+        Leak sizes of :attr:`plant_deviations`, increasing [kg/s].
 
     Examples
     --------
@@ -92,6 +101,8 @@ class SignatureSet:
     interaction_sizes: FloatArray | None = None
     mean_flow: FloatArray | None = None
     mean_flow_interaction: FloatArray | None = None
+    plant_deviations: FloatArray | None = None
+    deviation_sizes: FloatArray | None = None
 
     def __post_init__(self) -> None:
         locations = tuple(
@@ -156,6 +167,26 @@ class SignatureSet:
                     describe("shape of mean_flow_interaction", mfi.shape, [(n_loc, 2)])
                 )
             object.__setattr__(self, "mean_flow_interaction", mfi)
+        if (self.plant_deviations is None) != (self.deviation_sizes is None):
+            raise InputError(
+                describe("plant_deviations and deviation_sizes", "only one", "both or neither")
+            )
+        if self.plant_deviations is not None and self.deviation_sizes is not None:
+            dev = np.asarray(self.plant_deviations, dtype=np.float64)
+            dsz = np.asarray(self.deviation_sizes, dtype=np.float64)
+            if dsz.ndim != 1 or dsz.size < 1 or np.any(dsz <= 0) or np.any(np.diff(dsz) <= 0):
+                raise InputError(
+                    describe("deviation_sizes [kg/s]", dsz.tolist(), "positive, increasing")
+                )
+            want = (n_loc, dsz.size, len(names))
+            if dev.ndim != 4 or dev.shape[1:] != want or dev.shape[0] < 1:
+                raise InputError(
+                    describe("shape of plant_deviations", dev.shape, f"(n_plants, {want})")
+                )
+            if not np.all(np.isfinite(dev)):
+                raise InputError(describe("plant_deviations", "NaN or infinite", "finite"))
+            object.__setattr__(self, "plant_deviations", dev)
+            object.__setattr__(self, "deviation_sizes", dsz)
         object.__setattr__(self, "locations", locations)
         object.__setattr__(self, "sizes", sizes)
         object.__setattr__(self, "deltas", deltas)
@@ -220,7 +251,52 @@ class SignatureSet:
             self.interaction_sizes,
             self.mean_flow,
             self.mean_flow_interaction,
+            None if self.plant_deviations is None else self.plant_deviations[..., cols],
+            self.deviation_sizes,
         )
+
+    @property
+    def n_plants(self) -> int:
+        """Number of plausible plants behind the model uncertainty (0: none)."""
+        return 0 if self.plant_deviations is None else int(self.plant_deviations.shape[0])
+
+    def with_plant_deviations(
+        self, deviations: FloatArray | None, sizes: FloatArray | None
+    ) -> SignatureSet:
+        """A copy with :attr:`plant_deviations` at :attr:`deviation_sizes` (None: none)."""
+        return replace(self, plant_deviations=deviations, deviation_sizes=sizes)
+
+    @cached_property
+    def _deviation_model(self) -> PiecewiseLinear | None:
+        if self.plant_deviations is None or self.deviation_sizes is None:
+            return None
+        k, n_loc, n_sizes, n_feat = self.plant_deviations.shape
+        values = np.moveaxis(self.plant_deviations, 0, 2).reshape(n_loc, n_sizes, k * n_feat)
+        return PiecewiseLinear(np.tile(self.deviation_sizes, (n_loc, 1)), values)
+
+    def deviations(self, location: int, size: float) -> FloatArray | None:
+        """Each plausible plant's deviation from the signature of one leak.
+
+        Interpolated piecewise linearly in the size through the origin (no leak, no
+        deviation), like the signatures.
+
+        Parameters
+        ----------
+        location : int
+            Index into :attr:`locations`.
+        size : float
+            Leak mass flow at nominal pressure [kg/s].
+
+        Returns
+        -------
+        ndarray, shape (n_plants, n_features), or None
+            Plant effect minus signature effect [feature unit]; None without
+            :attr:`plant_deviations`.
+        """
+        model = self._deviation_model
+        if model is None:
+            return None
+        return np.asarray(model(location, size).reshape(self.n_plants, self.n_features))
 
     def duty(self, location: int, size: float) -> float | None:
         """Fraction of its nominal flow a leak loses on average over a machine cycle.

@@ -45,10 +45,12 @@ from pneufdd.sim import MachineDescription, MachineStalledError, run_simulation
 __all__ = [
     "SIGNATURE_SEED",
     "SIGNATURE_SIZES_SLPM",
+    "UNCERTAINTY_PLANTS",
     "TwinLeakEffect",
     "candidate_locations",
     "compute_signatures",
     "mean_leak_flow",
+    "signature_spread",
 ]
 
 SIGNATURE_SIZES_SLPM: tuple[float, ...] = (3.0, 8.0, 15.0, 30.0, 50.0, 80.0, 120.0, 170.0, 230.0)
@@ -63,6 +65,19 @@ SIGNATURE_SEED = 5_300_001
 
 MACHINE_CANNOT_RUN = (MachineStalledError, NoCompleteCycleError)
 """What a leak too large for the machine causes: a stall, or no complete cycle."""
+
+
+UNCERTAINTY_PLANTS = 12
+"""Plausible plants whose leak effects sample the signatures' model uncertainty [-]."""
+
+UNCERTAINTY_SCALE = 1.0
+"""Their variation scale: a plausible real machine (``docs/plant-variation.md``) [-]."""
+
+UNCERTAINTY_SIZES_SLPM: tuple[float, ...] = (8.0, 30.0, 80.0, 200.0)
+"""Leak sizes at which the plants' effects are compared with the signatures [SLPM]."""
+
+UNCERTAINTY_PLANT_SEED = 5_300_100
+"""Plant ``k`` of the uncertainty ensemble is varied with seed ``5_300_101 + k``."""
 
 
 def candidate_locations(machine: MachineDescription) -> tuple[Location, ...]:
@@ -439,3 +454,156 @@ class TwinLeakEffect:
             change = None
         self._cache[key] = change
         return change
+
+
+SpreadJob = tuple[
+    MachineDescription,
+    tuple[Location, ...],
+    tuple[float, ...],
+    int,
+    int,
+    tuple[StepSpec, ...],
+    tuple[str, ...],
+    npt.NDArray[np.int64],
+]
+
+
+def _plant_effects(job: SpreadJob) -> npt.NDArray[np.float64]:
+    """Leak effects on one plant: (n_locations, n_sizes, n_features); NaN where it stalls.
+
+    Sizes are orifice diameters [mm], so the plant leaks through the same hole as the
+    twin whatever its own supply pressure.
+    """
+    plant, locations, diameters, cycles, seed, sequence, channels, cols = job
+    base, _, _, _ = _mean_features(plant, {}, cycles, seed, sequence, channels, False)
+    out = np.full((len(locations), len(diameters), cols.size), np.nan)
+    for i, loc in enumerate(locations):
+        for k, mm in enumerate(diameters):
+            try:
+                sim = run_simulation(
+                    plant,
+                    cycles=cycles + 2,
+                    leaks={str(loc): f"{mm}mm"},
+                    seed=seed,
+                    keep_outputs=False,
+                )
+                rec = sim.recording
+                found, _, _ = segment_cycles(rec, sequence, f"plant with a leak at {loc}")
+                mean = np.mean(step_table(rec, found, plant.name, channels).features(), axis=0)
+            except MACHINE_CANNOT_RUN:
+                continue
+            out[i, k] = (mean - base)[cols]
+    return out
+
+
+def signature_spread(
+    machine: MachineDescription,
+    signatures: SignatureSet,
+    sequence: Sequence[StepSpec],
+    channels: Sequence[str],
+    cycles: int = 2,
+    plants: int = UNCERTAINTY_PLANTS,
+    scale: float = UNCERTAINTY_SCALE,
+    sizes_slpm: Sequence[float] = UNCERTAINTY_SIZES_SLPM,
+    seed: int = SIGNATURE_SEED,
+    workers: int | None = None,
+    progress: Progress | None = None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    r"""Model uncertainty of the signatures: how they err on plausible plants.
+
+    A real machine differs from its description (valve flow capacity within the
+    15 % of ISO 6358, friction, throttle settings, volumes, sensor calibration:
+    ``docs/plant-variation.md``), so its leak effects differ from the twin's. This
+    samples how: ``plants`` plants are drawn around the description at ``scale``
+    (:func:`pneufdd.sim.vary_machine`, seeds independent of any plant a campaign
+    judges), single leaks of the same orifice are simulated on each at every location
+    and at ``sizes_slpm``, and each plant's effect :math:`e^{(k)}` minus the
+    signature's :math:`e` is returned. The deviations of one plant are coherent
+    across features (a stiffer supply makes every pressure drop of a leak smaller,
+    in every step), so their sample covariance
+
+    .. math::
+
+        \Sigma_{l}(a) = \frac{1}{K} \sum_k d^{(k)}_l(a)\, d^{(k)}_l(a)^T,
+        \qquad d^{(k)}_l(a) = e^{(k)}_l(a) - e_l(a),
+
+    not an independent error per feature, describes what the signatures may get
+    wrong on a real machine (used by :func:`pneufdd.diagnosis.engine.whitener`).
+
+    Parameters
+    ----------
+    machine : MachineDescription
+        The description the signatures come from.
+    signatures : SignatureSet
+        Its signatures (same features as ``channels`` and ``sequence`` give).
+    sequence : sequence of StepSpec
+        The PLC sequence.
+    channels : sequence of str
+        Analog channels of the sensor set.
+    cycles : int
+        Inner cycles averaged per simulation.
+    plants : int
+        Plants drawn [-].
+    scale : float
+        Their variation scale [-].
+    sizes_slpm : sequence of float
+        Leak sizes compared [SLPM at the description's nominal supply pressure].
+    seed : int
+        Seed of the simulations (the signatures' seed).
+    workers : int, optional
+        Processes simulating in parallel (default: one per CPU).
+    progress : callable, optional
+        ``progress(task, done, total)``.
+
+    Returns
+    -------
+    deviations : ndarray, shape (plants, n_locations, n_sizes, n_features)
+        Plant effect minus signature effect [feature unit], rounded to float32
+        precision (as the ``.pnref`` stores them); a plant that cannot run with a leak
+        contributes zero there.
+    sizes : ndarray, shape (n_sizes,)
+        The sizes [kg/s].
+    """
+    from pneufdd.physics.leaks import SHARP_EDGE_CD, leak_area
+    from pneufdd.physics.units import psig_to_pa
+    from pneufdd.sim.variation import vary_machine
+
+    if plants < 1:
+        raise InputError(describe("uncertainty plants", plants, ">= 1"))
+    p_nom = float(psig_to_pa(machine.nominal_supply_psig))
+    areas = [float(leak_area(s, "SLPM", p_nom)) for s in sizes_slpm]
+    diameters = tuple(1e3 * float(np.sqrt(4.0 * a / (np.pi * SHARP_EDGE_CD))) for a in areas)
+    flows = np.array([float(slpm_to_kg_s(s)) for s in sizes_slpm])
+    locations = signatures.locations
+    twin = np.stack(
+        [np.stack([signatures.effect(i, f) for f in flows]) for i in range(len(locations))]
+    )
+    _, _, names, _ = _mean_features(machine, {}, 1, seed, sequence, channels, False)
+    index = {n: i for i, n in enumerate(names)}
+    cols = np.array([index[n] for n in signatures.feature_names], dtype=np.int64)
+    jobs: list[SpreadJob] = [
+        (
+            vary_machine(machine, scale, UNCERTAINTY_PLANT_SEED + 1 + k),
+            locations,
+            diameters,
+            cycles,
+            seed,
+            tuple(sequence),
+            tuple(channels),
+            cols,
+        )
+        for k in range(plants)
+    ]
+    advance = counter(progress, "simulating plausible plants (model uncertainty)", plants)
+    workers = max(1, min(workers or (os.cpu_count() or 1), plants))
+    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+    deviations = []
+    try:
+        for effects in pool.map(_plant_effects, jobs) if pool else map(_plant_effects, jobs):
+            deviations.append(np.where(np.isfinite(effects), effects - twin, 0.0))
+            advance()
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    stacked = np.stack(deviations).astype(np.float32).astype(np.float64)
+    return stacked, flows

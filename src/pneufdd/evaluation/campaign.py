@@ -1,0 +1,614 @@
+"""Acceptance campaigns: diagnosis accuracy on plants that differ from their twin.
+
+Testing an inversion on data made by the very model it inverts is the "inverse
+crime": the model error that dominates in the field is absent. A campaign therefore
+judges **plants** (:func:`pneufdd.sim.vary_machine`: every physical parameter drawn
+around the description's value, at a ``plant scale``), never the twin itself:
+
+1. **Signatures** are computed once per machine from its description *as written*
+   (the twin), like a user's ``pneufdd reference build --machine DESCRIPTION``.
+2. For every plant, the **reference** is built from the plant's own leak-free
+   recordings, with the description as written (the recordings' metadata, which a
+   simulation fills with the plant's true parameters, is stripped to the machine
+   name, as in a real DAQ export).
+3. **Runs** of the plant (``run_cycles`` complete cycles each): single leaks at every
+   location and size, leak-free runs, random pairs of leaks; each is diagnosed with
+   every sensor set's reference. The true size of a leak is its orifice's flow at
+   the *description's* nominal supply pressure (what the diagnosis estimates).
+
+Every seed is derived from ``seed_offset`` and written to the manifest: a campaign
+uses the seeds ``[seed_offset, seed_offset + 10,000,000)``. Plant scale 0 is the twin
+itself (the regression check against earlier campaigns).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.pnref import load_reference, save_reference
+from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.diagnosis.step_summaries import machine_sequence
+from pneufdd.diagnosis.steps import feature_names
+from pneufdd.diagnosis.twin_effects import (
+    UNCERTAINTY_PLANTS,
+    compute_signatures,
+    signature_spread,
+)
+from pneufdd.errors import InputError, describe
+from pneufdd.evaluation.scoring import RunOutcome, Tally, outcome_from_record
+from pneufdd.location import locations_of
+from pneufdd.physics.leaks import leak_mass_flow
+from pneufdd.physics.units import psig_to_pa
+from pneufdd.progress import Progress, counter
+from pneufdd.recording.model import Recording
+from pneufdd.sim import (
+    MachineDescription,
+    MachineStalledError,
+    load_machine,
+    parse_leak_size,
+    simulate,
+)
+from pneufdd.sim.variation import machine_to_toml, vary_machine
+
+__all__ = [
+    "SENSOR_SETS",
+    "TARGETS",
+    "CampaignDesign",
+    "CampaignResult",
+    "rescore",
+    "run_campaign",
+]
+
+SENSOR_SETS = ("full", "supply-only", "digital-only")
+"""Sensor sets a campaign can judge: every analog channel of the description; the
+supply meter (``P_In``, ``Q_In``); the PLC's digital signals only."""
+
+SUPPLY_CHANNELS = ("P_In", "Q_In")
+
+TARGETS: dict[str, dict[str, float]] = {
+    "full": {
+        "in_group": 0.98,
+        "mean_group": 1.2,
+        "size_error_median": 0.10,
+        "size_error_p90": 0.25,
+        "spurious_second_leak": 0.03,
+        "leak_free_flagged": 0.005,
+        "pairs_both": 0.90,
+        "confident_true": 0.97,
+    },
+    "supply-only": {
+        "in_group": 0.98,
+        "mean_group": 1.5,
+        "size_error_median": 0.10,
+        "size_error_p90": 0.25,
+        "spurious_second_leak": 0.03,
+        "leak_free_flagged": 0.005,
+        "pairs_both": 0.90,
+        "confident_true": 0.97,
+    },
+}
+"""Issue 9's acceptance targets, judged on plants at scale 1."""
+
+SEED_SPAN = 10_000_000
+"""Seeds a campaign uses: ``[seed_offset, seed_offset + SEED_SPAN)``."""
+
+
+@dataclass(frozen=True)
+class CampaignDesign:
+    """What a campaign simulates and judges.
+
+    Attributes
+    ----------
+    machines : tuple of str
+        Built-in machine names or TOML paths (each a description as written).
+    plant_scales : tuple of float
+        Plant variation scales (0: the twin itself; 1: a plausible real machine;
+        2: a badly documented one) [-].
+    plants : int
+        Plants per machine and scale [-].
+    sensor_sets : tuple of str
+        Of :data:`SENSOR_SETS`; a set the machine does not have is skipped, and
+        ``full`` is skipped when it equals ``supply-only``.
+    leak_sizes : tuple of str
+        Single-leak sizes as the simulator takes them: turns of the GR-3/8B leak valve
+        (``"3"``), ``"2.5mm"`` or ``"30slpm"``.
+    reps : int
+        Runs per location and size and plant [-].
+    leak_free_runs : int
+        Leak-free runs per plant [-].
+    pairs : int
+        Runs with two leaks (random locations and sizes) per plant [-].
+    run_cycles : int
+        Complete cycles judged per run [-].
+    reference_cycles : int
+        Leak-free cycles simulated for each plant's reference [-].
+    signature_cycles : int
+        Simulated cycles per signature point [-].
+    uncertainty_plants : int
+        Plausible plants measuring the signatures' model uncertainty (0: none) [-].
+    seed_offset : int
+        First seed; the campaign uses ``[seed_offset, seed_offset + 10,000,000)``.
+    """
+
+    machines: tuple[str, ...]
+    plant_scales: tuple[float, ...] = (1.0,)
+    plants: int = 3
+    sensor_sets: tuple[str, ...] = ("full", "supply-only")
+    leak_sizes: tuple[str, ...] = ("1", "2", "3", "4", "5", "6")
+    reps: int = 1
+    leak_free_runs: int = 70
+    pairs: int = 20
+    run_cycles: int = 10
+    reference_cycles: int = 40
+    signature_cycles: int = 2
+    uncertainty_plants: int = UNCERTAINTY_PLANTS
+    seed_offset: int = 100_000_000
+
+    def __post_init__(self) -> None:
+        if not self.machines:
+            raise InputError(describe("campaign machines", [], "at least one machine"))
+        unknown = [s for s in self.sensor_sets if s not in SENSOR_SETS]
+        if unknown or not self.sensor_sets:
+            raise InputError(describe("campaign sensor sets", unknown or [], list(SENSOR_SETS)))
+        for name in ("plants", "reps", "run_cycles", "signature_cycles"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InputError(describe(f"campaign {name}", value, "an integer >= 1"))
+        for name in ("leak_free_runs", "pairs"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise InputError(describe(f"campaign {name}", value, "an integer >= 0"))
+        if self.reference_cycles < 10:
+            raise InputError(describe("campaign reference_cycles", self.reference_cycles, ">= 10"))
+        if any(not (0.0 <= s <= 5.0) for s in self.plant_scales) or not self.plant_scales:
+            raise InputError(
+                describe("campaign plant scales", list(self.plant_scales), "numbers from 0 to 5")
+            )
+        for size in self.leak_sizes:
+            parse_leak_size(size, "campaign leak size")
+        if not self.leak_sizes:
+            raise InputError(describe("campaign leak sizes", [], "at least one size"))
+        if self.seed_offset < 0:
+            raise InputError(describe("campaign seed_offset", self.seed_offset, ">= 0"))
+        if self.plants > 9 or len(self.plant_scales) > 9 or len(self.machines) > 9:
+            raise InputError(
+                describe(
+                    "campaign size",
+                    f"{len(self.machines)} machines x {len(self.plant_scales)} scales x "
+                    f"{self.plants} plants",
+                    "at most 9 of each (the seed layout)",
+                )
+            )
+        runs = (
+            self.reps * len(self.leak_sizes) * 60 + self.leak_free_runs + self.pairs
+        )  # at most 29 actuators
+        if runs >= 9_000:
+            raise InputError(describe("campaign runs per plant", runs, "< 9000"))
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run to simulate on a plant and diagnose with each sensor set's reference."""
+
+    machine: str
+    scale: float
+    plant: int
+    kind: str
+    leaks: dict[str, str]
+    seed: int
+    plant_file: str
+    references: dict[str, str]
+    nominal_pressure_pa: float
+    run_cycles: int
+
+
+@dataclass
+class CampaignResult:
+    """Tallies per (machine, plant scale, sensor set) and where everything was written."""
+
+    tallies: dict[tuple[str, float, str], Tally] = field(default_factory=dict)
+    stalled: list[dict[str, Any]] = field(default_factory=list)
+    seconds: float = 0.0
+    out: Path = Path(".")
+
+    def lines(self) -> list[str]:
+        """The campaign's figures as printable lines."""
+        out: list[str] = []
+        for (machine, scale, sensors), t in sorted(self.tallies.items()):
+            targets = TARGETS.get(sensors) if scale == 1.0 else None
+            out.append("")
+            out.append(f"=== {machine}, plant scale {scale:g}, sensor set {sensors} ===")
+            out.extend(t.lines(targets))
+        out.append("")
+        out.append(f"runs not judged (the plant stalled with these leaks): {len(self.stalled)}")
+        out.extend(f"  {s}" for s in self.stalled[:20])
+        out.append(f"campaign wall time {self.seconds:.0f} s; outputs in {self.out}")
+        return out
+
+
+def _seed(design: CampaignDesign, machine: int, scale: int, plant: int, k: int) -> int:
+    return design.seed_offset + 1_000_000 * machine + 100_000 * scale + 10_000 * plant + k
+
+
+def channel_sets(machine: MachineDescription, names: Sequence[str]) -> dict[str, tuple[str, ...]]:
+    """Analog channels of each named sensor set the machine has."""
+    full = tuple(s.channel for s in machine.sensors)
+    supply = tuple(c for c in SUPPLY_CHANNELS if c in full)
+    sets: dict[str, tuple[str, ...]] = {}
+    for name in names:
+        if name == "full" and full and full != supply:
+            sets[name] = full
+        elif name == "supply-only" and supply == SUPPLY_CHANNELS:
+            sets[name] = supply
+        elif name == "digital-only":
+            sets[name] = ()
+    return sets
+
+
+def _strip_description(recording: Recording) -> Recording:
+    """The recording as a DAQ export would be: the machine's name, not its parameters."""
+    meta = dict(recording.metadata)
+    machine = meta.get("machine")
+    if isinstance(machine, dict):
+        meta["machine"] = {"name": machine.get("name")}
+    return recording.with_metadata(meta)
+
+
+def _signatures(
+    machine: MachineDescription,
+    channels: tuple[str, ...],
+    design: CampaignDesign,
+    progress: Progress | None,
+    workers: int,
+) -> SignatureSet:
+    sequence = machine_sequence(machine)
+    if sequence is None:  # pragma: no cover - a description always has a sequence
+        raise InputError(describe("machine sequence", None, "a PLC sequence"))
+    names = feature_names(channels, len(sequence))
+    signatures = compute_signatures(
+        machine,
+        names,
+        sequence,
+        cycles=design.signature_cycles,
+        channels=channels,
+        progress=progress,
+        workers=workers,
+    )
+    if design.uncertainty_plants == 0:
+        return signatures
+    return signatures.with_plant_deviations(
+        *signature_spread(
+            machine,
+            signatures,
+            sequence,
+            channels,
+            cycles=design.signature_cycles,
+            plants=design.uncertainty_plants,
+            workers=workers,
+            progress=progress,
+        )
+    )
+
+
+def _reference(
+    plant: MachineDescription,
+    machine: MachineDescription,
+    channels: tuple[str, ...],
+    recordings: Sequence[Recording],
+    signatures: SignatureSet,
+) -> ReferenceModel:
+    model = build_reference_from_recordings(
+        recordings,
+        channels,
+        [f"plant leak-free recording {i + 1}" for i in range(len(recordings))],
+        machine=machine,
+        with_signatures=False,
+    )
+    return model.with_signatures(signatures)
+
+
+_REFERENCES: dict[str, ReferenceModel] = {}
+_PLANTS: dict[str, MachineDescription] = {}
+
+
+def _cached_reference(path: str) -> ReferenceModel:
+    if path not in _REFERENCES:
+        _REFERENCES[path] = load_reference(path)
+    return _REFERENCES[path]
+
+
+def _cached_plant(path: str) -> MachineDescription:
+    if path not in _PLANTS:
+        _PLANTS[path] = load_machine(Path(path))
+    return _PLANTS[path]
+
+
+def run_job(job: Job) -> list[dict[str, Any]]:
+    """Simulate one run on its plant and diagnose it with every reference (a worker)."""
+    plant = _cached_plant(job.plant_file)
+    base = {
+        "machine": job.machine,
+        "scale": job.scale,
+        "plant": job.plant,
+        "kind": job.kind,
+        "seed": job.seed,
+        "leaks": job.leaks,
+    }
+    try:
+        recording = simulate(plant, cycles=job.run_cycles + 2, leaks=job.leaks, seed=job.seed)
+    except MachineStalledError:
+        return [{**base, "stalled": True}]
+    truth = {
+        leak["location"]: float(
+            leak_mass_flow(job.nominal_pressure_pa, float(leak["effective_area_m2"]))
+        )
+        for leak in recording.metadata["leaks"]
+    }
+    recording = _strip_description(recording)
+    records = []
+    for sensors, path in job.references.items():
+        model = _cached_reference(path)
+        table = run_table(model, recording, f"campaign run seed {job.seed}")
+        table = table.take(np.arange(min(job.run_cycles, table.n_cycles)))
+        start = time.perf_counter()
+        result = diagnose(model, table)
+        seconds = time.perf_counter() - start
+        loc = result.localisation
+        records.append(
+            {
+                **base,
+                "sensors": sensors,
+                "truth": truth,
+                "detected": result.detected,
+                "cycles": int(result.cycle_scores.size),
+                "cycles_flagged": int(np.sum(result.cycle_scores > result.cycle_threshold)),
+                "leaks": [
+                    {
+                        "location": str(leak.location),
+                        "group": [str(x) for x in leak.ambiguity_group],
+                        "group_flows": list(leak.group_mass_flows),
+                        "confidence": leak.confidence,
+                    }
+                    for leak in (loc.leaks if loc is not None else ())
+                ],
+                "alternatives": []
+                if loc is None
+                else [[str(x) for x in alt.locations] for alt in loc.alternatives],
+                "seconds": seconds,
+                "simulated": bool(loc is not None and loc.simulated),
+            }
+        )
+    return records
+
+
+def _run_jobs(
+    jobs: Sequence[Job], workers: int, progress: Progress | None
+) -> Iterator[list[dict[str, Any]]]:
+    """The records of every job, as each finishes (in parallel when ``workers`` > 1)."""
+    advance = counter(progress, "diagnosing campaign runs", len(jobs))
+    if workers <= 1:
+        for job in jobs:
+            yield run_job(job)
+            advance()
+        return
+    with ProcessPoolExecutor(workers) as pool:
+        futures = [pool.submit(run_job, job) for job in jobs]
+        for future in as_completed(futures):
+            yield future.result()
+            advance()
+
+
+def _plan_runs(
+    design: CampaignDesign,
+    machine: MachineDescription,
+    m: int,
+    s: int,
+    k: int,
+) -> list[tuple[str, dict[str, str], int]]:
+    """(kind, leaks, seed) of every run of one plant, in a fixed order."""
+    locations = [str(x) for x in locations_of(machine.actuator_ids)]
+    runs: list[tuple[str, dict[str, str], int]] = []
+    index = 100
+    for loc in locations:
+        for size in design.leak_sizes:
+            for _ in range(design.reps):
+                runs.append(("single", {loc: size}, _seed(design, m, s, k, index)))
+                index += 1
+    for _ in range(design.leak_free_runs):
+        runs.append(("free", {}, _seed(design, m, s, k, index)))
+        index += 1
+    rng = np.random.default_rng(_seed(design, m, s, k, 99))
+    for _ in range(design.pairs):
+        a, b = rng.choice(len(locations), size=2, replace=False)
+        leaks = {
+            locations[int(a)]: str(rng.choice(design.leak_sizes)),
+            locations[int(b)]: str(rng.choice(design.leak_sizes)),
+        }
+        runs.append(("pair", leaks, _seed(design, m, s, k, index)))
+        index += 1
+    return runs
+
+
+def run_campaign(
+    design: CampaignDesign,
+    out: str | Path,
+    workers: int | None = None,
+    progress: Progress | None = None,
+    log: Callable[[str], None] | None = None,
+) -> CampaignResult:
+    """Run a campaign; write its manifest, plants, references and run records under ``out``.
+
+    Parameters
+    ----------
+    design : CampaignDesign
+        What to simulate and judge.
+    out : str or Path
+        Output folder (created); ``manifest.json`` (design and every seed),
+        ``plants/*.toml``, ``references/*.pnref``, ``runs.jsonl`` (one record per run
+        and sensor set) and ``summary.json``. An existing ``runs.jsonl`` is never
+        overwritten: pick a new folder.
+    workers : int, optional
+        Processes running in parallel (default: one per CPU).
+    progress : callable, optional
+        ``progress(task, done, total)``.
+    log : callable, optional
+        Receives one line per stage (e.g. ``print``).
+
+    Returns
+    -------
+    CampaignResult
+    """
+    start = time.perf_counter()
+    folder = Path(out)
+    if (folder / "runs.jsonl").exists():
+        raise InputError(
+            describe(f"campaign folder {str(folder)!r}", "holds a campaign", "a new folder")
+        )
+    (folder / "plants").mkdir(parents=True, exist_ok=True)
+    (folder / "references").mkdir(parents=True, exist_ok=True)
+    workers = max(1, workers or (os.cpu_count() or 1))
+    say = log or (lambda _line: None)
+    manifest: dict[str, Any] = {"design": asdict(design), "machines": []}
+    jobs: list[Job] = []
+    for m, name in enumerate(design.machines):
+        machine = load_machine(name)
+        sets = channel_sets(machine, design.sensor_sets)
+        if not sets:
+            raise InputError(
+                describe(
+                    f"sensor sets of machine {machine.name!r}",
+                    list(design.sensor_sets),
+                    "a set the machine has",
+                )
+            )
+        all_channels = max(sets.values(), key=len)
+        t0 = time.perf_counter()
+        signatures = _signatures(machine, all_channels, design, progress, workers)
+        say(
+            f"{machine.name}: signatures of {len(signatures.locations)} locations from the "
+            f"description in {time.perf_counter() - t0:.0f} s; sensor sets {list(sets)}"
+        )
+        nominal = float(psig_to_pa(machine.nominal_supply_psig))
+        entry: dict[str, Any] = {"machine": machine.name, "source": str(name), "plants": []}
+        half = design.reference_cycles // 2
+        for s, scale in enumerate(design.plant_scales):
+            for k in range(design.plants):
+                plant_seed = _seed(design, m, s, k, 0)
+                plant = machine if scale == 0 else vary_machine(machine, scale, plant_seed)
+                plant_file = folder / "plants" / f"{machine.name}-s{scale:g}-p{k + 1}.toml"
+                plant_file.write_text(
+                    machine_to_toml(
+                        plant,
+                        f"plant {k + 1} of {machine.name} at scale {scale:g}, seed {plant_seed}",
+                    ),
+                    "utf-8",
+                )
+                ref_seeds = [_seed(design, m, s, k, 1), _seed(design, m, s, k, 2)]
+                recordings = [
+                    _strip_description(simulate(plant, cycles=half + 2, seed=seed))
+                    for seed in ref_seeds
+                ]
+                references = {}
+                for sensors, channels in sets.items():
+                    model = _reference(
+                        plant,
+                        machine,
+                        channels,
+                        recordings,
+                        signatures.select(feature_names(channels, len(machine.steps))),
+                    )
+                    path = folder / "references" / f"{plant_file.stem}-{sensors}.pnref"
+                    save_reference(model, path, overwrite=True)
+                    references[sensors] = str(path)
+                runs = _plan_runs(design, machine, m, s, k)
+                entry["plants"].append(
+                    {
+                        "scale": scale,
+                        "plant": k + 1,
+                        "plant_seed": plant_seed,
+                        "plant_file": str(plant_file),
+                        "reference_seeds": ref_seeds,
+                        "references": references,
+                        "runs": [
+                            {"kind": kind, "leaks": leaks, "seed": seed}
+                            for kind, leaks, seed in runs
+                        ],
+                    }
+                )
+                jobs.extend(
+                    Job(
+                        machine.name,
+                        float(scale),
+                        k + 1,
+                        kind,
+                        leaks,
+                        seed,
+                        str(plant_file),
+                        references,
+                        nominal,
+                        design.run_cycles,
+                    )
+                    for kind, leaks, seed in runs
+                )
+                say(
+                    f"{machine.name}: plant {k + 1} at scale {scale:g} (seed {plant_seed}): "
+                    f"references of {model.n_cycles} cycles, {len(runs)} runs planned"
+                )
+        manifest["machines"].append(entry)
+    (folder / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n", "utf-8")
+    say(f"{len(jobs)} runs on {workers} worker(s)")
+    result = CampaignResult(out=folder)
+    with open(folder / "runs.jsonl", "x", encoding="utf-8") as handle:
+        for records in _run_jobs(jobs, workers, progress):
+            for record in records:
+                handle.write(json.dumps(record) + "\n")
+                handle.flush()
+                if record.get("stalled"):
+                    result.stalled.append({k: record[k] for k in ("machine", "leaks", "seed")})
+                    continue
+                key = (record["machine"], float(record["scale"]), record["sensors"])
+                result.tallies.setdefault(key, Tally()).add(outcome_from_record(record))
+    result.seconds = time.perf_counter() - start
+    summary = {
+        f"{machine} | scale {scale:g} | {sensors}": {
+            "figures": t.figures(),
+            "reliability": t.reliability(),
+        }
+        for (machine, scale, sensors), t in result.tallies.items()
+    }
+    (folder / "summary.json").write_text(json.dumps(summary, indent=1) + "\n", "utf-8")
+    return result
+
+
+def rescore(folder: str | Path) -> CampaignResult:
+    """Tallies of a finished campaign from its ``runs.jsonl`` (no simulation)."""
+    path = Path(folder) / "runs.jsonl"
+    if not path.is_file():
+        raise InputError(describe("campaign runs file", str(path), "an existing runs.jsonl"))
+    result = CampaignResult(out=Path(folder))
+    outcomes: dict[tuple[str, float, str], list[RunOutcome]] = {}
+    for line in path.read_text("utf-8").splitlines():
+        record = json.loads(line)
+        if record.get("stalled"):
+            result.stalled.append({k: record[k] for k in ("machine", "leaks", "seed")})
+            continue
+        key = (record["machine"], float(record["scale"]), record["sensors"])
+        outcomes.setdefault(key, []).append(outcome_from_record(record))
+    for key, runs in outcomes.items():
+        t = Tally()
+        for run in runs:
+            t.add(run)
+        result.tallies[key] = t
+    return result
