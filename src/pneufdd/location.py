@@ -61,8 +61,10 @@ class Location:
             )
         if self.side is not None and self.side not in ("A", "B"):
             raise InputError(describe("leak location side", self.side, ["A", "B"]))
-        if self.actuator is not None and not self.actuator:
-            raise InputError(describe("leak location actuator", self.actuator, "an actuator id"))
+        if self.actuator is not None and (not self.actuator or self.actuator == SUPPLY_NAME):
+            raise InputError(
+                describe("leak location actuator", self.actuator, "an actuator id (not 'supply')")
+            )
 
     @classmethod
     def parse(cls, text: str) -> Location:

@@ -51,6 +51,10 @@ def campaign(
     reference_cycles: Annotated[
         int, typer.Option(min=10, help="Leak-free cycles of each plant's reference.")
     ] = 40,
+    uncertainty_plants: Annotated[
+        int,
+        typer.Option(min=0, help="Plausible plants measuring the signatures' model uncertainty."),
+    ] = 12,
     seed_offset: Annotated[
         int,
         typer.Option(
@@ -78,6 +82,7 @@ def campaign(
         pairs=pairs,
         run_cycles=run_cycles,
         reference_cycles=reference_cycles,
+        uncertainty_plants=uncertainty_plants,
         seed_offset=seed_offset,
     )
     console = Console()

@@ -56,6 +56,7 @@ from pneufdd.recording.model import Recording
 from pneufdd.sim import (
     MachineDescription,
     MachineStalledError,
+    as_exported,
     load_machine,
     parse_leak_size,
     simulate,
@@ -257,15 +258,6 @@ def channel_sets(machine: MachineDescription, names: Sequence[str]) -> dict[str,
     return sets
 
 
-def _strip_description(recording: Recording) -> Recording:
-    """The recording as a DAQ export would be: the machine's name, not its parameters."""
-    meta = dict(recording.metadata)
-    machine = meta.get("machine")
-    if isinstance(machine, dict):
-        meta["machine"] = {"name": machine.get("name")}
-    return recording.with_metadata(meta)
-
-
 def _signatures(
     machine: MachineDescription,
     channels: tuple[str, ...],
@@ -356,7 +348,7 @@ def run_job(job: Job) -> list[dict[str, Any]]:
         )
         for leak in recording.metadata["leaks"]
     }
-    recording = _strip_description(recording)
+    recording = as_exported(recording)
     records = []
     for sensors, path in job.references.items():
         model = _cached_reference(path)
@@ -517,8 +509,7 @@ def run_campaign(
                 )
                 ref_seeds = [_seed(design, m, s, k, 1), _seed(design, m, s, k, 2)]
                 recordings = [
-                    _strip_description(simulate(plant, cycles=half + 2, seed=seed))
-                    for seed in ref_seeds
+                    as_exported(simulate(plant, cycles=half + 2, seed=seed)) for seed in ref_seeds
                 ]
                 references = {}
                 for sensors, channels in sets.items():

@@ -14,6 +14,7 @@ from pneufdd.sim.result import SimulationResult, Stroke
 from pneufdd.sim.simulate import (
     SIMULATOR_VERSION,
     MachineStalledError,
+    as_exported,
     run_simulation,
     simulate,
 )
@@ -27,6 +28,7 @@ __all__ = [
     "MachineStalledError",
     "SimulationResult",
     "Stroke",
+    "as_exported",
     "builtin_machines",
     "load_machine",
     "machine_to_toml",

@@ -23,7 +23,13 @@ from pneufdd.sim.loading import load_machine
 from pneufdd.sim.result import SimulationResult, Stroke
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor
 
-__all__ = ["SIMULATOR_VERSION", "MachineStalledError", "run_simulation", "simulate"]
+__all__ = [
+    "SIMULATOR_VERSION",
+    "MachineStalledError",
+    "as_exported",
+    "run_simulation",
+    "simulate",
+]
 
 SIMULATOR_VERSION = f"pneufdd.sim {__version__} (twin model 1)"
 ANALOG_RATE_HZ = 1000.0
@@ -391,3 +397,25 @@ def simulate(
     return run_simulation(
         machine, cycles, leaks, seed, progress, keep_outputs=False, max_cycle_s=max_cycle_s
     ).recording
+
+
+def as_exported(recording: Recording) -> Recording:
+    """A simulated recording as a DAQ or PLC export of the machine would be.
+
+    A simulation stores the description it ran (for a plant drawn with
+    :func:`pneufdd.sim.vary_machine`: the plant's true parameters) in the recording's
+    metadata; a real machine's data never carries those. This keeps the machine's
+    name and drops the description, so that nothing downstream can use what a real
+    plant would not tell.
+
+    Examples
+    --------
+    >>> rec = as_exported(simulate("press-fit-cell", cycles=1, seed=1))
+    >>> rec.metadata["machine"]
+    {'name': 'press-fit-cell'}
+    """
+    meta = dict(recording.metadata)
+    machine = meta.get("machine")
+    if isinstance(machine, dict):
+        meta["machine"] = {"name": machine.get("name")}
+    return recording.with_metadata(meta)

@@ -1,0 +1,154 @@
+"""The signatures' model uncertainty: plausible-plant deviations and the run weighting."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from _diag_synth import synth_signatures, synth_table
+from pneufdd.diagnosis.effects import LeakEffectModel
+from pneufdd.diagnosis.engine import whitener
+from pneufdd.diagnosis.localisation import LocalisationSettings, locate
+from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.diagnosis.twin_effects import TwinLeakEffect
+from pneufdd.errors import InputError
+from pneufdd.location import SUPPLY, Location
+from pneufdd.signals.segmentation import sequence_from_machine
+from pneufdd.sim import load_machine
+
+
+def _with_deviations(sig: SignatureSet, k: int = 6, seed: int = 0) -> SignatureSet:
+    rng = np.random.default_rng(seed)
+    sizes = sig.sizes[0, [0, -1]]
+    base = np.stack([[sig.effect(i, s) for s in sizes] for i in range(len(sig.locations))])
+    deviations = 0.1 * base[None] * rng.normal(size=(k, *base.shape))
+    return sig.with_plant_deviations(deviations, sizes)
+
+
+def test_deviations_interpolate_like_the_signatures():
+    sig = _with_deviations(synth_signatures())
+    d = sig.plant_deviations
+    lo, hi = sig.deviation_sizes
+    assert sig.deviations(2, lo) == pytest.approx(d[:, 2, 0])
+    assert sig.deviations(2, hi) == pytest.approx(d[:, 2, 1])
+    mid = 0.25 * lo + 0.75 * hi
+    assert sig.deviations(2, mid) == pytest.approx(0.25 * d[:, 2, 0] + 0.75 * d[:, 2, 1])
+    assert sig.deviations(2, 0.5 * lo) == pytest.approx(0.5 * d[:, 2, 0])  # through 0
+    assert sig.n_plants == 6
+    sub = sig.select(sig.feature_names[:12])
+    assert sub.plant_deviations.shape == (6, 5, 2, 12)
+    assert synth_signatures().deviations(0, lo) is None
+
+
+def test_deviations_are_validated():
+    sig = synth_signatures()
+    with pytest.raises(InputError, match="both or neither"):
+        sig.with_plant_deviations(np.zeros((2, 5, 1, sig.n_features)), None)
+    with pytest.raises(InputError, match="shape of plant_deviations"):
+        sig.with_plant_deviations(np.zeros((2, 4, 1, sig.n_features)), np.array([1e-3]))
+    with pytest.raises(InputError, match="positive, increasing"):
+        sig.with_plant_deviations(np.zeros((2, 5, 2, sig.n_features)), np.array([2e-3, 1e-3]))
+
+
+@pytest.fixture(scope="module")
+def reference():
+    sig = _with_deviations(synth_signatures(), k=8, seed=3)
+    return ReferenceModel.build(synth_table(60, seed=100), signatures=sig)
+
+
+def test_without_model_error_the_weighting_is_the_detector_statistic(reference):
+    det = reference.detector
+    rng = np.random.default_rng(1)
+    delta = rng.normal(size=(3, det.scale_.size)) * det.scale_
+    gain = 1.0 / np.sqrt(1 / 10 + 1 / reference.n_cycles)
+    expected = det.project(delta / det.scale_) * gain
+    assert whitener(reference, 10)(delta) == pytest.approx(expected, abs=1e-9)
+
+
+def test_weighted_model_error_has_unit_variance(reference):
+    # draws of what the model says a correct explanation leaves (noise + the coherent
+    # plant deviations of one leak + the floor) are white after the weighting
+    det = reference.detector
+    sig = reference.signatures
+    loc, size = 1, 8e-4
+    dev = sig.deviations(loc, size)
+    magnitude = np.abs(sig.effect(loc, size))
+    whiten = whitener(reference, 10, magnitude, [(loc, size)], 0.02)
+    rng = np.random.default_rng(7)
+    n = 20_000
+    noise_sd = det.scale_ * np.sqrt(1 / 10 + 1 / reference.n_cycles)
+    draws = rng.normal(size=(n, noise_sd.size)) * np.sqrt(
+        noise_sd**2 + (0.02 * magnitude) ** 2
+    ) + rng.normal(size=(n, dev.shape[0])) @ dev / np.sqrt(dev.shape[0])
+    white = whiten(draws)
+    # the fluctuation directions are projected out, everything else has unit variance
+    dof = det.scale_.size - det.components_.shape[0]
+    assert np.mean(np.sum(white**2, axis=1)) == pytest.approx(dof, rel=0.02)
+    # and the coherent deviation of the leak is no longer large evidence
+    plain = whitener(reference, 10)
+    one = dev[0]
+    assert float(np.sum(whiten(one) ** 2)) < 0.1 * float(np.sum(plain(one) ** 2))
+
+
+def _supply_like_pair():
+    """Signatures where a supply leak looks like X_A and X_B leaking together."""
+    rng = np.random.default_rng(23)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    matrix[0] = matrix[1] + matrix[2]
+    return matrix, SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+
+
+def test_two_lines_standing_for_a_supply_leak_lower_its_confidence():
+    matrix, sig = _supply_like_pair()
+    result = locate(2.0 * matrix[0], LeakEffectModel(sig), lambda d: np.atleast_2d(d) * 50.0)
+    (leak,) = result.leaks
+    assert leak.location == SUPPLY
+    assert leak.confidence < 0.6  # X_A + X_B fits as well: not a confident supply leak
+    assert any(set(map(str, alt.locations)) == {"X_A", "X_B"} for alt in result.alternatives)
+    distinct = locate(2.0 * matrix[3], LeakEffectModel(sig), lambda d: np.atleast_2d(d) * 50.0)
+    assert distinct.leaks[0].confidence > 0.95
+
+
+def test_supply_beside_a_line_leak_may_be_the_other_line():
+    rng = np.random.default_rng(24)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    observed = 3.0 * matrix[2] + 1.0 * matrix[0]  # X_B and a supply leak
+    result = locate(observed, LeakEffectModel(sig), lambda d: np.atleast_2d(d) * 50.0)
+    groups = {str(leak.location): [str(x) for x in leak.ambiguity_group] for leak in result.leaks}
+    assert groups == {"X_B": ["X_B"], "supply": ["supply", "X_A"]}
+
+
+def test_localisation_settings_round_trip_and_validation():
+    settings = LocalisationSettings(max_leaks=1, model_error_floor=0.05)
+    assert LocalisationSettings.from_dict(settings.to_dict()) == settings
+    with pytest.raises(InputError, match="max_leaks"):
+        LocalisationSettings(max_leaks=3)
+    with pytest.raises(InputError, match="min_flow"):
+        LocalisationSettings(min_flow=-1.0)
+    with pytest.raises(InputError, match="colour"):
+        LocalisationSettings.from_dict({"colour": 1})
+    assert replace(settings, simulate_explanations=False).simulate_explanations is False
+
+
+def test_an_unknown_leak_location_is_an_error_not_a_stall():
+    machine = load_machine("press-fit-cell")
+    twin = TwinLeakEffect(machine, ("duration@1",), sequence_from_machine(machine), ())
+    assert twin({Location("FEED", "A"): 5e-4}) is not None
+    with pytest.raises(InputError, match="NOPE_A"):
+        twin({Location("NOPE", "A"): 5e-4})

@@ -1,0 +1,143 @@
+"""Campaigns on plants that differ from their twin, and their scoring."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from pneufdd.cli.app import main
+from pneufdd.errors import InputError
+from pneufdd.evaluation import CampaignDesign, RunOutcome, Tally, rescore, run_campaign
+from pneufdd.evaluation.scoring import ReportedLeak
+
+
+def _leak(location, group, flows, confidence):
+    return ReportedLeak(location, tuple(group), tuple(flows), confidence)
+
+
+def test_tally_counts_what_the_issue_asks():
+    t = Tally()
+    # a single leak found in a group of two, 10 % too large
+    t.add(
+        RunOutcome(
+            "single",
+            {"X_A": 1e-3},
+            True,
+            10,
+            10,
+            (_leak("X_B", ["X_B", "X_A"], [1.2e-3, 1.1e-3], 0.95),),
+            (),
+            0.1,
+            False,
+        )
+    )
+    # a single leak with a spurious second one
+    t.add(
+        RunOutcome(
+            "single",
+            {"Y_B": 2e-3},
+            True,
+            10,
+            9,
+            (_leak("Y_B", ["Y_B"], [1.5e-3], 0.92), _leak("supply", ["supply"], [1e-4], 0.91)),
+            (),
+            0.3,
+            True,
+        )
+    )
+    # a missed single leak
+    t.add(RunOutcome("single", {"Z_A": 1e-4}, False, 10, 1, (), (), 0.05, False))
+    t.add(RunOutcome("free", {}, True, 10, 2, (), (), 0.02, False))
+    t.add(RunOutcome("free", {}, False, 10, 0, (), (), 0.02, False))
+    t.add(
+        RunOutcome(
+            "pair",
+            {"X_A": 1e-3, "supply": 1e-3},
+            True,
+            10,
+            10,
+            (_leak("X_A", ["X_A"], [1e-3], 0.99),),
+            (("X_A", "supply"),),
+            0.5,
+            False,
+        )
+    )
+    f = t.figures()
+    assert f["detected"] == pytest.approx(2 / 3)
+    assert f["in_group"] == pytest.approx(2 / 3)
+    assert f["mean_group"] == pytest.approx(1.5)
+    assert f["size_error_median"] == pytest.approx(0.175)  # 10 % and 25 %
+    assert f["spurious_second_leak"] == pytest.approx(1 / 3)
+    assert f["leak_free_flagged"] == pytest.approx(0.5)
+    assert f["cycle_free_flagged"] == pytest.approx(0.1)
+    assert f["pairs_both"] == 0.0
+    assert f["pairs_both_or_alternative"] == 1.0  # one alternative holds both
+    # reliability: 4 reported leaks, the spurious supply one is false
+    assert f["confident_true"] == pytest.approx(3 / 4)
+    rows = {round(low, 2): (n, share) for low, _, n, share, _ in t.reliability()}
+    assert rows[0.9] == (2, 0.5)  # 0.92 true, 0.91 false
+    assert rows[0.95] == (2, 1.0)  # 0.95, 0.99
+    checks = t.checks({"in_group": 0.98, "size_error_p90": 0.25})
+    assert checks == {"in_group >= 0.98": False, "size_error_p90 <= 0.25": True}
+
+
+def test_design_is_validated():
+    with pytest.raises(InputError, match="sensor sets"):
+        CampaignDesign(machines=("festo-dsd",), sensor_sets=("everything",))
+    with pytest.raises(InputError, match="leak size"):
+        CampaignDesign(machines=("festo-dsd",), leak_sizes=("big",))
+    with pytest.raises(InputError, match="plant scales"):
+        CampaignDesign(machines=("festo-dsd",), plant_scales=(7.0,))
+
+
+TINY = CampaignDesign(
+    machines=("press-fit-cell",),
+    plants=1,
+    leak_sizes=("60slpm",),
+    leak_free_runs=2,
+    pairs=1,
+    run_cycles=4,
+    reference_cycles=14,
+    uncertainty_plants=1,
+    seed_offset=9_000_000,  # a test's seeds (below the development and campaign ranges)
+)
+
+
+def test_a_tiny_campaign_judges_a_plant(tmp_path):
+    seen = []
+    result = run_campaign(TINY, tmp_path / "c", workers=1, progress=lambda *a: seen.append(a))
+    runs = [json.loads(x) for x in (tmp_path / "c" / "runs.jsonl").read_text().splitlines()]
+    manifest = json.loads((tmp_path / "c" / "manifest.json").read_text())
+    (plant,) = manifest["machines"][0]["plants"]
+    assert plant["plant_seed"] == 9_000_000
+    assert len(plant["runs"]) == 9 + 2 + 1  # 9 locations, 2 leak-free runs, 1 pair
+    assert len({r["seed"] for r in plant["runs"]}) == 12  # every run its own seed
+    assert {r["sensors"] for r in runs if not r.get("stalled")} == {"full", "supply-only"}
+    # the plant differs from its twin but keeps the machine's name
+    assert "press-fit-cell" in (tmp_path / "c" / "plants" / "press-fit-cell-s1-p1.toml").read_text()
+    tally = result.tallies[("press-fit-cell", 1.0, "full")]
+    assert tally.leak_runs == 9
+    assert tally.detected == 9
+    assert tally.inside >= 8
+    assert seen[-1] == ("diagnosing campaign runs", 12, 12)
+    again = rescore(tmp_path / "c")
+    assert again.tallies[("press-fit-cell", 1.0, "full")].figures() == tally.figures()
+    with pytest.raises(InputError, match="holds a campaign"):
+        run_campaign(TINY, tmp_path / "c", workers=1)
+
+
+def test_campaign_command(tmp_path, capsys):
+    code = main(
+        [
+            "campaign", "--machine", "carton-sorter", "--plants", "1", "--sizes", "80slpm",
+            "--leak-free-runs", "1", "--pairs", "0", "--run-cycles", "3",
+            "--reference-cycles", "12", "--uncertainty-plants", "1", "--workers", "2",
+            "--seed-offset", "9100000", "--out", str(tmp_path / "c"),
+        ]
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "=== carton-sorter, plant scale 1, sensor set supply-only ===" in out
+    assert "reliability" in out
+    assert "full" not in out.split("sensor set")[1].split("\n")[0]  # supply sensors only
