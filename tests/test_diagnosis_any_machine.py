@@ -12,11 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from pneufdd import LeakDiagnoser
 from pneufdd.cli.app import main
 from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.recording import Recording
-from pneufdd.sim import simulate
+from pneufdd.sim import as_exported, simulate
 
 SEED = 33_000  # this file's seeds: SEED + k
 FESTO = Path(__file__).resolve().parents[1] / "src/pneufdd/sim/machines/festo-dsd.toml"
@@ -118,17 +117,31 @@ def test_description_of_another_machine_is_refused(my_rig, tmp_path, capsys):
     ("machine", "location", "channels"),
     [
         ("press-fit-cell", "EJECT_B", None),
-        ("press-fit-cell", "supply", ["P_In", "Q_In"]),
+        ("press-fit-cell", "supply", "P_In,Q_In"),
         ("carton-sorter", "PUSH_L_A", None),
         ("carton-sorter", "GATE_B", None),
     ],
 )
-def test_built_in_industrial_machines_are_diagnosed(machine, location, channels):
-    free = [simulate(machine, cycles=7, seed=SEED + 10 + k) for k in (1, 2)]
-    diagnoser = LeakDiagnoser(channels=channels, uncertainty_plants=1).fit(free)
-    run = simulate(machine, cycles=12, leaks={location: "60slpm"}, seed=SEED + 13)
-    result = diagnoser.diagnose(run)
-    assert result.detected
-    assert [str(leak.location) for leak in result.leaks] == [location]
-    assert result.leaks[0].flow_slpm == pytest.approx(60.0, rel=0.25)
-    assert not diagnoser.diagnose(simulate(machine, cycles=12, seed=SEED + 14)).detected
+def test_built_in_industrial_machines_from_the_command_line(
+    machine, location, channels, tmp_path, capsys
+):
+    paths = []
+    for k in (1, 2):
+        rec = as_exported(simulate(machine, cycles=7, seed=SEED + 10 + k))
+        paths.append(str(rec.write(tmp_path / f"free{k}.parquet")))
+    leaky = simulate(machine, cycles=12, leaks={location: "60slpm"}, seed=SEED + 13)
+    run = as_exported(leaky).write(tmp_path / "run.parquet")
+    free = as_exported(simulate(machine, cycles=12, seed=SEED + 14)).write(
+        tmp_path / "free.parquet"
+    )
+    ref = tmp_path / "ref.pnref"
+    options = ["--machine", machine, "--uncertainty-plants", "1"]
+    options += [] if channels is None else ["--channels", channels]
+    assert main(["reference", "build", *paths, "--out", str(ref), *options]) == 0
+    assert "signatures:" in capsys.readouterr().err
+    out = tmp_path / "d.json"
+    assert main(["diagnose", str(run), "--reference", str(ref), "--json", str(out)]) == 1
+    data = json.loads(out.read_text())
+    assert [leak["location"] for leak in data["leaks"]] == [location]
+    assert data["leaks"][0]["flow_slpm"] == pytest.approx(60.0, rel=0.25)
+    assert main(["diagnose", str(free), "--reference", str(ref)]) == 0
