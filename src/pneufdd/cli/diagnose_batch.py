@@ -26,7 +26,8 @@ __all__ = ["is_batch", "run_batch"]
 
 def is_batch(runs: list[Path]) -> bool:
     """Whether ``pneufdd diagnose`` was given a batch: several runs, a folder, a pattern."""
-    return len(runs) != 1 or runs[0].is_dir() or (set("*?[") & set(str(runs[0])) != set())
+    pattern = bool(set("*?[") & set(str(runs[0]))) and not runs[0].exists()
+    return len(runs) != 1 or runs[0].is_dir() or pattern
 
 
 def run_batch(
