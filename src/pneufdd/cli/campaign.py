@@ -64,7 +64,19 @@ def campaign(
         ),
     ] = 100_000_000,
     workers: Annotated[
-        int | None, typer.Option(min=1, help="Parallel processes (default: one per CPU).")
+        int | None,
+        typer.Option(
+            min=1,
+            help="Worker processes of the local Dask cluster (default: one per CPU; "
+            "1: no cluster).",
+        ),
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Run on an existing Dask cluster: its scheduler's address "
+            "(tcp://host:8786); its workers must see --out at the same path.",
+        ),
     ] = None,
 ) -> None:
     """Simulate plants varied from each MACHINE, diagnose their runs, print the figures."""
@@ -87,7 +99,9 @@ def campaign(
     )
     console = Console()
     with progress_bars() as progress:
-        result = run_campaign(design, out, workers, progress, lambda line: console.print(line))
+        result = run_campaign(
+            design, out, workers, progress, lambda line: console.print(line), scheduler
+        )
     for line in result.lines():
         console.print(line, highlight=False, markup=False)
 

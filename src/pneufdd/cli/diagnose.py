@@ -70,7 +70,14 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
 
 
 def diagnose(
-    run: Annotated[Path, typer.Argument(help="Recording to diagnose (.parquet).")],
+    runs: Annotated[
+        list[Path],
+        typer.Argument(
+            metavar="RUN...",
+            help="Recording to diagnose (.parquet); several, a folder or a glob pattern "
+            "diagnose a batch: one JSON line per run.",
+        ),
+    ],
     reference: Annotated[Path, typer.Option("--reference", help="Reference file (.pnref).")],
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the result as JSON.")
@@ -94,10 +101,24 @@ def diagnose(
             "more). Default: the reference's setting.",
         ),
     ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(min=1, help="Batch: processes of the local Dask cluster (default: CPUs)."),
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Batch: run on an existing Dask cluster (tcp://host:8786)."),
+    ] = None,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
     console = Console()
     settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
+    from pneufdd.cli.diagnose_batch import is_batch, run_batch
+
+    if is_batch(runs):
+        args = (json_out, report, settings, max_leaks, simulate, workers, scheduler)
+        raise typer.Exit(run_batch(runs, reference, *args))
+    run = runs[0]
     model = load_reference(reference)
     localisation = model.localisation
     if max_leaks is not None:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -263,6 +263,7 @@ def compute_signatures(
     progress: Progress | None = None,
     workers: int | None = None,
     locations: Sequence[Location] | None = None,
+    executor: Executor | None = None,
 ) -> SignatureSet:
     """Simulate single leaks at every candidate location and size; return the signatures.
 
@@ -288,6 +289,9 @@ def compute_signatures(
         Processes simulating in parallel (default: one per CPU).
     locations : sequence of Location, optional
         Candidate locations (default: all of the machine's).
+    executor : concurrent.futures.Executor, optional
+        Runs the locations instead of a pool of ``workers`` processes (e.g. a Dask
+        cluster's, :func:`pneufdd.parallel.executor`); left open.
 
     Returns
     -------
@@ -339,7 +343,8 @@ def compute_signatures(
         machine, {SUPPLY: INTERACTION_SIZES_SLPM[1]}, cycles, seed, sequence, channels
     )
     workers = max(1, min(workers or (os.cpu_count() or 1), len(jobs)))
-    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+    own = executor is None and workers > 1
+    pool = ProcessPoolExecutor(max_workers=workers) if own else executor
     try:
         results = pool.map(_location_ladder, jobs) if pool else map(_location_ladder, jobs)
         for i, (loc_sizes, loc_means, p, pair, loc_leaked, pair_flows) in enumerate(results):
@@ -355,7 +360,7 @@ def compute_signatures(
                 )
             advance()
     finally:
-        if pool is not None:
+        if own and pool is not None:
             pool.shutdown()
     return SignatureSet(
         locations,
@@ -508,6 +513,7 @@ def signature_spread(
     seed: int = SIGNATURE_SEED,
     workers: int | None = None,
     progress: Progress | None = None,
+    executor: Executor | None = None,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     r"""Model uncertainty of the signatures: how they err on plausible plants.
 
@@ -554,6 +560,8 @@ def signature_spread(
         Processes simulating in parallel (default: one per CPU).
     progress : callable, optional
         ``progress(task, done, total)``.
+    executor : concurrent.futures.Executor, optional
+        Runs the plants instead of a pool of ``workers`` processes; left open.
 
     Returns
     -------
@@ -596,14 +604,15 @@ def signature_spread(
     ]
     advance = counter(progress, "simulating plausible plants (model uncertainty)", plants)
     workers = max(1, min(workers or (os.cpu_count() or 1), plants))
-    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+    own = executor is None and workers > 1
+    pool = ProcessPoolExecutor(max_workers=workers) if own else executor
     deviations = []
     try:
         for effects in pool.map(_plant_effects, jobs) if pool else map(_plant_effects, jobs):
             deviations.append(np.where(np.isfinite(effects), effects - twin, 0.0))
             advance()
     finally:
-        if pool is not None:
+        if own and pool is not None:
             pool.shutdown()
     stacked = np.stack(deviations).astype(np.float32).astype(np.float64)
     return stacked, flows

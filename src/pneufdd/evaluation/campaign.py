@@ -24,10 +24,9 @@ itself (the regression check against earlier campaigns).
 from __future__ import annotations
 
 import json
-import os
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -49,6 +48,7 @@ from pneufdd.diagnosis.twin_effects import (
 from pneufdd.errors import InputError, describe
 from pneufdd.evaluation.scoring import RunOutcome, Tally, outcome_from_record
 from pneufdd.location import locations_of
+from pneufdd.parallel import executor, map_unordered, resolve_workers
 from pneufdd.physics.leaks import leak_mass_flow
 from pneufdd.physics.units import psig_to_pa
 from pneufdd.progress import Progress, counter
@@ -255,6 +255,7 @@ def _signatures(
     design: CampaignDesign,
     progress: Progress | None,
     workers: int,
+    pool: Executor | None,
 ) -> SignatureSet:
     sequence = machine_sequence(machine)
     if sequence is None:  # pragma: no cover - a description always has a sequence
@@ -268,6 +269,7 @@ def _signatures(
         channels=channels,
         progress=progress,
         workers=workers,
+        executor=pool,
     )
     if design.uncertainty_plants == 0:
         return signatures
@@ -281,6 +283,7 @@ def _signatures(
             plants=design.uncertainty_plants,
             workers=workers,
             progress=progress,
+            executor=pool,
         )
     )
 
@@ -377,20 +380,13 @@ def run_job(job: Job) -> list[dict[str, Any]]:
 
 
 def _run_jobs(
-    jobs: Sequence[Job], workers: int, progress: Progress | None
+    jobs: Sequence[Job], pool: Executor | None, progress: Progress | None
 ) -> Iterator[list[dict[str, Any]]]:
-    """The records of every job, as each finishes (in parallel when ``workers`` > 1)."""
+    """The records of every job, as each finishes (on ``pool`` when given)."""
     advance = counter(progress, "diagnosing campaign runs", len(jobs))
-    if workers <= 1:
-        for job in jobs:
-            yield run_job(job)
-            advance()
-        return
-    with ProcessPoolExecutor(workers) as pool:
-        futures = [pool.submit(run_job, job) for job in jobs]
-        for future in as_completed(futures):
-            yield future.result()
-            advance()
+    for _, records in map_unordered(run_job, jobs, pool):
+        yield records
+        advance()
 
 
 def _plan_runs(
@@ -430,6 +426,7 @@ def run_campaign(
     workers: int | None = None,
     progress: Progress | None = None,
     log: Callable[[str], None] | None = None,
+    scheduler: str | None = None,
 ) -> CampaignResult:
     """Run a campaign; write its manifest, plants, references and run records under ``out``.
 
@@ -443,26 +440,47 @@ def run_campaign(
         and sensor set) and ``summary.json``. An existing ``runs.jsonl`` is never
         overwritten: pick a new folder.
     workers : int, optional
-        Processes running in parallel (default: one per CPU).
+        Worker processes of the local Dask cluster the campaign runs on (default: one
+        per CPU; 1: everything in this process). See :func:`pneufdd.parallel.executor`.
     progress : callable, optional
         ``progress(task, done, total)``.
     log : callable, optional
         Receives one line per stage (e.g. ``print``).
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``) to run on instead of
+        a local cluster; its workers must read ``out`` at the same path (a shared
+        folder). The figures are the same wherever the runs are simulated.
 
     Returns
     -------
     CampaignResult
     """
     start = time.perf_counter()
-    folder = Path(out)
+    folder = Path(out).absolute()  # workers may run elsewhere (another cwd)
     if (folder / "runs.jsonl").exists():
         raise InputError(
             describe(f"campaign folder {str(folder)!r}", "holds a campaign", "a new folder")
         )
     (folder / "plants").mkdir(parents=True, exist_ok=True)
     (folder / "references").mkdir(parents=True, exist_ok=True)
-    workers = max(1, workers or (os.cpu_count() or 1))
+    workers = resolve_workers(workers)
     say = log or (lambda _line: None)
+    with executor(workers, scheduler) as pool:
+        where = f"Dask scheduler {scheduler}" if scheduler else f"{workers} worker(s)"
+        say(f"running on {where}")
+        return _run_campaign(design, folder, workers, pool, progress, say, where, start)
+
+
+def _run_campaign(
+    design: CampaignDesign,
+    folder: Path,
+    workers: int,
+    pool: Executor | None,
+    progress: Progress | None,
+    say: Callable[[str], None],
+    where: str,
+    start: float,
+) -> CampaignResult:
     manifest: dict[str, Any] = {"design": asdict(design), "machines": []}
     jobs: list[Job] = []
     for m, name in enumerate(design.machines):
@@ -478,7 +496,7 @@ def run_campaign(
             )
         all_channels = max(sets.values(), key=len)
         t0 = time.perf_counter()
-        signatures = _signatures(machine, all_channels, design, progress, workers)
+        signatures = _signatures(machine, all_channels, design, progress, workers, pool)
         say(
             f"{machine.name}: signatures of {len(signatures.locations)} locations from the "
             f"description in {time.perf_counter() - t0:.0f} s; sensor sets {list(sets)}"
@@ -550,10 +568,10 @@ def run_campaign(
                 )
         manifest["machines"].append(entry)
     (folder / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n", "utf-8")
-    say(f"{len(jobs)} runs on {workers} worker(s)")
+    say(f"{len(jobs)} runs on {where}")
     result = CampaignResult(out=folder)
     with open(folder / "runs.jsonl", "x", encoding="utf-8") as handle:
-        for records in _run_jobs(jobs, workers, progress):
+        for records in _run_jobs(jobs, pool, progress):
             for record in records:
                 handle.write(json.dumps(record) + "\n")
                 handle.flush()

@@ -20,7 +20,11 @@ import numpy.typing as npt
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from pneufdd.physics.chamber import chamber_energy_derivatives_kernel
+from pneufdd.physics.chamber import (
+    chamber_energy_derivatives_kernel,
+    chamber_pressure_kernel,
+    chamber_volume_kernel,
+)
 from pneufdd.physics.constants import GAMMA_AIR, P_ATM, R_AIR
 from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
 from pneufdd.physics.friction import friction_force_kernel
@@ -98,13 +102,18 @@ def plant_derivatives(
     vol[1] = sp[lay.SP_V_MAN]
     for i in range(na):
         xi = min(max(x[i], 0.0), ap[i, lay.AP_STROKE])
-        vol[2 + 2 * i] = cp[2 * i, lay.CP_DEAD] + cp[2 * i, lay.CP_AREA] * xi
-        vol[3 + 2 * i] = cp[2 * i + 1, lay.CP_DEAD] + cp[2 * i + 1, lay.CP_AREA] * (
-            ap[i, lay.AP_STROKE] - xi
+        stroke = ap[i, lay.AP_STROKE]
+        vol[2 + 2 * i] = chamber_volume_kernel(
+            xi, cp[2 * i, lay.CP_AREA], cp[2 * i, lay.CP_DEAD], stroke, 0.0
+        )
+        vol[3 + 2 * i] = chamber_volume_kernel(
+            xi, cp[2 * i + 1, lay.CP_AREA], cp[2 * i + 1, lay.CP_DEAD], stroke, 1.0
         )
         vdot[2 + 2 * i] = cp[2 * i, lay.CP_AREA] * v[i]
         vdot[3 + 2 * i] = -cp[2 * i + 1, lay.CP_AREA] * v[i]
-    p = m * R_AIR * temp / vol
+    p = np.empty(nn)
+    for j in range(nn):
+        p[j] = chamber_pressure_kernel(m[j], temp[j], vol[j])
     fin = np.zeros(nn)
     fout = np.zeros(nn)
     hin = np.zeros(nn)

@@ -20,6 +20,7 @@ from pneufdd.sim.description import MachineDescription, solenoid_slots
 from pneufdd.sim.kernel import SAMPLE_DT, run_cycle
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import load_machine
+from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulationResult, Stroke
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor
 
@@ -157,6 +158,7 @@ def run_simulation(
     step_start = np.zeros((cycles, nsteps))
     strokes: list[Stroke] = []
     total_sub = 0
+    params, program, records_state, outputs = _records(plant, state, buf)
     for cyc in range(cycles):
         jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], nsteps)
         if cyc == cycles - 1:
@@ -167,17 +169,8 @@ def run_simulation(
         t_start = float(state["ss"][lay.SS_TIME])
         k_start = int(state["istate"][lay.IS_SAMPLE])
         n, status, n_ev, nsub = run_cycle(
-            plant.sp, plant.ap, plant.vkind, plant.cp,
-            plant.act_start, plant.act_sol, plant.act_mode, plant.act_sw, plant.act_dur,
-            plant.wait_start, plant.wait_sw, plant.wait_val, plant.dwell,
-            jitter, fric, ou,
-            state["m"], state["temp"], state["x"], state["v"], state["stuck"],
-            state["spool"], state["cmd"], state["eff"], state["chg"], state["rel_sw"],
-            state["rel_t"], state["ss"], state["istate"], state["cum"],
-            buf.p, buf.x, buf.vac, buf.fch, buf.fexh, buf.fleak, buf.fr, buf.cum,
-            buf.mass, buf.cmd, buf.sw, buf.step, buf.step_t,
-            buf.ev_act, buf.ev_dir, buf.ev_t0, buf.ev_t1, state["mv_t0"], state["mv_dir"],
-        )  # fmt: skip
+            params, program, CycleDraws(jitter, fric, ou), records_state, outputs
+        )
         total_sub += nsub
         if status != 0:
             raise MachineStalledError(_stall_message(desc, cyc, int(state["istate"][lay.IS_STEP])))
@@ -199,6 +192,20 @@ def run_simulation(
         if progress is not None:
             progress(cyc + 1, cycles)
     return _assemble(desc, plant, specs, chunks, step_start, strokes, rng, seed, cycles, total_sub)
+
+
+def _records(
+    plant: Plant, state: dict[str, npt.NDArray[Any]], buf: _Buffers
+) -> tuple[PlantParams, Program, State, Outputs]:
+    """The compiled kernel's records over the plant, its state and the buffers."""
+    params = PlantParams(plant.sp, plant.ap, plant.vkind, plant.cp)
+    program = Program(
+        plant.act_start, plant.act_sol, plant.act_mode, plant.act_sw, plant.act_dur,
+        plant.wait_start, plant.wait_sw, plant.wait_val, plant.dwell,
+    )  # fmt: skip
+    records_state = State(*(state[name] for name in State._fields))
+    outputs = Outputs(*(getattr(buf, name) for name in Outputs._fields))
+    return params, program, records_state, outputs
 
 
 def _take(

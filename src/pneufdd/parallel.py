@@ -1,0 +1,126 @@
+"""Where long work runs: in this process, or on a Dask cluster (``dask.distributed``).
+
+Campaigns and batch diagnoses are many independent jobs (one simulated or recorded
+run each). :func:`executor` opens a :class:`concurrent.futures.Executor` for them:
+
+* ``workers=1`` and no scheduler: None, the caller runs the jobs itself, in order;
+* no scheduler: a :class:`distributed.LocalCluster` of ``workers`` processes (default:
+  one per CPU), one thread each (the compiled twin holds the GIL), closed on exit;
+* ``scheduler="tcp://host:8786"``: an existing cluster (started with
+  ``dask scheduler`` and ``dask worker`` on other machines); its workers need pneufdd
+  installed, and files the jobs name must be readable there (jobs that carry their
+  inputs in memory need nothing else).
+
+Jobs are plain functions of picklable arguments; results are identical whichever way
+they run (every job seeds its own random numbers). ``distributed`` is imported only
+when a cluster is used.
+
+Examples
+--------
+>>> with executor(workers=1) as pool:
+...     sorted(map_unordered(abs, [-2, 1, -3], pool))
+[(0, 2), (1, 1), (2, 3)]
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import Executor, Future, as_completed
+from contextlib import contextmanager
+from typing import Any, TypeVar
+
+from pneufdd.errors import InputError, describe
+
+__all__ = ["executor", "map_unordered", "resolve_workers"]
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+def resolve_workers(workers: int | None) -> int:
+    """Worker processes to use: ``workers``, or one per CPU when None.
+
+    >>> resolve_workers(3)
+    3
+    """
+    if workers is None:
+        return max(1, os.cpu_count() or 1)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(describe("workers", workers, "an integer >= 1"))
+    return workers
+
+
+@contextmanager
+def executor(workers: int | None = None, scheduler: str | None = None) -> Iterator[Executor | None]:
+    """An executor for independent jobs, or None to run them in this process.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Worker processes of a local cluster (default: one per CPU); 1 without a
+        scheduler runs the jobs here, one after another. Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``).
+
+    Yields
+    ------
+    concurrent.futures.Executor or None
+    """
+    if scheduler is None and resolve_workers(workers) == 1:
+        yield None
+        return
+    from distributed import Client, LocalCluster
+
+    cluster: LocalCluster | None = None
+    if scheduler is None:
+        cluster = LocalCluster(  # type: ignore[no-untyped-call]
+            n_workers=resolve_workers(workers),
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",  # any free port: never collides with another cluster
+            worker_dashboard_address=":0",
+        )
+        client = Client(cluster)  # type: ignore[no-untyped-call]
+    else:
+        if not scheduler.strip():
+            raise InputError(describe("--scheduler", scheduler, "an address tcp://host:port"))
+        try:
+            client = Client(scheduler, timeout="20s")  # type: ignore[no-untyped-call]
+        except (OSError, TimeoutError) as exc:
+            raise InputError(
+                describe("--scheduler", scheduler, "the address of a running Dask scheduler")
+                + f" ({exc})"
+            ) from exc
+    try:
+        yield client.get_executor(pure=False)  # type: ignore[no-untyped-call]
+    finally:
+        client.close()  # type: ignore[no-untyped-call]
+        if cluster is not None:
+            cluster.close()
+
+
+def map_unordered(
+    function: Callable[[T], R],
+    items: Iterable[T],
+    pool: Executor | None,
+) -> Iterator[tuple[int, R]]:
+    """``(index, function(item))`` for every item, as each finishes.
+
+    Without a pool the items run here in order. An exception of a job is raised
+    here, as soon as that job finishes.
+    """
+    jobs: Sequence[T] = list(items)
+    if pool is None:
+        for i, item in enumerate(jobs):
+            yield i, function(item)
+        return
+    futures: dict[Future[Any], int] = {
+        pool.submit(function, item): i for i, item in enumerate(jobs)
+    }
+    try:
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+    finally:
+        for future in futures:
+            future.cancel()
