@@ -19,6 +19,7 @@ from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.cli.progress_bar import progress_bars
+from pneufdd.cli.recordings import MapOption, read_recording
 from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE, CostSettings
 from pneufdd.diagnosis.engine import Diagnosis
 from pneufdd.diagnosis.pipeline import diagnose_recording
@@ -94,6 +95,7 @@ def diagnose(
             "more). Default: the reference's setting.",
         ),
     ] = None,
+    tag_map: MapOption = None,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
     console = Console()
@@ -105,7 +107,8 @@ def diagnose(
     if simulate is not None:
         localisation = replace(localisation, simulate_explanations=simulate)
     with progress_bars() as progress:
-        table, result = diagnose_recording(model, run, settings, progress, localisation)
+        source = run if tag_map is None else read_recording(run, tag_map)
+        table, result = diagnose_recording(model, source, settings, progress, localisation)
     # render everything first, write afterwards: no partial output on error
     outputs: list[tuple[Path, str]] = []
     if json_out is not None:

@@ -10,6 +10,7 @@ import typer
 from rich.console import Console
 
 from pneufdd.cli.progress_bar import progress_bars
+from pneufdd.cli.recordings import MapOption
 from pneufdd.diagnosis.pipeline import build_reference, parse_channels
 from pneufdd.diagnosis.pnref import save_reference
 from pneufdd.errors import InputError, describe
@@ -69,6 +70,7 @@ def build(
         ),
     ] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+    tag_map: MapOption = None,
 ) -> None:
     """Build a reference from leak-free RECORDINGS and write it to OUT."""
     console = Console(stderr=True)
@@ -90,6 +92,7 @@ def build(
         model = build_reference(
             recordings,
             parse_channels(channels),
+            tag_map=tag_map,
             machine=machine,
             with_signatures=signatures,
             signature_cycles=signature_cycles,
