@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 
 from pneufdd import __version__
+from pneufdd.cli.recordings import MapOption
 from pneufdd.errors import FileExistsInputError, InputError, describe
 
 __all__ = ["register"]
@@ -62,6 +63,42 @@ def vary(
     Console(stderr=True).print(
         f"wrote {path}: plant of {twin.name} at scale {scale:g}, seed {seed}, "
         f"{len(changes)} parameters changed; largest: {largest}",
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+@machine_app.command("draft")
+def draft(
+    recordings: Annotated[
+        list[Path],
+        typer.Argument(help="Leak-free recordings of the plant (the first: >= 2 full cycles)."),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Draft description to write (.toml).")],
+    name: Annotated[str, typer.Option(help="Machine name.")] = "drafted",
+    tag_map: MapOption = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+) -> None:
+    """Draft a machine description from RECORDINGS: actuators, valve kinds, the PLC
+    sequence and the sensors from the signals; what they cannot tell is marked assumed.
+
+    Rules and defaults: docs/calibration.md.
+    """
+    from pneufdd.calibration.draft import draft_machine
+    from pneufdd.cli.recordings import read_recordings
+    from pneufdd.sim import load_machine
+
+    if out.exists() and not overwrite:
+        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
+    drafted = draft_machine(read_recordings(recordings, tag_map), name=name)
+    machine = load_machine(drafted.data)  # the draft is a valid description
+    sources = ", ".join(p.name for p in recordings)
+    text = drafted.to_toml(f"drafted from {sources} by pneufdd {__version__}")
+    out.write_text(text, encoding="utf-8")
+    assumed = sum(line.rstrip().endswith("# assumed") for line in text.splitlines())
+    Console(stderr=True).print(
+        f"wrote {out}: {len(machine.actuators)} actuators, {len(machine.steps)} steps, "
+        f"{len(machine.sensors)} sensors; {assumed} lines assumed (marked '# assumed')",
         highlight=False,
         soft_wrap=True,
     )
