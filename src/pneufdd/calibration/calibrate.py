@@ -229,7 +229,9 @@ def _evidence_from_windows(
     line_channels: Sequence[str],
 ) -> Evidence:
     n_steps = windows[0][0].shape[1]
-    air, dur, pin = [], [], []
+    air: list[FloatArray] = []
+    dur: list[FloatArray] = []
+    pin: list[FloatArray] = []
     lines: dict[str, list[FloatArray]] = {c: [] for c in line_channels}
     for rec, (start, end) in zip(recordings, windows, strict=True):
         dur.append(end - start)
@@ -252,16 +254,16 @@ def _evidence_from_windows(
     if cycles == 0:  # pragma: no cover - callers check
         raise NoCompleteCycleError("no complete cycle to calibrate on")
 
-    def mean(chunks: list[FloatArray]) -> FloatArray:
+    def per_step(chunks: list[FloatArray]) -> FloatArray:
         stacked = np.concatenate(chunks, axis=0).reshape(-1, n_steps)
         out: FloatArray = np.mean(stacked, axis=0)
         return out
 
     return Evidence(
-        supply_air_kg=mean(air),
-        duration_s=mean(dur),
-        supply_pressure_pa=mean(pin),
-        line_pressure_pa={k: mean(v) for k, v in lines.items()},
+        supply_air_kg=per_step(air),
+        duration_s=per_step(dur),
+        supply_pressure_pa=per_step(pin),
+        line_pressure_pa={k: per_step(v) for k, v in lines.items()},
         cycles=cycles,
     )
 
@@ -295,7 +297,7 @@ def measure_evidence(
         if start.shape[1] != len(machine.steps):
             raise InputError(
                 describe(
-                    f"steps per cycle in recording {k + 1}", start.shape[1], len(machine.steps)
+                    f"steps per cycle in recording {k + 1}", start.shape[1], str(len(machine.steps))
                 )
             )
         windows.append((start, end))
