@@ -2,7 +2,8 @@
 
 For each machine: one plant at scale 2, two leak-free recordings of it (``--ref-cycles``
 each, as the campaign's 40 in all; as a DAQ exports them), a reference from those
-recordings with the description as written and one with the description calibrated to them (signatures from each), then single leaks of
+recordings with the description as written and one with the description calibrated to
+them (signatures from each), then single leaks of
 ``--size`` SLPM at every location and leak-free runs, each diagnosed with both.
 Prints location-in-group rate, size error median and p90, spurious second leaks and
 false alarms. The true size is the requested flow at the plant's own nominal pressure
