@@ -403,10 +403,8 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
         kind = "5/2-bistable" if has_b else "5/2-monostable"
         if closed:
             kind = "5/3-closed-centre"
-        first = [
-            f"S_{ident}_B" in rec.channels and int(rec.channel(f"S_{ident}_B")[1][0]) == 1,
-        ]
-        act["initial"] = "extended" if first[0] and has_b else "retracted"
+        at_b = f"S_{ident}_B" in rec.channels and int(rec.channel(f"S_{ident}_B")[1][0]) == 1
+        act["initial"] = "extended" if at_b and has_b else "retracted"
         notes[f"actuator[{i}].initial"] = "from the switches at the start"
         act["valve"] = {"kind": kind, **DEFAULTS["valve"]}
         valve_how = (
