@@ -79,8 +79,10 @@ def draft(
     tag_map: MapOption = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
 ) -> None:
-    """Draft a machine description from RECORDINGS: actuators, valve kinds, the PLC
-    sequence and the sensors from the signals; what they cannot tell is marked assumed.
+    """Draft a machine description from RECORDINGS (what the signals cannot tell: assumed).
+
+    Actuators, valve kinds, the PLC sequence and the sensors come from the signals;
+    bore, stroke, tubes and valve sizes are documented defaults marked '# assumed'.
 
     Rules and defaults: docs/calibration.md.
     """
