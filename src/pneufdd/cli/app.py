@@ -9,7 +9,17 @@ import typer
 from rich.console import Console
 
 from pneufdd import __version__
-from pneufdd.cli import campaign, demo, diagnose, features, machine, reference, simulate, steps
+from pneufdd.cli import (
+    campaign,
+    demo,
+    diagnose,
+    features,
+    import_data,
+    machine,
+    reference,
+    simulate,
+    steps,
+)
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.errors import InputError, PneufddError
 
@@ -24,6 +34,8 @@ app = typer.Typer(
 )
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
+    module.register(app)
+for module in (import_data,):
     module.register(app)
 
 

@@ -19,10 +19,12 @@ from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.cli.progress_bar import progress_bars
+from pneufdd.cli.recordings import MapOption, read_recording
 from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE, CostSettings
 from pneufdd.diagnosis.engine import Diagnosis
 from pneufdd.diagnosis.pipeline import diagnose_recording
 from pneufdd.diagnosis.pnref import load_reference
+from pneufdd.errors import InputError, describe
 from pneufdd.report.html import render_report, write_text_atomic
 
 __all__ = ["leak_table", "register"]
@@ -109,6 +111,7 @@ def diagnose(
         str | None,
         typer.Option(help="Batch: run on an existing Dask cluster (tcp://host:8786)."),
     ] = None,
+    tag_map: MapOption = None,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
     console = Console()
@@ -116,6 +119,10 @@ def diagnose(
     from pneufdd.cli.diagnose_batch import is_batch, run_batch
 
     if is_batch(runs):
+        if tag_map is not None:
+            raise InputError(
+                describe("--map with several runs", str(tag_map), "one run (import them first)")
+            )
         args = (json_out, report, settings, max_leaks, simulate, workers, scheduler)
         raise typer.Exit(run_batch(runs, reference, *args))
     run = runs[0]
@@ -126,7 +133,8 @@ def diagnose(
     if simulate is not None:
         localisation = replace(localisation, simulate_explanations=simulate)
     with progress_bars() as progress:
-        table, result = diagnose_recording(model, run, settings, progress, localisation)
+        source = run if tag_map is None else read_recording(run, tag_map)
+        table, result = diagnose_recording(model, source, settings, progress, localisation)
     # render everything first, write afterwards: no partial output on error
     outputs: list[tuple[Path, str]] = []
     if json_out is not None:

@@ -11,6 +11,7 @@ from typing import Annotated
 import pandas as pd
 import typer
 
+from pneufdd.cli.recordings import MapOption, read_recordings
 from pneufdd.errors import FileExistsInputError, describe
 from pneufdd.features.context import Options
 from pneufdd.features.matrix import GROUPS, feature_matrix
@@ -65,13 +66,14 @@ def features(
         list[str] | None, typer.Option(help=f"Feature group(s): {', '.join(GROUPS)}.")
     ] = None,
     wavelet: Annotated[str, typer.Option(help="Mother wavelet of the DWT features.")] = "db4",
+    tag_map: MapOption = None,
 ) -> None:
     """Write the (cycles x features) matrix of RUNS, with leak labels, to OUT."""
     if out.exists() and not overwrite:
         raise FileExistsInputError(
             describe(f"output file {str(out)!r}", "an existing file", "a new path, or --overwrite")
         )
-    recordings = [Recording.read(r) for r in runs]
+    recordings = read_recordings(runs, tag_map)
     df = write_features(
         recordings, out, overwrite, tuple(actuator or ("DNC",)), tuple(group or GROUPS), wavelet
     )

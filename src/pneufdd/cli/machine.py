@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 
 from pneufdd import __version__
+from pneufdd.cli.recordings import MapOption
 from pneufdd.errors import FileExistsInputError, InputError, describe
 
 __all__ = ["register"]
@@ -62,6 +63,105 @@ def vary(
     Console(stderr=True).print(
         f"wrote {path}: plant of {twin.name} at scale {scale:g}, seed {seed}, "
         f"{len(changes)} parameters changed; largest: {largest}",
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+@machine_app.command("draft")
+def draft(
+    recordings: Annotated[
+        list[Path],
+        typer.Argument(help="Leak-free recordings of the plant (the first: >= 2 full cycles)."),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Draft description to write (.toml).")],
+    name: Annotated[str, typer.Option(help="Machine name.")] = "drafted",
+    tag_map: MapOption = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+) -> None:
+    """Draft a machine description from RECORDINGS (what the signals cannot tell: assumed).
+
+    Actuators, valve kinds, the PLC sequence and the sensors come from the signals;
+    bore, stroke, tubes and valve sizes are documented defaults marked '# assumed'.
+
+    Rules and defaults: docs/calibration.md.
+    """
+    from pneufdd.calibration.draft import draft_machine
+    from pneufdd.cli.recordings import read_recordings
+    from pneufdd.sim import load_machine
+
+    if out.exists() and not overwrite:
+        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
+    drafted = draft_machine(read_recordings(recordings, tag_map), name=name)
+    machine = load_machine(drafted.data)  # the draft is a valid description
+    sources = ", ".join(p.name for p in recordings)
+    text = drafted.to_toml(f"drafted from {sources} by pneufdd {__version__}")
+    out.write_text(text, encoding="utf-8")
+    assumed = sum(line.rstrip().endswith("# assumed") for line in text.splitlines())
+    Console(stderr=True).print(
+        f"wrote {out}: {len(machine.actuators)} actuators, {len(machine.steps)} steps, "
+        f"{len(machine.sensors)} sensors; {assumed} lines assumed (marked '# assumed')",
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+@machine_app.command("calibrate")
+def calibrate(
+    description: Annotated[
+        str,
+        typer.Argument(
+            help="Description to start from: a TOML path (e.g. a draft) or a built-in name."
+        ),
+    ],
+    recordings: Annotated[list[Path], typer.Argument(help="Leak-free recordings of the plant.")],
+    out: Annotated[Path, typer.Option("--out", help="Calibrated description to write (.toml).")],
+    report: Annotated[
+        Path | None, typer.Option("--report", help="Write an HTML report (before/after).")
+    ] = None,
+    tag_map: MapOption = None,
+    max_evaluations: Annotated[
+        int, typer.Option(min=2, help="Most least-squares iterations per fit.")
+    ] = 40,
+    overwrite: Annotated[bool, typer.Option(help="Replace existing outputs.")] = False,
+) -> None:
+    """Fit DESCRIPTION to leak-free RECORDINGS with the digital twin in the loop.
+
+    Fits the supply set point and line, each actuator's volume (air per stroke),
+    valve and throttle capacities (step durations) and, with line pressure sensors,
+    friction; parameters the data cannot inform stay at their prior and are listed.
+    """
+    from pneufdd.calibration.calibrate import calibrate_machine
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.cli.recordings import read_recordings
+    from pneufdd.report.calibration import render_calibration_report
+    from pneufdd.report.html import write_text_atomic
+    from pneufdd.sim import load_machine
+    from pneufdd.sim.variation import machine_to_toml
+
+    for path in (out, report):
+        if path is not None and path.exists() and not overwrite:
+            raise FileExistsInputError(
+                describe("output", str(path), "a new file (or pass --overwrite)")
+            )
+    start = load_machine(description)
+    recs = read_recordings(recordings, tag_map)
+    console = Console(stderr=True)
+    with progress_bars(console) as progress:
+        result = calibrate_machine(start, recs, max_evaluations=max_evaluations, progress=progress)
+    sources = ", ".join(p.name for p in recordings)
+    calibrated = result.calibrated_description(sources)
+    lines = [f"calibrated from {start.source} to {sources} by pneufdd {__version__}"]
+    lines.append(result.fit_line())
+    lines += [f"{e.name}: {e.describe()}" for e in result.estimates]
+    text = machine_to_toml(calibrated, header="\n".join(lines))
+    html = render_calibration_report(result, start.source, sources) if report is not None else None
+    write_text_atomic(out, text)
+    if report is not None and html is not None:
+        write_text_atomic(report, html)
+    console.print(
+        f"wrote {out}: {result.fit_line()}; not informed (left at prior): "
+        f"{', '.join(result.not_informed) or 'none'}",
         highlight=False,
         soft_wrap=True,
     )

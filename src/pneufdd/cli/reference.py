@@ -4,15 +4,20 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 
 from pneufdd.cli.progress_bar import progress_bars
+from pneufdd.cli.recordings import MapOption
+from pneufdd.diagnosis.machine import MachineLike
 from pneufdd.diagnosis.pipeline import build_reference, parse_channels
 from pneufdd.diagnosis.pnref import save_reference
 from pneufdd.errors import InputError, describe
+
+if TYPE_CHECKING:
+    from pneufdd.sim import MachineDescription
 
 __all__ = ["register"]
 
@@ -69,6 +74,15 @@ def build(
         ),
     ] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+    tag_map: MapOption = None,
+    calibrate: Annotated[
+        bool,
+        typer.Option(
+            "--calibrate",
+            help="Calibrate the description (--machine, else a draft from the recordings) "
+            "to these leak-free recordings with the twin first (pneufdd machine calibrate).",
+        ),
+    ] = False,
 ) -> None:
     """Build a reference from leak-free RECORDINGS and write it to OUT."""
     console = Console(stderr=True)
@@ -86,11 +100,15 @@ def build(
             ) from exc
         if not ladder or any(b <= a for a, b in itertools.pairwise(ladder)):
             raise InputError(describe("--signature-sizes", signature_sizes, "increasing sizes"))
+    description: MachineLike | None = machine
+    if calibrate:
+        description = _calibrated(recordings, machine, tag_map, console)
     with progress_bars(console) as progress:
         model = build_reference(
             recordings,
             parse_channels(channels),
-            machine=machine,
+            tag_map=tag_map,
+            machine=description,
             with_signatures=signatures,
             signature_cycles=signature_cycles,
             signature_sizes=ladder,
@@ -111,6 +129,37 @@ def build(
         f"{100 * model.detector.reference_false_alarm_rate_:.2f} % -> {out}",
         highlight=False,
     )
+
+
+def _calibrated(
+    recordings: list[Path], machine: str | None, tag_map: Path | None, console: Console
+) -> MachineDescription:
+    """Draft (without --machine) and calibrate: the description the reference keeps."""
+    from pneufdd.calibration import draft_machine
+    from pneufdd.calibration.calibrate import calibrate_machine
+    from pneufdd.cli.recordings import read_recordings
+    from pneufdd.diagnosis.machine import recording_machine_name
+    from pneufdd.sim import load_machine
+
+    recs = read_recordings(recordings, tag_map)
+    if machine is None:
+        name = recording_machine_name(recs[0]) or "drafted"
+        start = load_machine(draft_machine(recs, name=name).data)
+        origin = "a draft from the recordings"
+    else:
+        start = load_machine(machine)
+        origin = start.source
+    with progress_bars(console) as progress:
+        result = calibrate_machine(start, recs, progress=progress)
+    sources = ", ".join(p.name for p in recordings)
+    calibrated = result.calibrated_description(sources)
+    console.print(
+        f"calibrated {origin}: {result.fit_line()}; not informed: "
+        f"{', '.join(result.not_informed) or 'none'}",
+        highlight=False,
+        soft_wrap=True,
+    )
+    return calibrated
 
 
 def register(app: typer.Typer) -> None:

@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from pneufdd.cli.recordings import MapOption, read_recording
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import Segmentation, actuator_of, segment
 
@@ -80,9 +81,10 @@ def steps(
     all_steps: Annotated[
         bool, typer.Option("--all-steps", help="List every step of every cycle.")
     ] = False,
+    tag_map: MapOption = None,
 ) -> None:
     """Show the cycles and steps found in RUN, and the cycles rejected with their reason."""
-    render_steps(Recording.read(run), as_json=as_json, all_steps=all_steps)
+    render_steps(read_recording(run, tag_map), as_json=as_json, all_steps=all_steps)
 
 
 def register(app: typer.Typer) -> None:

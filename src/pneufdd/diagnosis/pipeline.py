@@ -203,16 +203,28 @@ def build_reference(
     channels: Sequence[str] | None = None,
     *,
     progress: Progress | None = None,
+    tag_map: Path | None = None,
     **options: Any,
 ) -> ReferenceModel:
     """Read leak-free recordings from ``paths`` and build a reference model.
 
-    ``options`` are those of :func:`build_reference_from_recordings`.
+    ``tag_map`` is a tag-map file (:mod:`pneufdd.recording.tag_map`) for exports under
+    PLC tag names; ``options`` are those of :func:`build_reference_from_recordings`.
     """
     advance = counter(progress, "reading recordings", len(paths))
+    parsed = None
+    if tag_map is not None:
+        from pneufdd.recording.tag_map import load_tag_map
+
+        parsed = load_tag_map(tag_map)
     recordings = []
     for path in paths:
-        recordings.append(Recording.read(Path(path)))
+        if parsed is None:
+            recordings.append(Recording.read(Path(path)))
+        else:
+            from pneufdd.recording.tag_map import read_mapped
+
+            recordings.append(read_mapped(Path(path), parsed))
         advance()
     return build_reference_from_recordings(
         recordings,

@@ -54,6 +54,14 @@ def _img(png: bytes, alt: str) -> str:
     return f'<figure><img alt="{_e(alt)}" src="data:image/png;base64,{data}"></figure>'
 
 
+def _description_line(reference: ReferenceModel) -> str:
+    """Which description the reference used (its title says if and how it was calibrated)."""
+    description = reference.description
+    if description is None:
+        return "none (leaks are detected, not located or sized)"
+    return description.title
+
+
 def _fmt(x: float, digits: int = 2) -> str:
     return "n/a" if not math.isfinite(x) else f"{x:,.{digits}f}"
 
@@ -286,6 +294,8 @@ def render_report(
     meta = (
         "<table>"
         f"<tr><th class='l'>machine</th><td class='l'>{_e(reference.machine)}</td></tr>"
+        f"<tr><th class='l'>machine description</th><td class='l'>"
+        f"{_e(_description_line(reference))}</td></tr>"
         f"<tr><th class='l'>run</th><td class='l'>{_e(run_name)}</td></tr>"
         f"<tr><th class='l'>reference</th><td class='l'>{reference.n_cycles} leak-free cycles "
         f"from {_e(sources)}</td></tr>"

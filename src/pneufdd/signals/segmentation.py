@@ -502,6 +502,7 @@ def learn_sequence(
     switch_min_dwell_s: float = DEFAULT_SWITCH_DWELL_S,
     min_match: float = 0.8,
     min_presence: float = 0.9,
+    release: Iterable[str] | None = None,
 ) -> tuple[StepSpec, ...]:
     """Learn a machine's step sequence from a reference recording.
 
@@ -528,14 +529,15 @@ def learn_sequence(
         Fraction of steps that must repeat with the period [-].
     min_presence : float
         Fraction of cycles in which a switch edge must occur to be awaited [-].
+    release : iterable of str, optional
+        Solenoids whose release starts a step (default: :func:`held_valves`).
 
     Returns
     -------
     tuple of StepSpec
     """
-    ev = _events(
-        reference, valve_min_dwell_s, switch_min_dwell_s, held_valves(reference, valve_min_dwell_s)
-    )
+    released = held_valves(reference, valve_min_dwell_s) if release is None else frozenset(release)
+    ev = _events(reference, valve_min_dwell_s, switch_min_dwell_s, released)
     table: dict[frozenset[str], int] = {}
     codes = np.array([table.setdefault(s, len(table)) for s in ev.signatures], dtype=np.int64)
     p = _period(codes, min_match)

@@ -1,0 +1,44 @@
+"""``pneufdd import``: a CSV/TDMS/Parquet export under PLC tag names -> a pneufdd recording."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from pneufdd.errors import FileExistsInputError, describe
+
+__all__ = ["register"]
+
+
+def import_data(
+    data: Annotated[Path, typer.Argument(help="Export to import (.csv, .tdms or .parquet).")],
+    tag_map: Annotated[
+        Path,
+        typer.Option("--map", help="Tag map (.toml): each column's role, unit and flow basis."),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Recording to write (.parquet).")],
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+) -> None:
+    """Read DATA through the tag map and write it as a pneufdd recording (SI units)."""
+    from pneufdd.recording.tag_map import load_tag_map, read_mapped
+
+    if out.exists() and not overwrite:
+        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
+    recording = read_mapped(data, load_tag_map(tag_map))
+    recording.write(out, overwrite=overwrite)
+    rates = sorted({recording.rate(c) for c in recording.channels})
+    Console(stderr=True).print(
+        f"wrote {out}: {len(recording.analog_channels)} analog, "
+        f"{len(recording.digital_channels)} digital channels, "
+        f"{recording.duration:.3f} s at {', '.join(f'{r:g}' for r in rates)} Hz",
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+def register(app: typer.Typer) -> None:
+    """Attach the ``import`` command to ``app``."""
+    app.command("import")(import_data)

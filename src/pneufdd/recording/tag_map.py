@@ -1,0 +1,396 @@
+"""Tag maps: a plant's own column/channel names (PLC tags) -> pneufdd channel roles.
+
+A DAQ or PLC export names its columns after the PLC's tags (``Y1.0``, ``B1.4``,
+``DB10.X3.1``). A tag map (a small TOML file, ``docs/recording.md``) says which role
+each column plays, in which unit and, for a flow, on which standard basis::
+
+    [columns]
+    "t"      = { role = "time", unit = "s" }
+    "B_P1"   = { role = "P_In", unit = "bar(g)" }
+    "B_F1"   = { role = "Q_In", unit = "l/min", basis = "ANR" }
+    "Y1.0"   = { role = "U_FEED_A" }
+    "B1.4"   = { role = "S_FEED_B" }
+
+Optional top-level keys: ``ignore`` (columns present in the file but not used),
+``rate_hz`` (the expected sample rate; a file at another rate is refused),
+``delimiter`` and ``decimal`` (CSV dialect). :func:`read_mapped` reads a CSV, TDMS or
+Parquet file with a map; every command that reads recordings takes ``--map``.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pneufdd.errors import ChannelError, FileFormatError, InputError, UnitError, describe
+from pneufdd.physics.units import UNITS
+from pneufdd.recording._files import check_input_file, file_label
+from pneufdd.recording.model import DIGITAL, Channel, Recording
+
+__all__ = [
+    "FLOW_BASES",
+    "MIN_RATE_HZ",
+    "ROLE_PATTERN",
+    "ColumnRole",
+    "TagMap",
+    "load_tag_map",
+    "parse_tag_map",
+    "read_mapped",
+]
+
+ROLE_PATTERN = re.compile(
+    r"^(time|P_In|Q_In|[US]_[A-Z][A-Z0-9_]*|[PQ]_[A-Z][A-Z0-9_]*_[AB]|X_[A-Z][A-Z0-9_]*)$"
+)
+"""Allowed roles: ``time``, ``P_In``, ``Q_In``, ``U_<ACT>_A/B``, ``S_<ACT>_A/B``,
+``U_<VAC>``, ``S_<VAC>``, line sensors ``P_<ACT>_A/B``, ``Q_<ACT>_A/B`` and a position
+``X_<ACT>`` (channel codes of Fig. 3.16)."""
+
+FLOW_BASES: dict[str, str] = {
+    "ANR": "l/min (ANR)",
+    "SLPM": "SLPM",
+}
+"""Flow basis -> the :data:`~pneufdd.physics.units.UNITS` key of litres per minute on it:
+``ANR`` = ISO 8778 (20 degC, 100 kPa), ``SLPM`` = 0 degC, 1013 mbar."""
+
+_LITRES_PER_MINUTE = ("l/min", "lpm", "L/min", "Nl/min")
+_QUANTITY = {"P": "pressure", "Q": "mass flow", "X": "length"}
+
+MIN_RATE_HZ = 50.0
+"""Slowest sample rate accepted: steps must be timed to a few tens of ms [Hz]."""
+
+
+@dataclass(frozen=True)
+class ColumnRole:
+    """What one column of the file is: its role (channel name) and its unit."""
+
+    column: str
+    role: str
+    unit: str  # a UNITS key ("1" for digital channels, "s" for time)
+
+    @property
+    def digital(self) -> bool:
+        """Valve solenoids ``U_*`` and switches ``S_*`` are 0/1."""
+        return self.role[:2] in ("U_", "S_")
+
+
+@dataclass(frozen=True)
+class TagMap:
+    """A parsed, validated tag map."""
+
+    columns: tuple[ColumnRole, ...]
+    ignore: tuple[str, ...] = ()
+    rate_hz: float | None = None
+    delimiter: str = ","
+    decimal: str = "."
+    source: str = "<map>"
+
+    @property
+    def time_column(self) -> str | None:
+        """The column with the role ``time`` (CSV), or None."""
+        for c in self.columns:
+            if c.role == "time":
+                return c.column
+        return None
+
+    @property
+    def channels(self) -> tuple[ColumnRole, ...]:
+        """Every role except ``time``."""
+        return tuple(c for c in self.columns if c.role != "time")
+
+
+def _unit(source: str, column: str, role: str, entry: Mapping[str, Any]) -> str:
+    where = f"{source}: columns.{column!r}"
+    unit = entry.get("unit")
+    basis = entry.get("basis")
+    if role == "time":
+        if unit not in (None, "s"):
+            raise UnitError(describe(f"{where}.unit (time)", unit, ["s"]))
+        return "s"
+    if role[:2] in ("U_", "S_"):
+        if unit not in (None, "1"):
+            raise UnitError(describe(f"{where}.unit (digital 0/1 role {role})", unit, ["1"]))
+        if basis is not None:
+            raise InputError(describe(f"{where}.basis (digital role {role})", basis, "no basis"))
+        return "1"
+    quantity = _QUANTITY[role[0]]
+    if not isinstance(unit, str):
+        allowed = sorted(k for k, s in UNITS.items() if s.quantity == quantity)
+        raise UnitError(describe(f"{where}.unit (role {role}, a {quantity})", unit, allowed))
+    if quantity == "mass flow":
+        if basis is not None and basis not in FLOW_BASES:
+            raise UnitError(describe(f"{where}.basis", basis, sorted(FLOW_BASES)))
+        if unit in _LITRES_PER_MINUTE:
+            if basis is None:
+                raise UnitError(
+                    describe(
+                        f"{where}.basis (unit {unit!r} needs the standard its litres are on)",
+                        None,
+                        sorted(FLOW_BASES),
+                    )
+                )
+            unit = FLOW_BASES[basis]
+        elif basis is not None and unit in FLOW_BASES.values() and unit != FLOW_BASES[basis]:
+            raise UnitError(
+                describe(f"{where}: unit {unit!r} with basis", basis, [unit.split()[0]])
+            )
+    spec = UNITS.get(unit)
+    if spec is None or spec.quantity != quantity:
+        allowed = sorted(k for k, s in UNITS.items() if s.quantity == quantity)
+        if quantity == "mass flow":
+            allowed += [f"{u} (with basis)" for u in _LITRES_PER_MINUTE[:1]]
+        raise UnitError(describe(f"{where}.unit (role {role}, a {quantity})", unit, allowed))
+    return unit
+
+
+def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
+    """Validate a parsed tag-map TOML document.
+
+    Raises
+    ------
+    InputError
+        Naming the map, the column and what is allowed: an unknown key, a role that is
+        not a channel code, a role given twice, a unit that does not fit the role or is
+        unknown, a flow in litres without its basis.
+
+    Examples
+    --------
+    >>> m = parse_tag_map({"columns": {"t": {"role": "time", "unit": "s"},
+    ...     "B_F1": {"role": "Q_In", "unit": "l/min", "basis": "ANR"},
+    ...     "Y1.0": {"role": "U_FEED_A"}}})
+    >>> [(c.column, c.role, c.unit) for c in m.channels]
+    [('B_F1', 'Q_In', 'l/min (ANR)'), ('Y1.0', 'U_FEED_A', '1')]
+    """
+    known = {"columns", "ignore", "rate_hz", "delimiter", "decimal"}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise InputError(describe(f"{source}: unknown top-level key", unknown[0], sorted(known)))
+    table = data.get("columns")
+    if not isinstance(table, Mapping) or not table:
+        raise InputError(
+            describe(f"{source}: [columns]", table, 'a table: "<column>" = { role = ... }')
+        )
+    roles: list[ColumnRole] = []
+    seen: dict[str, str] = {}
+    for column, entry in table.items():
+        where = f"{source}: columns.{column!r}"
+        if isinstance(entry, str):  # shorthand: "Y1.0" = "U_FEED_A"
+            entry = {"role": entry}
+        if not isinstance(entry, Mapping):
+            raise InputError(describe(where, entry, "{ role = ..., unit = ..., basis = ... }"))
+        extra = sorted(set(entry) - {"role", "unit", "basis"})
+        if extra:
+            raise InputError(describe(f"{where}: unknown key", extra[0], ["role", "unit", "basis"]))
+        role = entry.get("role")
+        if not isinstance(role, str) or not ROLE_PATTERN.match(role):
+            raise InputError(
+                describe(
+                    f"{where}.role",
+                    role,
+                    "time, P_In, Q_In, U_<ACT>_A/B, S_<ACT>_A/B, U_<VAC>, S_<VAC>, "
+                    "P_<ACT>_A/B, Q_<ACT>_A/B, X_<ACT> (ACT: upper-case letters, digits, _)",
+                )
+            )
+        if role in seen:
+            raise ChannelError(
+                describe(
+                    f"{source}: role {role!r} is given to columns {seen[role]!r} and {column!r}",
+                    role,
+                    "each role once",
+                )
+            )
+        seen[role] = str(column)
+        roles.append(ColumnRole(str(column), role, _unit(source, str(column), role, entry)))
+    if not any(r.role.startswith("U_") for r in roles):
+        raise ChannelError(
+            describe(
+                f"{source}: valve solenoid roles",
+                [],
+                "at least one U_<ACT>_A/B (steps start at valve firings)",
+            )
+        )
+    ignore = data.get("ignore", [])
+    if not isinstance(ignore, list) or not all(isinstance(x, str) for x in ignore):
+        raise InputError(describe(f"{source}: ignore", ignore, "a list of column names"))
+    rate = data.get("rate_hz")
+    if rate is not None and (
+        isinstance(rate, bool) or not isinstance(rate, int | float) or not rate >= MIN_RATE_HZ
+    ):
+        raise InputError(describe(f"{source}: rate_hz", rate, f"a number >= {MIN_RATE_HZ:g} Hz"))
+    dialect = {}
+    for key, default in (("delimiter", ","), ("decimal", ".")):
+        value = data.get(key, default)
+        if not isinstance(value, str) or len(value) != 1:
+            raise InputError(describe(f"{source}: {key}", value, "one character"))
+        dialect[key] = value
+    return TagMap(
+        columns=tuple(roles),
+        ignore=tuple(ignore),
+        rate_hz=None if rate is None else float(rate),
+        delimiter=dialect["delimiter"],
+        decimal=dialect["decimal"],
+        source=source,
+    )
+
+
+def load_tag_map(path: str | Path) -> TagMap:
+    """Read and validate a tag-map TOML file (see :func:`parse_tag_map`)."""
+    path = check_input_file(Path(path), "a tag map (.toml)")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise FileFormatError(f"{file_label(path)} is not valid TOML ({exc})") from exc
+    return parse_tag_map(data, path.name)
+
+
+def _check_unmapped(label: str, tag_map: TagMap, present: list[str]) -> None:
+    mapped = {c.column for c in tag_map.columns} | set(tag_map.ignore)
+    unmapped = [c for c in present if c not in mapped]
+    if unmapped:
+        raise ChannelError(
+            describe(
+                f"{label}: column(s) the tag map {tag_map.source} does not map",
+                unmapped,
+                "a role for each (or list them under ignore = [...] in the map)",
+            )
+        )
+
+
+def _check_rates(label: str, tag_map: TagMap, recording: Recording) -> None:
+    for name in recording.channels:
+        rate = recording.rate(name)
+        if rate < MIN_RATE_HZ:
+            raise InputError(
+                describe(
+                    f"{label}: sample rate of channel {name!r}",
+                    f"{rate:g} Hz",
+                    f">= {MIN_RATE_HZ:g} Hz (steps are timed to tens of ms)",
+                )
+            )
+        if tag_map.rate_hz is not None and abs(rate - tag_map.rate_hz) > 1e-3 * tag_map.rate_hz:
+            raise InputError(
+                describe(
+                    f"{label}: sample rate of channel {name!r} (rate_hz of {tag_map.source})",
+                    f"{rate:g} Hz",
+                    f"{tag_map.rate_hz:g} Hz",
+                )
+            )
+
+
+def _csv_header(path: Path, tag_map: TagMap) -> list[str]:
+    import csv
+
+    with path.open(newline="", encoding="utf-8-sig") as handle:
+        row = next(csv.reader(handle, delimiter=tag_map.delimiter, skipinitialspace=True), [])
+    return [c for c in row if c]
+
+
+def read_mapped(path: str | Path, tag_map: TagMap) -> Recording:
+    """Read a CSV, TDMS or Parquet file whose columns the tag map names.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.csv`` (one time column, every channel on it), ``.tdms`` (channels by name
+        or ``group/channel``) or ``.parquet`` file (channels renamed).
+    tag_map : TagMap
+        From :func:`load_tag_map`.
+
+    Returns
+    -------
+    Recording
+        Channels under their roles, SI units; ``metadata["source"]["tag_map"]`` names
+        the map.
+
+    Raises
+    ------
+    ChannelError
+        A column the map names is not in the file; a column of the file the map neither
+        maps nor ignores; digital values other than 0/1.
+    InputError
+        A sample rate below :data:`MIN_RATE_HZ` or other than the map's ``rate_hz``; a CSV
+        map without a ``time`` role.
+    """
+    from pneufdd.recording.io import SUFFIXES
+
+    path = Path(path)
+    label = file_label(path)
+    suffix = path.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise FileFormatError(describe(f"{label}: file suffix", path.suffix, SUFFIXES))
+    check_input_file(path, f"a {suffix} file")
+    channel_map = {c.column: c.role for c in tag_map.channels}
+    units = {c.role: c.unit for c in tag_map.channels if not c.digital}
+    digital = [c.role for c in tag_map.channels if c.digital]
+    meta = {"source": {"file": path.name, "tag_map": tag_map.source, "format": suffix[1:]}}
+    if suffix == ".csv":
+        from pneufdd.recording.csv import read_csv
+
+        time_column = tag_map.time_column
+        if time_column is None:
+            raise InputError(
+                describe(
+                    f"{tag_map.source}: the role 'time' (needed for {label})",
+                    None,
+                    'one column with { role = "time", unit = "s" }',
+                )
+            )
+        header = _csv_header(path, tag_map)
+        missing = [c.column for c in tag_map.columns if c.column not in header]
+        if missing:
+            raise ChannelError(
+                describe(f"{label}: column(s) of the tag map not in the file", missing, header)
+            )
+        _check_unmapped(label, tag_map, header)
+        rec = read_csv(
+            path,
+            channel_map,
+            units,
+            time_column=time_column,
+            digital=digital,
+            metadata=meta,
+            delimiter=tag_map.delimiter,
+            decimal=tag_map.decimal,
+        )
+    elif suffix == ".tdms":
+        from pneufdd.recording.tdms import read_tdms
+
+        rec = read_tdms(path, channel_map, units, digital, metadata=meta)
+    else:
+        from pneufdd.recording.parquet import read_parquet
+
+        stored = read_parquet(path)
+        _check_unmapped(label, tag_map, list(stored.channels))
+        missing = [c for c in channel_map if c not in stored.channels]
+        if missing:
+            raise ChannelError(
+                describe(f"{label}: column(s) of the map not in the file", missing, stored.channels)
+            )
+        channels = []
+        for column, role in channel_map.items():
+            info = stored.info(column)
+            values = info.values
+            if role in digital and info.kind != DIGITAL:
+                bad = np.flatnonzero((values != 0) & (values != 1))
+                if bad.size:
+                    raise ChannelError(
+                        describe(
+                            f"{label}: digital role {role} (column {column!r})",
+                            values[bad[0]],
+                            "0 or 1",
+                        )
+                    )
+                values = values.astype(np.uint8)
+            kind = DIGITAL if role in digital else info.kind
+            unit = "1" if kind == DIGITAL else info.unit
+            channels.append(Channel(role, values, info.rate_hz, unit, kind, info.t0))
+        rec = Recording(
+            channels, start_time=stored.start_time, metadata={**stored.metadata, **meta}
+        )
+    _check_rates(label, tag_map, rec)
+    return rec
