@@ -126,8 +126,8 @@ def test_built_in_industrial_machines_from_the_command_line(
     machine, location, channels, tmp_path, capsys
 ):
     paths = []
-    for k in (1, 2):
-        rec = as_exported(simulate(machine, cycles=7, seed=SEED + 10 + k))
+    for k in (1, 2):  # 6 running cycles each (the first follows the machine at rest)
+        rec = as_exported(simulate(machine, cycles=8, seed=SEED + 10 + k))
         paths.append(str(rec.write(tmp_path / f"free{k}.parquet")))
     leaky = simulate(machine, cycles=12, leaks={location: "60slpm"}, seed=SEED + 13)
     run = as_exported(leaky).write(tmp_path / "run.parquet")

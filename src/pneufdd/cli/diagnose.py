@@ -147,7 +147,9 @@ def diagnose(
         write_text_atomic(path, text)
     verdict = "[bold red]leak detected[/]" if result.detected else "[bold green]no leak[/]"
     console.print(
-        f"{run}: {verdict} ({result.cycles_analyzed} cycles; run statistic "
+        f"{run}: {verdict} ({result.cycles_analyzed} cycles"
+        + (f" after {result.startup_cycles} start-up" if result.startup_cycles else "")
+        + "; run statistic "
         f"{result.run_score:.3g} vs threshold {result.run_threshold:.3g})",
         highlight=False,
     )

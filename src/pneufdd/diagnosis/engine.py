@@ -79,6 +79,9 @@ class Diagnosis:
         Mean feature change of the run against the reference [feature unit].
     notes : list of str
         Plain-language remarks (missing signatures, unexplained deviations...).
+    startup_cycles : int
+        Complete cycles at the start of the run left out as start-up cycles
+        (:attr:`~pneufdd.diagnosis.reference.DetectionSettings.startup_cycles`).
     """
 
     detected: bool
@@ -97,6 +100,7 @@ class Diagnosis:
     observed_change: FloatArray
     settings: CostSettings
     notes: list[str] = field(default_factory=list)
+    startup_cycles: int = 0
 
     def to_pandas(self) -> pd.DataFrame:
         """The leaks as a table, one row per leak, largest annual cost first.
@@ -143,6 +147,7 @@ class Diagnosis:
         return {
             "detected": self.detected,
             "cycles_analyzed": self.cycles_analyzed,
+            "startup_cycles_excluded": self.startup_cycles,
             "leaks": [
                 {
                     "location": str(leak.location),

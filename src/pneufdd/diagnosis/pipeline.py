@@ -9,6 +9,7 @@ channel, too few complete cycles.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -148,9 +149,10 @@ def build_reference_from_recordings(
     # from the machine description when there is one, else learned from the first
     sequence = machine_sequence(description)
     all_cycles: list[list[Cycle]] = []
+    startup = (settings or DetectionSettings()).startup_cycles
     for rec, where in zip(recordings, labels, strict=True):
         cycles, sequence, _ = segment_cycles(rec, sequence, where)
-        all_cycles.append(cycles)
+        all_cycles.append(running_cycles(cycles, startup))
         advance()
     if sequence is None:  # pragma: no cover - segment_cycles always returns one
         raise InputError(describe("PLC sequence", None, "a sequence"))
@@ -235,8 +237,28 @@ def build_reference(
     )
 
 
+def running_cycles(cycles: Sequence[Cycle], startup_cycles: int) -> list[Cycle]:
+    """The cycles of a running machine: ``cycles`` without the first ``startup_cycles``.
+
+    The first cycle of a recording may follow a stop of unknown length (see
+    :attr:`DetectionSettings.startup_cycles`); a recording with no more complete
+    cycles than that keeps them all rather than leaving nothing to judge.
+    """
+    if len(cycles) > startup_cycles:
+        return list(cycles[startup_cycles:])
+    return list(cycles)
+
+
 def run_table(model: ReferenceModel, recording: Recording, where: str = "run") -> StepTable:
     """Segment and summarise a run exactly as the reference was.
+
+    The run's start-up cycles (:attr:`DetectionSettings.startup_cycles`) are left out.
+    """
+    return _run_table(model, recording, where)[0]
+
+
+def _run_table(model: ReferenceModel, recording: Recording, where: str) -> tuple[StepTable, int]:
+    """:func:`run_table` and the number of start-up cycles it left out.
 
     Raises
     ------
@@ -265,9 +287,11 @@ def run_table(model: ReferenceModel, recording: Recording, where: str = "run") -
             f"it has {list(recording.channels)}"
         )
     cycles, _, _ = segment_cycles(recording, sequence, where)
-    return step_table(
-        recording, cycles, model.machine, model.channels, model.trace_offsets, model.trace_rate_hz
+    running = running_cycles(cycles, model.settings.startup_cycles)
+    table = step_table(
+        recording, running, model.machine, model.channels, model.trace_offsets, model.trace_rate_hz
     )
+    return table, len(cycles) - len(running)
 
 
 def diagnose_recording(
@@ -285,8 +309,8 @@ def diagnose_recording(
     recording = path if isinstance(path, Recording) else Recording.read(Path(path))
     where = "run" if isinstance(path, Recording) else str(path)
     advance()
-    table = run_table(model, recording, where)
+    table, startup = _run_table(model, recording, where)
     advance()
     result = diagnose(model, table, settings, localisation)
     advance()
-    return table, result
+    return table, replace(result, startup_cycles=startup)

@@ -64,12 +64,26 @@ class DetectionSettings:
         Band width of eq. 5.3 in standard deviations (2 or 3) [-].
     band_alarm_fraction : float
         The n % rule of section 5.3.2, as a fraction [-].
+    startup_cycles : int
+        Complete cycles at the start of each recording that are neither learned nor
+        judged [-]. The first cycle of a recording may follow a stop of unknown length
+        (the machine at rest: exhausted chambers at atmosphere, walls at room
+        temperature), so it differs from the cycles of a running machine; a recording
+        with no more complete cycles than this keeps them all. References saved
+        before this setting existed read as 0.
     """
 
     n_nuisance: int = 2
     false_alarm_rate: float = 0.005
     band_eps: float = 3.0
     band_alarm_fraction: float = 0.05
+    startup_cycles: int = 1
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.startup_cycles, int) or not 0 <= self.startup_cycles <= 10:
+            raise ValueError(
+                f"startup_cycles: received {self.startup_cycles!r}; allowed: an integer 0-10"
+            )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible form."""
@@ -78,6 +92,7 @@ class DetectionSettings:
             "false_alarm_rate": self.false_alarm_rate,
             "band_eps": self.band_eps,
             "band_alarm_fraction": self.band_alarm_fraction,
+            "startup_cycles": self.startup_cycles,
         }
 
     @classmethod
@@ -88,6 +103,7 @@ class DetectionSettings:
             false_alarm_rate=float(data["false_alarm_rate"]),
             band_eps=float(data["band_eps"]),
             band_alarm_fraction=float(data["band_alarm_fraction"]),
+            startup_cycles=int(data.get("startup_cycles", 0)),
         )
 
 
