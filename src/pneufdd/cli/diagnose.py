@@ -9,27 +9,27 @@ error never leaves a partial file behind.
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
-from pneufdd.cli.progress_bar import progress_bars
-from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE, CostSettings
-from pneufdd.diagnosis.engine import Diagnosis
-from pneufdd.diagnosis.pipeline import diagnose_recording
-from pneufdd.diagnosis.pnref import load_reference
-from pneufdd.report.html import render_report, write_text_atomic
+from pneufdd.cli.outputs import check_outputs, write_text_atomic
+from pneufdd.errors import InputError, describe
+
+if TYPE_CHECKING:
+    from pneufdd.diagnosis.engine import Diagnosis
 
 __all__ = ["leak_table", "register"]
 
 
 def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first") -> Table:
     """A rich table of the diagnosis' leaks."""
+    from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
+
     table = Table(title=title)
     for name in (
         "#",
@@ -94,8 +94,26 @@ def diagnose(
             "more). Default: the reference's setting.",
         ),
     ] = None,
+    overwrite: Annotated[
+        bool, typer.Option(help="Replace existing --json/--report files (never an input).")
+    ] = False,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
+    from dataclasses import replace
+
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.diagnosis.cost import CostSettings
+    from pneufdd.diagnosis.pipeline import diagnose_recording
+    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.report.html import render_report
+
+    check_outputs(
+        {"--json": json_out, "--report": report},
+        {"RUN": run, "--reference": reference},
+        overwrite=overwrite,
+    )
+    if max_leaks is not None and max_leaks not in (1, 2):
+        raise InputError(describe("--max-leaks", max_leaks, [1, 2]))
     console = Console()
     settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
     model = load_reference(reference)

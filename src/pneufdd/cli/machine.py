@@ -9,7 +9,8 @@ import typer
 from rich.console import Console
 
 from pneufdd import __version__
-from pneufdd.errors import FileExistsInputError, InputError, describe
+from pneufdd.cli.outputs import check_outputs
+from pneufdd.errors import InputError, describe
 
 __all__ = ["register"]
 
@@ -47,8 +48,7 @@ def vary(
         raise InputError(
             describe("--scale", scale, f"a number from 0 to {MAX_SCALE:g} (1: a real machine)")
         )
-    if out.exists() and not overwrite:
-        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
+    check_outputs({"--out": out}, {"DESCRIPTION": description}, overwrite)
     twin = load_machine(description)
     plant = vary_machine(twin, scale=scale, seed=seed)
     origin = twin.name if twin.source == twin.name else f"{twin.name} ({twin.source})"

@@ -9,9 +9,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pneufdd.cli.progress_bar import progress_bars
-from pneufdd.diagnosis.pipeline import build_reference, parse_channels
-from pneufdd.diagnosis.pnref import save_reference
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import InputError, describe
 
 __all__ = ["register"]
@@ -71,9 +69,14 @@ def build(
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
 ) -> None:
     """Build a reference from leak-free RECORDINGS and write it to OUT."""
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.diagnosis.pipeline import build_reference, parse_channels
+    from pneufdd.diagnosis.pnref import save_reference
+
     console = Console(stderr=True)
-    if out.exists() and not overwrite:
-        raise InputError(describe(f"output file {str(out)!r}", "exists", "--overwrite"))
+    inputs: dict[str, str | Path | None] = {f"RECORDINGS[{i}]": r for i, r in enumerate(recordings)}
+    inputs["--machine"] = machine
+    check_outputs({"--out": out}, inputs, overwrite)
     if signature_cycles < 1:
         raise InputError(describe("--signature-cycles", signature_cycles, ">= 1"))
     ladder = None

@@ -7,11 +7,14 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import InputError, describe
 
-__all__ = ["parse_leak_option", "register"]
+__all__ = ["MAX_CYCLES", "parse_leak_option", "register"]
+
+MAX_CYCLES = 100_000
+"""Most cycles one ``simulate`` run may ask for (a long shift of a fast machine)."""
 
 
 def parse_leak_option(text: str) -> tuple[str, str]:
@@ -45,9 +48,14 @@ def simulate_command(
     overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
 ) -> None:
     """Simulate a machine with optional leaks and write the recording to OUT."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
     from pneufdd.sim import load_machine, simulate
     from pneufdd.sim.leaks import resolve_leaks
 
+    check_outputs({"--out": out}, {"--machine": machine}, overwrite)
+    if cycles > MAX_CYCLES:
+        raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
     desc = load_machine(machine)
     leaks: dict[str, str] = {}
     for item in leak or []:
@@ -56,8 +64,6 @@ def simulate_command(
             raise InputError(describe("--leak location given twice", location, "once"))
         leaks[location] = size
     resolve_leaks(desc, leaks)  # unknown locations and bad sizes fail before the run
-    if out.exists() and not overwrite:
-        raise InputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
     err = Console(stderr=True)
     with Progress(
         TextColumn("simulating {task.description}"),

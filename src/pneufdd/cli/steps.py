@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from pneufdd.recording.model import Recording
-from pneufdd.signals.segmentation import Segmentation, actuator_of, segment
+if TYPE_CHECKING:
+    from pneufdd.recording.model import Recording
+    from pneufdd.signals.segmentation import Segmentation
 
 __all__ = ["register", "render_steps", "steps"]
 
@@ -30,6 +30,10 @@ def render_steps(
     "duration_s", "actuators"}]}], "rejected": [{"index", "start_s", "steps_found",
     "reason"}]}``.
     """
+    import numpy as np
+
+    from pneufdd.signals.segmentation import actuator_of, segment
+
     seg = segment(recording)
     if as_json:
         typer.echo(json.dumps(seg.to_dict()))
@@ -82,6 +86,8 @@ def steps(
     ] = False,
 ) -> None:
     """Show the cycles and steps found in RUN, and the cycles rejected with their reason."""
+    from pneufdd.recording.model import Recording
+
     render_steps(Recording.read(run), as_json=as_json, all_steps=all_steps)
 
 
