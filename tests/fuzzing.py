@@ -595,7 +595,7 @@ def build_features(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         run = _put(folder, _run_name(path), path)
         expect = {EXIT_INPUT} if structural else {EXIT_INPUT, EXIT_OK}
         cases.append(Case(f"features/{name}", "features",
-                          ["features", run, "--out", "f.csv", "--group", "air"],
+                          ["features", run, "--out", "f.csv", "--group", "air", "--actuator", "PRESS"],
                           folder, [run], ["f.csv"], frozenset(expect), (run, *words)))
     # outputs pointing at inputs, folders, existing files
     folder = _case_dir(root, "features-out-is-input")
@@ -768,8 +768,10 @@ def build_simulate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         ("machine_missing", ["--machine", "missing.toml"], ("missing.toml",)),
     ):
         argv = ["simulate", "--machine", MACHINE, "--out", f"o{len(cases)}.parquet", *extra]
+        # any seed >= 0 is a seed: a 26-digit one simulates like any other
+        expect = {EXIT_INPUT, EXIT_OK} if label == "seed_huge" else {EXIT_INPUT}
         cases.append(Case(f"simulate/{label}", "simulate", argv, folder, [toml],
-                          [f"o{len(cases)}.parquet"], mentions=words))
+                          [f"o{len(cases)}.parquet"], frozenset(expect), words))
     return cases
 
 

@@ -140,6 +140,15 @@ def diagnose(
         f"{result.run_score:.3g} vs threshold {result.run_threshold:.3g})",
         highlight=False,
     )
+    if result.cycles_skipped or result.gaps_repaired:
+        channels = sorted({channel for _, channel in result.cycles_skipped})
+        console.print(
+            f"data gaps: {len(result.cycles_skipped)} cycle(s) skipped"
+            + (f" (gaps longer than 0.05 s in {', '.join(channels)})" if channels else "")
+            + f", {result.gaps_repaired} short gap(s) interpolated (docs/data-quality.md)",
+            highlight=False,
+            markup=False,
+        )
     if result.leaks:
         console.print(leak_table(result))
     for note in result.notes:

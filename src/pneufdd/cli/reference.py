@@ -89,6 +89,10 @@ def build(
             ) from exc
         if not ladder or any(b <= a for a, b in itertools.pairwise(ladder)):
             raise InputError(describe("--signature-sizes", signature_sizes, "increasing sizes"))
+        if not all(0 < x <= 20_000 for x in ladder):  # also refuses nan and inf
+            raise InputError(
+                describe("--signature-sizes", signature_sizes, "sizes > 0 and <= 20000 [SLPM]")
+            )
     with progress_bars(console) as progress:
         model = build_reference(
             recordings,

@@ -20,6 +20,7 @@ from pneufdd.diagnosis.localisation import LocalisationSettings
 from pneufdd.diagnosis.machine import (
     MachineLike,
     check_plc_channels,
+    recording_description,
     recording_machine_name,
     resolve_machine,
 )
@@ -42,6 +43,7 @@ from pneufdd.diagnosis.twin_effects import (
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
+from pneufdd.signals.quality import check_channels
 from pneufdd.signals.segmentation import Cycle
 
 __all__ = [
@@ -144,6 +146,7 @@ def build_reference_from_recordings(
                 f"{where} lacks analog channel(s) {missing} of the requested sensor set; "
                 f"it has {list(rec.analog_channels)}"
             )
+        check_channels(rec, analog, where)
     advance = counter(progress, "segmenting reference", len(recordings))
     # from the machine description when there is one, else learned from the first
     sequence = machine_sequence(description)
@@ -158,8 +161,10 @@ def build_reference_from_recordings(
     lengths = np.stack([np.diff(trace_offsets(c, TRACE_RATE_HZ)) for c in all_cycles])
     offsets = np.concatenate([[0], np.cumsum(np.median(lengths, axis=0).round().astype(np.int64))])
     tables = [
-        step_table(rec, cycles, machine_name, analog, offsets if analog else None, TRACE_RATE_HZ)
-        for rec, cycles in zip(recordings, all_cycles, strict=True)
+        step_table(
+            rec, cycles, machine_name, analog, offsets if analog else None, TRACE_RATE_HZ, where
+        )
+        for rec, cycles, where in zip(recordings, all_cycles, labels, strict=True)
     ]
     table = StepTable.concatenate(tables)
     signatures = None
@@ -240,21 +245,30 @@ def run_table(model: ReferenceModel, recording: Recording, where: str = "run") -
             describe(f"machine of {where}", name, [model.machine])
             + " (the reference was built for another machine)"
         )
+    recording_description(recording, where)  # a malformed description it carries is refused
     if model.description is not None:
         check_plc_channels(recording, model.description, where)
     sequence = sequence_from_records(model.sequence) if model.sequence else None
     needed = list(model.channels)
     if sequence:
         needed += sorted({v.removesuffix(":off") for s in sequence for v in s.valves})
+        needed += sorted({name for s in sequence for name, _ in s.switches} - set(needed))
     missing = [c for c in needed if c not in recording.channels]
     if missing:
         raise ChannelError(
             f"{where} lacks channel(s) {missing} that the reference needs; "
             f"it has {list(recording.channels)}"
         )
+    check_channels(recording, model.channels, where)
     cycles, _, _ = segment_cycles(recording, sequence, where)
     return step_table(
-        recording, cycles, model.machine, model.channels, model.trace_offsets, model.trace_rate_hz
+        recording,
+        cycles,
+        model.machine,
+        model.channels,
+        model.trace_offsets,
+        model.trace_rate_hz,
+        where,
     )
 
 
