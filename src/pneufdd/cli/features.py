@@ -31,6 +31,7 @@ def write_features(
     groups: Sequence[str] = GROUPS,
     wavelet: str = "db4",
     where: str = "the recordings",
+    names: Sequence[str] | None = None,
 ) -> pd.DataFrame:
     """Build the feature matrix of ``recordings`` and write it to ``out`` as CSV.
 
@@ -48,7 +49,11 @@ def write_features(
             describe(f"output file {str(out)!r}", "an existing file", "a new path, or --overwrite")
         )
     df = feature_matrix(
-        recordings, actuators=actuators, groups=groups, options=Options(wavelet=wavelet)
+        recordings,
+        actuators=actuators,
+        groups=groups,
+        options=Options(wavelet=wavelet),
+        names=names,
     )
     if df.shape[0] == 0:
         raise NoCompleteCycleError(
@@ -89,6 +94,7 @@ def features(
         tuple(group or GROUPS),
         wavelet,
         where=", ".join(repr(str(r)) for r in runs),
+        names=[str(r) for r in runs],
     )
     typer.echo(f"wrote {df.shape[0]} cycles x {df.shape[1]} columns to {out}")
 

@@ -86,18 +86,17 @@ def steps(
     ] = False,
 ) -> None:
     """Show the cycles and steps found in RUN, and the cycles rejected with their reason."""
-    from pneufdd.errors import InputError
+    from pneufdd.errors import InputError, naming
     from pneufdd.recording.model import Recording
-    from pneufdd.signals.quality import check_channels
+    from pneufdd.signals.quality import check_carried_description, check_channels
 
     recording = Recording.read(run)
     try:
         check_channels(recording, (), str(run))
+        check_carried_description(recording, str(run))
         render_steps(recording, as_json=as_json, all_steps=all_steps)
     except InputError as exc:
-        if str(run) in str(exc):
-            raise
-        raise type(exc)(f"{run}: {exc}") from exc
+        raise naming(exc, str(run)) from exc
 
 
 def register(app: typer.Typer) -> None:

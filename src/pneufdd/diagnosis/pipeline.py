@@ -40,7 +40,7 @@ from pneufdd.diagnosis.twin_effects import (
     compute_signatures,
     signature_spread,
 )
-from pneufdd.errors import ChannelError, InputError, MachineError, describe
+from pneufdd.errors import ChannelError, InputError, MachineError, describe, naming
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import check_channels
@@ -192,6 +192,23 @@ def build_reference_from_recordings(
                     progress=progress,
                 )
             )
+    try:
+        return _build_model(
+            table, description, signatures, settings, labels, sequence, localisation
+        )
+    except InputError as exc:
+        raise naming(exc, ", ".join(labels)) from exc
+
+
+def _build_model(
+    table: StepTable,
+    description: Any,
+    signatures: Any,
+    settings: DetectionSettings | None,
+    labels: Sequence[str],
+    sequence: Sequence[Any],
+    localisation: LocalisationSettings | None,
+) -> ReferenceModel:
     return ReferenceModel.build(
         table,
         machine_description=None if description is None else description.raw,

@@ -68,6 +68,7 @@ from pneufdd.errors import (
     MissingFileError,
     describe,
 )
+from pneufdd.physics.units import UNITS
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
 
@@ -251,6 +252,11 @@ def _header_fields(header: dict[str, Any], source: Path) -> None:
         len(header["units"]) == len(header["channels"]),
         f"{len(header['channels'])} units (one per channel)",
     )
+    need(
+        "units",
+        all(u in UNITS and UNITS[u].si_unit == u for u in header["units"]),
+        "SI units ('Pa', 'kg/s', 'm', ...)",
+    )
     need("n_steps", is_int(header.get("n_steps"), 1, 100_000), "an integer from 1 to 100000")
     need("n_cycles", is_int(header.get("n_cycles"), 1, 10**8), "an integer >= 1")
     need("feature_names", str_list(header.get("feature_names")), "a list of feature names")
@@ -294,11 +300,6 @@ def _header_fields(header: dict[str, Any], source: Path) -> None:
             ),
             "steps of {'valves': [...], 'switches': [[name, 0 or 1], ...]}",
         )
-    need(
-        "sequence",
-        not sequence or len(sequence) == header["n_steps"],
-        f"{header['n_steps']} steps (n_steps)",
-    )
 
 
 def _load(handle: Any, source: Path) -> ReferenceModel:
@@ -360,6 +361,9 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 offsets = _array(data, source, "trace_offsets", "i", (n_steps + 1,))
                 if int(offsets[-1]) != n_samples:
                     raise _bad(source, "trace_offsets[-1]", int(offsets[-1]), n_samples)
+                std_ok = np.isnan(band_std) | (band_std >= 0)
+                if not np.all(std_ok) or np.any(np.isinf(band_std)):
+                    raise _bad(source, "band_std", "negative or infinite values", ">= 0")
             signatures = None
             locations = header.get("signature_locations")
             if locations is not None:

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.diagnosis.steps import StepTable
-from pneufdd.errors import NoCompleteCycleError, describe
+from pneufdd.errors import InputError, NoCompleteCycleError, describe, naming
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import usable_cycles
 from pneufdd.signals.segmentation import (
@@ -83,8 +83,11 @@ def segment_cycles(
     NoCompleteCycleError
         If the recording holds no complete cycle.
     """
-    specs = tuple(sequence) if sequence else learn_sequence(recording)
-    seg = segment(recording, specs)
+    try:
+        specs = tuple(sequence) if sequence else learn_sequence(recording)
+        seg = segment(recording, specs)
+    except InputError as exc:
+        raise naming(exc, where) from exc
     cycles = list(seg.complete)
     reasons = [f"cycle {c.index}: {c.reason}" for c in seg.rejected]
     if not cycles:

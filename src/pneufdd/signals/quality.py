@@ -3,24 +3,27 @@
 Two things are judged before any cycle is summarised (docs/data-quality.md):
 
 **Plausible channels** (:func:`check_channels`). A channel named like a pressure
-(``P_...``), mass flow (``Q_...``) or position (``X_...``) must carry that quantity's
-SI unit; analog channels must be sampled at :data:`MIN_ANALOG_RATE_HZ` or faster and
-PLC signals at :data:`MIN_DIGITAL_RATE_HZ` or faster (a step of 0.1 s, the shortest
-in the dissertation's Table 3.3 sequence, then holds at least 5 analog samples);
-every analog channel's time base must overlap the PLC signals' for at least half of
-their span; a pressure channel's median must be a compressed-air pressure
-(:data:`PRESSURE_MEDIAN_RANGE_PA`, absolute). Anything else is refused, naming the
-file and the channel: judging such data would give a confident verdict on nonsense.
+(``P_...``), mass flow (``Q_...``) or position (``X_...``) must carry that quantity's SI
+unit; analog channels must be sampled at :data:`MIN_ANALOG_RATE_HZ` or faster and PLC
+signals at :data:`MIN_DIGITAL_RATE_HZ` or faster (the rig sampled 1000 Hz analog and
+100 Hz digital, section 3.4.2; strokes last 0.4 to 2.2 s, so a 0.1 s step still holds 5
+analog samples at the slowest rate allowed); every analog
+channel must start within :data:`MAX_START_OFFSET_S` of the PLC signals (one trigger
+starts a recording's channels; a larger offset means two clocks) and overlap them for at
+least half of their span; a pressure channel's median must be a compressed-air pressure
+(:data:`PRESSURE_MEDIAN_RANGE_PA`, absolute). Anything else is refused, naming the file
+and the channel: judging such data would give a confident verdict on nonsense.
 
-**Gaps** (:func:`repair_gaps`). A sample that is NaN, infinite or outside its
-quantity's physical range (:data:`PHYSICAL_RANGE`: a DAQ's over-range marker,
-1e308...) is missing. A run of missing samples no longer than :data:`MAX_REPAIR_S`
-(shorter than a valve's switching transient, so a step's mean, minimum and maximum
-barely move) is repaired by linear interpolation between its neighbours. A longer
-gap is left missing, and every cycle it touches (as every cycle a channel did not
-record at all) is skipped and counted. :func:`usable_cycles` applies the rule to a
-set of cycles; a recording with fewer than :data:`MIN_USABLE_FRACTION` of its
-complete cycles usable is refused, naming the file and the channel.
+**Gaps** (:func:`repair_gaps`). A sample that is NaN, infinite or outside its quantity's
+physical range (:data:`PHYSICAL_RANGE`: a DAQ's over-range marker, 1e308...) is missing.
+A run of missing samples no longer than :data:`MAX_REPAIR_S` (shorter than a valve's
+switching transient, so a step's mean, minimum and maximum barely move) is repaired by
+linear interpolation between its neighbours. A longer gap is left missing, and every
+cycle it touches (as every cycle a channel did not record at all, and every cycle in
+which gaps of any length cover more than :data:`MAX_GAP_FRACTION` of a channel's
+samples) is skipped and counted. :func:`usable_cycles` applies the rule to a set of
+cycles; a recording with fewer than :data:`MIN_USABLE_FRACTION` of its complete cycles
+usable is refused, naming the file and the channel.
 """
 
 from __future__ import annotations
@@ -37,14 +40,18 @@ from pneufdd.signals.segmentation import Cycle
 from pneufdd.signals.synchronisation import sample_bounds
 
 __all__ = [
+    "MAX_GAP_FRACTION",
     "MAX_REPAIR_S",
+    "MAX_START_OFFSET_S",
     "MIN_ANALOG_RATE_HZ",
     "MIN_DIGITAL_RATE_HZ",
     "MIN_USABLE_FRACTION",
     "PHYSICAL_RANGE",
     "PRESSURE_MEDIAN_RANGE_PA",
     "GapReport",
+    "check_carried_description",
     "check_channels",
+    "check_sequence_channels",
     "repair_gaps",
     "usable_cycles",
 ]
@@ -63,6 +70,12 @@ MIN_DIGITAL_RATE_HZ = 10.0
 
 MAX_RATE_HZ = 10e6
 """Fastest plausible sample rate of any channel [Hz]."""
+
+MAX_START_OFFSET_S = 1.0
+"""Largest difference between an analog channel's start and the PLC signals' [s]."""
+
+MAX_GAP_FRACTION = 0.1
+"""Largest fraction of a cycle's samples of one channel that may be missing."""
 
 MIN_OVERLAP = 0.5
 """Least fraction of the PLC signals' span an analog channel's time base must cover."""
@@ -172,13 +185,16 @@ def check_channels(recording: Recording, analog: Sequence[str], where: str) -> N
             end = max(e for _, e in plc_spans)
             a0, a1 = _span(recording, name)
             overlap = max(0.0, min(a1, end) - max(a0, start))
-            if end > start and overlap < MIN_OVERLAP * (end - start):
+            if abs(a0 - start) > MAX_START_OFFSET_S or (
+                end > start and overlap < MIN_OVERLAP * (end - start)
+            ):
                 raise ChannelError(
                     describe(
                         f"{where}: time base of channel {name!r} [s]",
                         f"{a0:.6g} to {a1:.6g}",
-                        f"covering at least {100 * MIN_OVERLAP:.0f} % of the PLC signals' "
-                        f"{start:.6g} to {end:.6g} (same clock, same start)",
+                        f"starting within {MAX_START_OFFSET_S:g} s of the PLC signals' "
+                        f"{start:.6g} to {end:.6g} and covering at least "
+                        f"{100 * MIN_OVERLAP:.0f} % of them (one clock, one trigger)",
                     )
                 )
         if ch.unit == "Pa":
@@ -197,7 +213,7 @@ def check_channels(recording: Recording, analog: Sequence[str], where: str) -> N
 
 def repair_gaps(
     values: npt.ArrayLike, rate_hz: float, unit: str, max_gap_s: float = MAX_REPAIR_S
-) -> tuple[FloatArray, BoolArray, int]:
+) -> tuple[FloatArray, BoolArray, int, BoolArray]:
     """Apply the gap rule to one channel.
 
     Parameters
@@ -219,10 +235,12 @@ def repair_gaps(
         True on the samples of gaps too long to repair.
     n_repaired : int
         Number of short gaps repaired.
+    missing : ndarray of bool
+        True on every sample that was missing (repaired or not).
 
     Examples
     --------
-    >>> v, long_gap, n = repair_gaps([1.0, float("nan"), 3.0, 1e308, 5.0], 100.0, "Pa")
+    >>> v, long_gap, n, _ = repair_gaps([1.0, float("nan"), 3.0, 1e308, 5.0], 100.0, "Pa")
     >>> v.tolist(), bool(long_gap.any()), n
     ([1.0, 2.0, 3.0, 4.0, 5.0], False, 2)
     """
@@ -231,10 +249,10 @@ def repair_gaps(
     with np.errstate(invalid="ignore"):
         bad = ~np.isfinite(x) | (x < low) | (x > high)
     if not bad.any():
-        return x, bad, 0
+        return x, bad, 0, bad
     if bad.all():
         x[:] = np.nan
-        return x, bad, 0
+        return x, bad, 0, bad
     edges = np.diff(np.concatenate([[0], bad.astype(np.int8), [0]]))
     starts = np.flatnonzero(edges == 1)
     ends = np.flatnonzero(edges == -1)
@@ -249,7 +267,7 @@ def repair_gaps(
         else:
             short += 1
     x[long_gap] = np.nan
-    return x, long_gap, short
+    return x, long_gap, short, bad
 
 
 def usable_cycles(
@@ -280,7 +298,7 @@ def usable_cycles(
     repaired: dict[str, FloatArray] = {}
     for name in channels:
         ch = recording.info(name)
-        values, long_gap, count = repair_gaps(ch.values, ch.rate_hz, ch.unit)
+        values, long_gap, count, missing = repair_gaps(ch.values, ch.rate_hz, ch.unit)
         repaired[name] = values
         repaired_total += count
         if n == 0:
@@ -290,8 +308,12 @@ def usable_cycles(
         size = values.size
         outside = (first < 0) | (last > size)  # not recorded: a gap too
         csum = np.concatenate([[0], np.cumsum(long_gap, dtype=np.int64)])
+        msum = np.concatenate([[0], np.cumsum(missing, dtype=np.int64)])
         a, b = np.clip(first, 0, size), np.clip(last, 0, size)
-        touched = outside | (csum[b] - csum[a] > 0)
+        lost = msum[b] - msum[a]
+        touched = (
+            outside | (csum[b] - csum[a] > 0) | (lost > MAX_GAP_FRACTION * np.maximum(b - a, 1))
+        )
         for i in np.flatnonzero(touched & usable):
             blame[int(i)] = name
         per_channel[name] = int(np.sum(touched))
@@ -310,3 +332,42 @@ def usable_cycles(
         )
     skipped = tuple((cycles[i].index, blame[i]) for i in sorted(blame))
     return repaired, GapReport(usable, skipped, repaired_total)
+
+
+def check_carried_description(recording: Recording, where: str) -> None:
+    """Refuse a malformed machine description carried in a recording's metadata.
+
+    Simulated recordings carry their description (``metadata["machine"]
+    ["description"]``); its sequence segments the recording, so a damaged one is
+    refused (naming the file and the key) rather than ignored or half used.
+    """
+    from pneufdd.sim.description import parse_description
+
+    machine = recording.metadata.get("machine")
+    if machine is None or isinstance(machine, str):
+        return
+    if not isinstance(machine, dict):
+        raise ChannelError(describe(f"{where}: metadata 'machine'", machine, "a name or a table"))
+    raw = machine.get("description")
+    if raw is None:
+        return
+    if not isinstance(raw, dict):
+        raise ChannelError(
+            describe(f"{where}: metadata machine.description", raw, "a machine description")
+        )
+    parse_description(raw, f"{where}: metadata machine.description")
+
+
+def check_sequence_channels(
+    recording: Recording, switches: Sequence[str], valves: Sequence[str], where: str
+) -> None:
+    """Refuse a recording lacking a valve or switch channel its PLC sequence needs."""
+    missing = sorted({*switches, *valves} - set(recording.channels))
+    if missing:
+        raise ChannelError(
+            describe(
+                f"{where}: PLC channel(s) the machine's sequence needs",
+                f"missing {missing}",
+                "every valve solenoid and awaited switch of the sequence",
+            )
+        )

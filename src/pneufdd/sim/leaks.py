@@ -72,7 +72,7 @@ class LeakSpec:
         }
 
 
-MAX_SIZE = {"mm": 20.0, "slpm": 20_000.0}
+MAX_SIZE = {"mm": 20.0, "SLPM": 20_000.0}
 """Largest leak sizes accepted: a 20 mm hole or 20,000 SLPM is a broken 3/4 in line."""
 
 
