@@ -125,7 +125,14 @@ def make_base(folder: Path, full: bool = False) -> dict[str, Path]:
     if not base["pnref"].exists():
         with contextlib.redirect_stderr(io.StringIO()):
             code = main(
-                ["reference", "build", str(base["ref"]), "--out", str(base["pnref"]), "--no-signatures"]
+                [
+                    "reference",
+                    "build",
+                    str(base["ref"]),
+                    "--out",
+                    str(base["pnref"]),
+                    "--no-signatures",
+                ]
             )
         if code != 0:
             raise RuntimeError(f"base reference failed with exit {code}")
@@ -179,8 +186,13 @@ def _map_analog(rec: Recording, fn: Callable[[Channel], Channel | None]) -> Reco
     return Recording(out, rec.start_time, rec.metadata)
 
 
-def _with(ch: Channel, values: Any = None, rate: float | None = None, t0: float | None = None,
-          unit: str | None = None) -> Channel:
+def _with(
+    ch: Channel,
+    values: Any = None,
+    rate: float | None = None,
+    t0: float | None = None,
+    unit: str | None = None,
+) -> Channel:
     return Channel(
         ch.name,
         ch.values if values is None else values,
@@ -210,22 +222,55 @@ def recording_mutations(rec: Recording) -> Iterator[tuple[str, Recording | None,
     analog = rec.analog_channels
     first = analog[0]
     flow = next(c for c in analog if c.startswith("Q_"))
-    yield "nan_all_first_analog", _replace(rec, first, values=np.full(rec.info(first).values.size, np.nan)), (first,)
-    yield "inf_all_flow", _replace(rec, flow, values=np.full(rec.info(flow).values.size, np.inf)), (flow,)
-    yield "huge_1e308_flow", _replace(rec, flow, values=np.full(rec.info(flow).values.size, 1e308)), (flow,)
-    yield "huge_1e308_spikes", _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 3, 1e308))), ()
+    yield (
+        "nan_all_first_analog",
+        _replace(rec, first, values=np.full(rec.info(first).values.size, np.nan)),
+        (first,),
+    )
+    yield (
+        "inf_all_flow",
+        _replace(rec, flow, values=np.full(rec.info(flow).values.size, np.inf)),
+        (flow,),
+    )
+    yield (
+        "huge_1e308_flow",
+        _replace(rec, flow, values=np.full(rec.info(flow).values.size, 1e308)),
+        (flow,),
+    )
+    yield (
+        "huge_1e308_spikes",
+        _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 3, 1e308))),
+        (),
+    )
     yield "empty_flow", _replace(rec, flow, values=np.zeros(0)), (flow,)
     yield "nan_bursts_1pct", _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 4))), ()
-    yield "inf_bursts_1pct", _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 5, np.inf))), ()
+    yield (
+        "inf_bursts_1pct",
+        _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 5, np.inf))),
+        (),
+    )
     yield "nan_bursts_30pct", _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.3, 6))), ()
-    yield "nan_half_of_flow", _replace(
-        rec, flow, values=np.where(np.arange(rec.info(flow).values.size) > rec.info(flow).values.size // 2,
-                                   np.nan, rec.info(flow).values)
-    ), ()
+    yield (
+        "nan_half_of_flow",
+        _replace(
+            rec,
+            flow,
+            values=np.where(
+                np.arange(rec.info(flow).values.size) > rec.info(flow).values.size // 2,
+                np.nan,
+                rec.info(flow).values,
+            ),
+        ),
+        (),
+    )
     yield "analog_t0_plus_1e9", _map_analog(rec, lambda c: _with(c, t0=c.t0 + 1e9)), ("time",)
     yield "analog_t0_minus_1e3", _map_analog(rec, lambda c: _with(c, t0=c.t0 - 1e3)), ("time",)
     yield "analog_at_1hz", _map_analog(rec, lambda c: _with(c, c.values[::1000], rate=1.0)), ("Hz",)
-    yield "analog_rate_mislabelled_10x", _map_analog(rec, lambda c: _with(c, rate=c.rate_hz * 10)), ()
+    yield (
+        "analog_rate_mislabelled_10x",
+        _map_analog(rec, lambda c: _with(c, rate=c.rate_hz * 10)),
+        (),
+    )
     yield "flow_labelled_pa", _replace(rec, flow, unit="Pa"), (flow,)
     yield "pressure_labelled_kg_s", _replace(rec, first, unit="kg/s"), (first,)
     yield "pressure_in_bar_values", _replace(rec, first, values=rec.info(first).values / 1e5), ()
@@ -236,22 +281,51 @@ def recording_mutations(rec: Recording) -> Iterator[tuple[str, Recording | None,
     yield "missing_valve", _drop(rec, valve), (valve,)
     yield "missing_flow", _drop(rec, flow), (flow,)
     yield "switch_stuck_on", _replace(rec, switch, values=np.ones_like(rec.info(switch).values)), ()
-    yield "valves_never_fire", Recording(
-        [_with(c, np.zeros_like(c.values)) if c.name.startswith("U_") else c for c in _channels(rec)],
-        rec.start_time, rec.metadata,
-    ), ()
-    yield "truncated_half", Recording(
-        [_with(c, c.values[: c.values.size // 2]) for c in _channels(rec)], rec.start_time, rec.metadata
-    ), ()
-    yield "truncated_one_cycle", Recording(
-        [_with(c, c.values[: int(3.5 * c.rate_hz)]) for c in _channels(rec)], rec.start_time, rec.metadata
-    ), ()
-    yield "digital_t0_plus_5s", Recording(
-        [c if c.kind == "analog" else _with(c, t0=c.t0 + 5.0) for c in _channels(rec)],
-        rec.start_time, rec.metadata,
-    ), ()
+    yield (
+        "valves_never_fire",
+        Recording(
+            [
+                _with(c, np.zeros_like(c.values)) if c.name.startswith("U_") else c
+                for c in _channels(rec)
+            ],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
+    yield (
+        "truncated_half",
+        Recording(
+            [_with(c, c.values[: c.values.size // 2]) for c in _channels(rec)],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
+    yield (
+        "truncated_one_cycle",
+        Recording(
+            [_with(c, c.values[: int(3.5 * c.rate_hz)]) for c in _channels(rec)],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
+    yield (
+        "digital_t0_plus_5s",
+        Recording(
+            [c if c.kind == "analog" else _with(c, t0=c.t0 + 5.0) for c in _channels(rec)],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
     for name, md in metadata_mutations(rec.metadata):
-        yield f"metadata_{name}", Recording(_channels(rec), rec.start_time, md), ("metadata", "machine")
+        yield (
+            f"metadata_{name}",
+            Recording(_channels(rec), rec.start_time, md),
+            ("metadata", "machine"),
+        )
 
 
 def metadata_mutations(metadata: dict[str, Any]) -> Iterator[tuple[str, dict[str, Any]]]:
@@ -272,11 +346,18 @@ def metadata_mutations(metadata: dict[str, Any]) -> Iterator[tuple[str, dict[str
     yield "description_is_list", edit(lambda md: md["machine"].__setitem__("description", [1]))
     yield "machine_is_int", edit(lambda md: md.__setitem__("machine", 7))
     yield "machine_name_other", edit(lambda md: md["machine"].__setitem__("name", "festo-dsd"))
-    yield "actuator_bore_null", edit(lambda md: desc(md)["actuator"][0].__setitem__("bore_mm", None))
-    yield "actuator_bore_negative", edit(lambda md: desc(md)["actuator"][0].__setitem__("bore_mm", -25.0))
+    yield (
+        "actuator_bore_null",
+        edit(lambda md: desc(md)["actuator"][0].__setitem__("bore_mm", None)),
+    )
+    yield (
+        "actuator_bore_negative",
+        edit(lambda md: desc(md)["actuator"][0].__setitem__("bore_mm", -25.0)),
+    )
     yield "supply_psig_string", edit(lambda md: desc(md)["supply"].__setitem__("house_psig", "108"))
-    yield "sensor_range_nested", edit(
-        lambda md: desc(md)["sensor"][0].__setitem__("range", [[[[0.0]]]])
+    yield (
+        "sensor_range_nested",
+        edit(lambda md: desc(md)["sensor"][0].__setitem__("range", [[[[0.0]]]])),
     )
     yield "deeply_nested", edit(lambda md: md.__setitem__("extra", _nested(200)))
     yield "cycle_start_null", edit(lambda md: md.__setitem__("cycle_start_s", None))
@@ -371,22 +452,36 @@ def pnref_mutations(path: Path) -> Iterator[tuple[str, bytes, tuple[str, ...]]]:
     for key in ("channels", "n_steps", "trace_rate_hz", "settings"):
         yield f"header_without_{key}", with_header(**{key: _DROP}), (key,)
     yield "header_not_json", pack({**arrays, "header": np.array("{not json")}), ("header",)
-    yield "header_deeply_nested", pack(
-        {**arrays, "header": np.array("[" * 100_000 + "]" * 100_000)}
-    ), ("header",)
-    yield "features_nan", pack({**arrays, "features": np.full_like(arrays["features"], np.nan)}), (
-        "features",
+    yield (
+        "header_deeply_nested",
+        pack({**arrays, "header": np.array("[" * 100_000 + "]" * 100_000)}),
+        ("header",),
     )
-    yield "features_wrong_shape", pack({**arrays, "features": arrays["features"][:, :3]}), ("features",)
-    yield "features_int", pack({**arrays, "features": arrays["features"].astype(np.int64)}), ("features",)
+    yield (
+        "features_nan",
+        pack({**arrays, "features": np.full_like(arrays["features"], np.nan)}),
+        ("features",),
+    )
+    yield (
+        "features_wrong_shape",
+        pack({**arrays, "features": arrays["features"][:, :3]}),
+        ("features",),
+    )
+    yield (
+        "features_int",
+        pack({**arrays, "features": arrays["features"].astype(np.int64)}),
+        ("features",),
+    )
     yield "features_object", _object_entry(pack, arrays), ("features",)
     without = {k: v for k, v in arrays.items() if k != "features"}
     yield "features_missing", pack(without), ("features",)
     if "band_mean" in arrays:
         yield "band_std_negative", pack({**arrays, "band_std": -arrays["band_std"]}), ("band_std",)
-        yield "trace_offsets_decreasing", pack(
-            {**arrays, "trace_offsets": arrays["trace_offsets"][::-1].copy()}
-        ), ("trace_offsets",)
+        yield (
+            "trace_offsets_decreasing",
+            pack({**arrays, "trace_offsets": arrays["trace_offsets"][::-1].copy()}),
+            ("trace_offsets",),
+        )
     yield "huge_shape", _huge_shape(pack({**arrays}, compress=False)), ("features", "shape")
     yield "damaged_deflate", _damage_deflate(pack(arrays)), ("ref",)
     yield "zip_of_nothing", _zip_of({"readme.txt": b"hello"}), ("header",)
@@ -457,28 +552,40 @@ def toml_mutations(text: str) -> Iterator[tuple[str, bytes, tuple[str, ...]]]:
     yield "binary_garbage", bytes(range(256)) * 4, ("UTF-8", "TOML")
     yield "utf16", text.encode("utf-16"), ("UTF-8", "TOML")
     yield "empty", b"", ()
-    yield "nested_arrays_10000", ("x = " + "[" * 10_000 + "]" * 10_000 + "\n" + text).encode(), ("deep",)
-    yield "nested_tables_300", ("".join(f"[{'.'.join(['t'] * k)}]\n" for k in range(1, 300)) + text).encode(), (
-        "deep",
+    yield (
+        "nested_arrays_10000",
+        ("x = " + "[" * 10_000 + "]" * 10_000 + "\n" + text).encode(),
+        ("deep",),
     )
-    yield "nested_inline_5000", ("y = " + "{a = " * 5000 + "1" + "}" * 5000 + "\n" + text).encode(), ("deep",)
+    yield (
+        "nested_tables_300",
+        ("".join(f"[{'.'.join(['t'] * k)}]\n" for k in range(1, 300)) + text).encode(),
+        ("deep",),
+    )
+    yield (
+        "nested_inline_5000",
+        ("y = " + "{a = " * 5000 + "1" + "}" * 5000 + "\n" + text).encode(),
+        ("deep",),
+    )
     yield "truncated", text[: len(text) // 2].encode(), ()
     yield "not_toml", b"<machine><actuator/></machine>", ("TOML",)
-    for k, (old, new, why) in enumerate((
-        ("bore_mm = 25.0", 'bore_mm = "25"', "bore_mm"),
-        ("bore_mm = 25.0", "bore_mm = -25.0", "bore_mm"),
-        ("bore_mm = 25.0", "bore_mm = nan", "bore_mm"),
-        ("bore_mm = 25.0", "bore_mm = inf", "bore_mm"),
-        ("bore_mm = 25.0", "bore_mm = 1e308", "bore_mm"),
-        ("house_psig = 108.0", "house_psig = -5.0", "house_psig"),
-        ("house_psig = 108.0", "house_psig = 1e9", "house_psig"),
-        ('set = "U_FEED_A"', "set = 7", "set"),
-        ('set = "U_FEED_A"', 'set = "U_NOWHERE"', "U_NOWHERE"),
-        ("[[step]]", "[[stepp]]", "step"),
-        ("[[actuator]]", "[[actuatorz]]", "actuator"),
-        ("scan_time_s = 0.005", "scan_time_s = -0.005", "scan_time_s"),
-        ("scan_time_s = 0.005", "scan_time_s = 1e6", "scan_time_s"),
-    )):
+    for k, (old, new, why) in enumerate(
+        (
+            ("bore_mm = 25.0", 'bore_mm = "25"', "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = -25.0", "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = nan", "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = inf", "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = 1e308", "bore_mm"),
+            ("house_psig = 108.0", "house_psig = -5.0", "house_psig"),
+            ("house_psig = 108.0", "house_psig = 1e9", "house_psig"),
+            ('set = "U_FEED_A"', "set = 7", "set"),
+            ('set = "U_FEED_A"', 'set = "U_NOWHERE"', "U_NOWHERE"),
+            ("[[step]]", "[[stepp]]", "step"),
+            ("[[actuator]]", "[[actuatorz]]", "actuator"),
+            ("scan_time_s = 0.005", "scan_time_s = -0.005", "scan_time_s"),
+            ("scan_time_s = 0.005", "scan_time_s = 1e6", "scan_time_s"),
+        )
+    ):
         if old in text:
             yield f"value_{k:02d}_{why}", text.replace(old, new, 1).encode(), (why,)
 
@@ -605,8 +712,18 @@ def build_steps(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         folder = _case_dir(root, f"steps-{name}")
         run = _put(folder, _run_name(path), path)
         expect = {EXIT_INPUT} if structural else {EXIT_INPUT, EXIT_OK}
-        cases.append(Case(f"steps/{name}", "steps", ["steps", run, "--json"], folder, [run], [],
-                          frozenset(expect), (run, *words)))
+        cases.append(
+            Case(
+                f"steps/{name}",
+                "steps",
+                ["steps", run, "--json"],
+                folder,
+                [run],
+                [],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
     return cases
 
 
@@ -617,54 +734,134 @@ def build_features(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         run = _put(folder, _run_name(path), path)
         accept = name in MAY_ACCEPT or name.startswith("bitflip")
         expect = {EXIT_INPUT, EXIT_OK} if accept and not structural else {EXIT_INPUT}
-        cases.append(Case(f"features/{name}", "features",
-                          ["features", run, "--out", "f.csv", "--group", "air", "--actuator", "PRESS"],
-                          folder, [run], ["f.csv"], frozenset(expect), (run, *words)))
+        cases.append(
+            Case(
+                f"features/{name}",
+                "features",
+                ["features", run, "--out", "f.csv", "--group", "air", "--actuator", "PRESS"],
+                folder,
+                [run],
+                ["f.csv"],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
     # outputs pointing at inputs, folders, existing files
     folder = _case_dir(root, "features-out-is-input")
     run = _put(folder, "run.parquet", base["run"])
-    cases.append(Case("features/out_is_input_overwrite", "features",
-                      ["features", run, "--out", run, "--overwrite"], folder, [run], [],
-                      mentions=("--out",)))
+    cases.append(
+        Case(
+            "features/out_is_input_overwrite",
+            "features",
+            ["features", run, "--out", run, "--overwrite"],
+            folder,
+            [run],
+            [],
+            mentions=("--out",),
+        )
+    )
     folder = _case_dir(root, "features-out-is-dir")
     run = _put(folder, "run.parquet", base["run"])
     (folder / "d").mkdir(exist_ok=True)
-    cases.append(Case("features/out_is_folder", "features",
-                      ["features", run, "--out", "d", "--overwrite"], folder, [run], [],
-                      mentions=("--out",)))
+    cases.append(
+        Case(
+            "features/out_is_folder",
+            "features",
+            ["features", run, "--out", "d", "--overwrite"],
+            folder,
+            [run],
+            [],
+            mentions=("--out",),
+        )
+    )
     folder = _case_dir(root, "features-bad-group")
     run = _put(folder, "run.parquet", base["run"])
-    cases.append(Case("features/bad_group", "features",
-                      ["features", run, "--out", "f.csv", "--group", "nonsense"], folder, [run],
-                      ["f.csv"], mentions=("--group",)))
-    cases.append(Case("features/bad_wavelet", "features",
-                      ["features", run, "--out", "g.csv", "--group", "wavelet", "--wavelet", "nope"],
-                      folder, [run], ["g.csv"], mentions=("wavelet", "nope")))
+    cases.append(
+        Case(
+            "features/bad_group",
+            "features",
+            ["features", run, "--out", "f.csv", "--group", "nonsense"],
+            folder,
+            [run],
+            ["f.csv"],
+            mentions=("--group",),
+        )
+    )
+    cases.append(
+        Case(
+            "features/bad_wavelet",
+            "features",
+            ["features", run, "--out", "g.csv", "--group", "wavelet", "--wavelet", "nope"],
+            folder,
+            [run],
+            ["g.csv"],
+            mentions=("wavelet", "nope"),
+        )
+    )
     return cases
 
 
 def build_reference(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
     cases = []
     for name, path, words, structural in _bad_recordings(base, root, full, "ref"):
-        if not full and not structural and name not in {"nan_all_first_analog", "analog_at_1hz", "flow_labelled_pa"}:
+        if (
+            not full
+            and not structural
+            and name not in {"nan_all_first_analog", "analog_at_1hz", "flow_labelled_pa"}
+        ):
             continue
         folder = _case_dir(root, f"reference-{name}")
         run = _put(folder, _run_name(path), path)
         # the damaged recording is the only one: it must make a usable reference or be refused
         accept = name in MAY_ACCEPT or (name.startswith("bitflip") and not structural)
         expect = {EXIT_INPUT, EXIT_OK} if accept and not structural else {EXIT_INPUT}
-        cases.append(Case(f"reference build/{name}", "reference build",
-                          ["reference", "build", run, "--out", "r.pnref", "--no-signatures"],
-                          folder, [run], ["r.pnref"], frozenset(expect), (run, *words)))
+        cases.append(
+            Case(
+                f"reference build/{name}",
+                "reference build",
+                ["reference", "build", run, "--out", "r.pnref", "--no-signatures"],
+                folder,
+                [run],
+                ["r.pnref"],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
     folder = _case_dir(root, "reference-out-is-input")
     run = _put(folder, "run.parquet", base["ref"])
-    cases.append(Case("reference build/out_is_input_overwrite", "reference build",
-                      ["reference", "build", run, "--out", run, "--overwrite", "--no-signatures"],
-                      folder, [run], [], mentions=("--out",)))
+    cases.append(
+        Case(
+            "reference build/out_is_input_overwrite",
+            "reference build",
+            ["reference", "build", run, "--out", run, "--overwrite", "--no-signatures"],
+            folder,
+            [run],
+            [],
+            mentions=("--out",),
+        )
+    )
     toml = _put(folder, "m.toml", base["toml"])
-    cases.append(Case("reference build/out_is_machine_overwrite", "reference build",
-                      ["reference", "build", run, "--machine", toml, "--out", toml, "--overwrite",
-                       "--no-signatures"], folder, [run, toml], [], mentions=("--out",)))
+    cases.append(
+        Case(
+            "reference build/out_is_machine_overwrite",
+            "reference build",
+            [
+                "reference",
+                "build",
+                run,
+                "--machine",
+                toml,
+                "--out",
+                toml,
+                "--overwrite",
+                "--no-signatures",
+            ],
+            folder,
+            [run, toml],
+            [],
+            mentions=("--out",),
+        )
+    )
     for opt, value, words in (
         ("--channels", "P_In,NOPE", ("NOPE",)),
         ("--channels", ",", ("--channels",)),
@@ -678,9 +875,17 @@ def build_reference(base: dict[str, Path], root: Path, full: bool) -> list[Case]
     ):
         (folder / "d").mkdir(exist_ok=True)
         out = f"o{len(cases)}.pnref"
-        cases.append(Case(f"reference build/{opt}={value}", "reference build",
-                          ["reference", "build", run, "--out", out, opt, value],
-                          folder, [run], [out], mentions=words))
+        cases.append(
+            Case(
+                f"reference build/{opt}={value}",
+                "reference build",
+                ["reference", "build", run, "--out", out, opt, value],
+                folder,
+                [run],
+                [out],
+                mentions=words,
+            )
+        )
     return cases
 
 
@@ -696,9 +901,18 @@ def build_diagnose(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
             expect = {EXIT_INPUT, EXIT_OK}  # leak-free data: never "leak found"
         else:
             expect = {EXIT_INPUT}
-        cases.append(Case(f"diagnose/{name}", "diagnose",
-                          ["diagnose", run, "--reference", ref, "--json", "d.json"],
-                          folder, [run, ref], ["d.json"], frozenset(expect), (run, *words)))
+        cases.append(
+            Case(
+                f"diagnose/{name}",
+                "diagnose",
+                ["diagnose", run, "--reference", ref, "--json", "d.json"],
+                folder,
+                [run, ref],
+                ["d.json"],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
     # damaged references
     ref_items: list[tuple[str, bytes, tuple[str, ...]]] = []
     data = base["pnref"].read_bytes()
@@ -710,10 +924,18 @@ def build_diagnose(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         folder = _case_dir(root, f"diagnose-ref-{name}")
         run = _put(folder, "run.parquet", base["run"])
         ref = _put(folder, "ref.pnref", content)
-        cases.append(Case(f"diagnose/ref_{name}", "diagnose",
-                          ["diagnose", run, "--reference", ref, "--report", "r.html"],
-                          folder, [run, ref], ["r.html"], frozenset({EXIT_INPUT}),
-                          ("ref.pnref", *words)))
+        cases.append(
+            Case(
+                f"diagnose/ref_{name}",
+                "diagnose",
+                ["diagnose", run, "--reference", ref, "--report", "r.html"],
+                folder,
+                [run, ref],
+                ["r.html"],
+                frozenset({EXIT_INPUT}),
+                ("ref.pnref", *words),
+            )
+        )
     # outputs pointing at inputs or at each other
     folder = _case_dir(root, "diagnose-outputs")
     run = _put(folder, "run.parquet", base["run"])
@@ -739,8 +961,9 @@ def build_diagnose(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
     ):
         argv = ["diagnose", run, "--reference", ref, *extra]
         outs = [x for x in ("x.out",) if "x.out" in extra]
-        cases.append(Case(f"diagnose/{label}", "diagnose", argv, folder, [run, ref], outs,
-                          mentions=words))
+        cases.append(
+            Case(f"diagnose/{label}", "diagnose", argv, folder, [run, ref], outs, mentions=words)
+        )
     return cases
 
 
@@ -767,9 +990,18 @@ def build_simulate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
     for name, content, words in muts:
         folder = _case_dir(root, f"simulate-{name}")
         toml = _put(folder, "m.toml", content)
-        cases.append(Case(f"simulate/toml_{name}", "simulate",
-                          ["simulate", "--machine", toml, "--cycles", "1", "--out", "o.parquet"],
-                          folder, [toml], ["o.parquet"], frozenset({EXIT_INPUT}), ("m.toml", *words)))
+        cases.append(
+            Case(
+                f"simulate/toml_{name}",
+                "simulate",
+                ["simulate", "--machine", toml, "--cycles", "1", "--out", "o.parquet"],
+                folder,
+                [toml],
+                ["o.parquet"],
+                frozenset({EXIT_INPUT}),
+                ("m.toml", *words),
+            )
+        )
     folder = _case_dir(root, "simulate-options")
     toml = _put(folder, "m.toml", base["toml"])
     (folder / "d").mkdir(exist_ok=True)
@@ -794,8 +1026,18 @@ def build_simulate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         argv = ["simulate", "--machine", MACHINE, "--out", f"o{len(cases)}.parquet", *extra]
         # any seed >= 0 is a seed: a 26-digit one simulates like any other
         expect = {EXIT_INPUT, EXIT_OK} if label == "seed_huge" else {EXIT_INPUT}
-        cases.append(Case(f"simulate/{label}", "simulate", argv, folder, [toml],
-                          [f"o{len(cases)}.parquet"], frozenset(expect), words))
+        cases.append(
+            Case(
+                f"simulate/{label}",
+                "simulate",
+                argv,
+                folder,
+                [toml],
+                [f"o{len(cases)}.parquet"],
+                frozenset(expect),
+                words,
+            )
+        )
     return cases
 
 
@@ -816,9 +1058,18 @@ def build_machine_vary(base: dict[str, Path], root: Path, full: bool) -> list[Ca
     for name, content, words in muts:
         folder = _case_dir(root, f"vary-{name}")
         toml = _put(folder, "m.toml", content)
-        cases.append(Case(f"machine vary/toml_{name}", "machine vary",
-                          ["machine", "vary", toml, "--out", "p.toml"], folder, [toml], ["p.toml"],
-                          frozenset({EXIT_INPUT}), ("m.toml", *words)))
+        cases.append(
+            Case(
+                f"machine vary/toml_{name}",
+                "machine vary",
+                ["machine", "vary", toml, "--out", "p.toml"],
+                folder,
+                [toml],
+                ["p.toml"],
+                frozenset({EXIT_INPUT}),
+                ("m.toml", *words),
+            )
+        )
     folder = _case_dir(root, "vary-options")
     toml = _put(folder, "m.toml", base["toml"])
     (folder / "d").mkdir(exist_ok=True)
@@ -830,8 +1081,17 @@ def build_machine_vary(base: dict[str, Path], root: Path, full: bool) -> list[Ca
         ("seed_negative", [toml, "--out", "a.toml", "--seed", "-4"], ("--seed",)),
         ("unknown_machine", ["nope", "--out", "a.toml"], ("nope",)),
     ):
-        cases.append(Case(f"machine vary/{label}", "machine vary", ["machine", "vary", *extra],
-                          folder, [toml], ["a.toml"], mentions=words))
+        cases.append(
+            Case(
+                f"machine vary/{label}",
+                "machine vary",
+                ["machine", "vary", *extra],
+                folder,
+                [toml],
+                ["a.toml"],
+                mentions=words,
+            )
+        )
     return cases
 
 
@@ -874,8 +1134,9 @@ def discover_commands() -> list[str]:
     return found
 
 
-def build_corpus(base: dict[str, Path], root: Path, full: bool = True,
-                 commands: Iterable[str] | None = None) -> list[Case]:
+def build_corpus(
+    base: dict[str, Path], root: Path, full: bool = True, commands: Iterable[str] | None = None
+) -> list[Case]:
     """Every case of the corpus (``full``) or of its quick slice."""
     cases: list[Case] = []
     for command in commands or discover_commands():
@@ -929,14 +1190,25 @@ def _subprocess(case: Case) -> tuple[int, str]:
     exe = Path(sys.executable).with_name("pneufdd")
     env = dict(os.environ, COLUMNS="200", NO_COLOR="1")
     proc = subprocess.run(
-        [str(exe), *case.argv], cwd=case.folder, capture_output=True, text=True, env=env,
-        timeout=600, check=False,
+        [str(exe), *case.argv],
+        cwd=case.folder,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+        check=False,
     )
     return proc.returncode, proc.stderr
 
 
-def check(case: Case, code: int, stderr: str, before: dict[str, Any],
-          outputs_before: dict[str, Any], listing_before: set[str]) -> list[str]:
+def check(
+    case: Case,
+    code: int,
+    stderr: str,
+    before: dict[str, Any],
+    outputs_before: dict[str, Any],
+    listing_before: set[str],
+) -> list[str]:
     """The problems of one invocation (empty: it behaved)."""
     problems = []
     if "Traceback" in stderr:
@@ -992,8 +1264,9 @@ def _readable(path: Path) -> bool:
         return False
 
 
-def run_corpus(cases: list[Case], in_process: bool, workers: int = 1,
-               log: Callable[[str], None] | None = None) -> list[Outcome]:
+def run_corpus(
+    cases: list[Case], in_process: bool, workers: int = 1, log: Callable[[str], None] | None = None
+) -> list[Outcome]:
     """Run ``cases`` (in ``workers`` threads when in subprocesses)."""
     if in_process or workers <= 1:
         outcomes = []
@@ -1025,7 +1298,9 @@ def summary(outcomes: list[Outcome]) -> dict[str, Any]:
         "inputs_changed": sum(p.startswith("input ") for p in flat),
         "partial_outputs": sum(p.startswith(("partial output", "temporary")) for p in flat),
         "cases_with_problems": sum(bool(o.problems) for o in outcomes),
-        "exit_codes_by_command": {c: dict(sorted(v.items())) for c, v in sorted(by_command.items())},
+        "exit_codes_by_command": {
+            c: dict(sorted(v.items())) for c, v in sorted(by_command.items())
+        },
         "seconds": round(sum(o.seconds for o in outcomes), 1),
     }
 
@@ -1051,11 +1326,22 @@ def main(argv: list[str] | None = None) -> int:
     result = summary(outcomes)
     print(json.dumps(result, indent=2))
     if args.json:
-        args.json.write_text(json.dumps(
-            [{"case": o.case.name, "argv": o.case.argv, "exit": o.code, "problems": o.problems,
-              "stderr": o.stderr[-2000:], "seconds": round(o.seconds, 2)} for o in outcomes],
-            indent=1,
-        ))
+        args.json.write_text(
+            json.dumps(
+                [
+                    {
+                        "case": o.case.name,
+                        "argv": o.case.argv,
+                        "exit": o.code,
+                        "problems": o.problems,
+                        "stderr": o.stderr[-2000:],
+                        "seconds": round(o.seconds, 2),
+                    }
+                    for o in outcomes
+                ],
+                indent=1,
+            )
+        )
     return 1 if result["cases_with_problems"] or missing else 0
 
 
