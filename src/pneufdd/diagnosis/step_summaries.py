@@ -113,7 +113,8 @@ def _summaries(values: FloatArray, start: IntArray, end: IntArray) -> FloatArray
     s = np.clip(start, 0, n - 1)
     e = np.clip(np.maximum(end, start + 1), 1, n)
     e = np.maximum(e, s + 1)
-    csum = np.concatenate([[0.0], np.cumsum(values)])
+    # long gaps stay NaN (in skipped cycles only): keep them out of the running sum
+    csum = np.concatenate([[0.0], np.cumsum(np.where(np.isnan(values), 0.0, values))])
     mean = (csum[e] - csum[s]) / (e - s)
     bounds = np.stack([s.ravel(), e.ravel()], axis=1).ravel()
     order_ok = np.all(np.diff(bounds) >= 0)
