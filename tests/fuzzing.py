@@ -643,7 +643,7 @@ def _bad_recordings(
         path = store / f"{name}.parquet"
         path.write_bytes(content)
         items.append((name, path, ("run.parquet",), True))
-    for name, content in bit_flips(data, 24 if full else 4, SEED):
+    for name, content in bit_flips(data, 32 if full else 4, SEED):
         path = store / f"{name}.parquet"
         path.write_bytes(content)
         items.append((name, path, ("run.parquet",), not _same_recording(path, rec)))
@@ -825,6 +825,35 @@ def build_reference(base: dict[str, Path], root: Path, full: bool) -> list[Case]
                 ["r.pnref"],
                 frozenset(expect),
                 (run, *words),
+            )
+        )
+    text = base["toml"].read_text("utf-8")
+    muts = list(toml_mutations(text))
+    if not full:
+        muts = [m for m in muts if m[0] in {"binary_garbage", "nested_inline_5000"}]
+    for name, content, words in muts:
+        folder = _case_dir(root, f"reference-toml-{name}")
+        run = _put(folder, "run.parquet", base["ref"])
+        toml = _put(folder, "m.toml", content)
+        cases.append(
+            Case(
+                f"reference build/toml_{name}",
+                "reference build",
+                [
+                    "reference",
+                    "build",
+                    run,
+                    "--machine",
+                    toml,
+                    "--out",
+                    "r.pnref",
+                    "--no-signatures",
+                ],
+                folder,
+                [run, toml],
+                ["r.pnref"],
+                frozenset({EXIT_INPUT}),
+                ("m.toml", *words),
             )
         )
     folder = _case_dir(root, "reference-out-is-input")
