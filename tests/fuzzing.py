@@ -33,6 +33,7 @@ import subprocess
 import sys
 import time
 import zipfile
+import zlib
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -370,6 +371,52 @@ def _nested(depth: int) -> Any:
     return value
 
 
+def parquet_mutations(path: Path) -> Iterator[tuple[str, bytes]]:
+    """Valid Parquet, CRCs intact, with malformed pneufdd content: null or absurd
+    rates and offsets, a null or garbled start time, a wrong channel count."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    kv = dict(table.schema.metadata or {})
+    info = json.loads(kv[b"pneufdd.recording"])
+
+    def write(tab: Any, new_info: Any = None) -> bytes:
+        meta = dict(kv)
+        if new_info is not None:
+            raw = json.dumps(new_info).encode()
+            meta[b"pneufdd.recording"] = raw
+            meta[b"pneufdd.recording.crc32"] = str(zlib.crc32(raw)).encode()
+        buf = io.BytesIO()
+        pq.write_table(tab.replace_schema_metadata(meta), buf, row_group_size=1)
+        return buf.getvalue()
+
+    def column(name: str, values: list[Any]) -> Any:
+        idx = table.column_names.index(name)
+        return table.set_column(idx, name, pa.array(values, type=table.schema.field(name).type))
+
+    n = table.num_rows
+    rates = table.column("rate_hz").to_pylist()
+    t0s = table.column("t0_s").to_pylist()
+    names = table.column("name").to_pylist()
+    yield "parquet_rate_null", write(column("rate_hz", [None, *rates[1:]]))
+    yield "parquet_rate_nan", write(column("rate_hz", [float("nan"), *rates[1:]]))
+    yield "parquet_rate_zero", write(column("rate_hz", [0.0, *rates[1:]]))
+    yield "parquet_rate_negative", write(column("rate_hz", [-1000.0, *rates[1:]]))
+    yield "parquet_t0_null", write(column("t0_s", [None, *t0s[1:]]))
+    yield "parquet_t0_inf", write(column("t0_s", [float("inf"), *t0s[1:]]))
+    yield "parquet_name_null", write(column("name", [None, *names[1:]]))
+    yield "parquet_kind_bogus", write(column("kind", ["sideways"] * n))
+    yield "parquet_unit_furlong", write(column("unit", ["furlong"] * n))
+    yield "parquet_n_samples_lie", write(column("n_samples", [10**12] * n))
+    yield "parquet_start_time_null", write(table, {**info, "start_time": None})
+    yield "parquet_start_time_garbage", write(table, {**info, "start_time": "yesterday"})
+    yield "parquet_n_channels_wrong", write(table, {**info, "n_channels": n + 3})
+    yield "parquet_n_channels_string", write(table, {**info, "n_channels": "many"})
+    yield "parquet_metadata_list", write(table, {**info, "metadata": [1, 2]})
+    yield "parquet_info_is_list", write(table, [info])
+
+
 def truncations(data: bytes) -> Iterator[tuple[str, bytes]]:
     """The file cut at several places (and emptied)."""
     yield "empty", b""
@@ -647,6 +694,10 @@ def _bad_recordings(
         path = store / f"{name}.parquet"
         path.write_bytes(content)
         items.append((name, path, ("run.parquet",), not _same_recording(path, rec)))
+    for name, content in parquet_mutations(base[source]):
+        path = store / f"{name}.parquet"
+        path.write_bytes(content)
+        items.append((name, path, ("run.parquet",), True))
     for name, mutated, words in recording_mutations(rec):
         if not full and name not in QUICK_RECORDING_MUTATIONS:
             continue
