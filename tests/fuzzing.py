@@ -1102,6 +1102,9 @@ def build_simulate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         ("leak_twice", ["--leak", "supply=3", "--leak", "supply=4"], ("supply",)),
         ("machine_folder", ["--machine", "d"], ("d",)),
         ("machine_missing", ["--machine", "missing.toml"], ("missing.toml",)),
+        ("max_cycle_s_nan", ["--max-cycle-s", "nan"], ("--max-cycle-s",)),
+        ("max_cycle_s_zero", ["--max-cycle-s", "0"], ("--max-cycle-s",)),
+        ("max_cycle_s_stall", ["--max-cycle-s", "0.2"], ("max_cycle_s",)),
     ):
         argv = ["simulate", "--machine", MACHINE, "--out", f"o{len(cases)}.parquet", *extra]
         # any seed >= 0 is a seed: a 26-digit one simulates like any other

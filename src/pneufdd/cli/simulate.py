@@ -46,9 +46,22 @@ def simulate_command(
     seed: Annotated[int, typer.Option(min=0, help="Random seed (same seed, same bytes).")] = 0,
     out: Annotated[Path, typer.Option(help="Output Parquet file.")] = Path("run.parquet"),
     overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
+    max_cycle_s: Annotated[
+        float,
+        typer.Option(
+            "--max-cycle-s",
+            help="Longest a step may wait for its switch before the machine counts as stalled [s].",
+        ),
+    ] = 120.0,
 ) -> None:
     """Simulate a machine with optional leaks and write the recording to OUT."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     from pneufdd.sim import load_machine, simulate
     from pneufdd.sim.leaks import resolve_leaks
@@ -56,6 +69,8 @@ def simulate_command(
     check_outputs({"--out": out}, {"--machine": machine}, overwrite)
     if cycles > MAX_CYCLES:
         raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
+    if not 0.0 < max_cycle_s <= 3600.0:  # also refuses nan
+        raise InputError(describe("--max-cycle-s", max_cycle_s, "> 0 and <= 3600 [s]"))
     desc = load_machine(machine)
     leaks: dict[str, str] = {}
     for item in leak or []:
@@ -70,6 +85,8 @@ def simulate_command(
         BarColumn(),
         TextColumn("{task.completed}/{task.total} cycles"),
         TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
         console=err,
     ) as bar:
         task = bar.add_task(desc.name, total=cycles)
@@ -78,6 +95,7 @@ def simulate_command(
             cycles=cycles,
             leaks=leaks,
             seed=seed,
+            max_cycle_s=max_cycle_s,
             progress=lambda done, total: bar.update(task, completed=done),
         )
     path = recording.write(out, overwrite=overwrite)
