@@ -1016,6 +1016,21 @@ def build_diagnose(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
                 ("ref.pnref", *words),
             )
         )
+    # a file name that looks like console markup is printed as written
+    folder = _case_dir(root, "diagnose-markup-name")
+    run = _put(folder, "run[/bold].parquet", base["run"])
+    ref = _put(folder, "ref.pnref", base["pnref"])
+    cases.append(
+        Case(
+            "diagnose/markup_in_file_name",
+            "diagnose",
+            ["diagnose", run, "--reference", ref, "--json", "[red]d.json"],
+            folder,
+            [run, ref],
+            ["[red]d.json"],
+            frozenset({EXIT_OK}),
+        )
+    )
     # outputs pointing at inputs or at each other
     folder = _case_dir(root, "diagnose-outputs")
     run = _put(folder, "run.parquet", base["run"])
@@ -1100,6 +1115,7 @@ def build_simulate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         ("leak_huge", ["--leak", "supply=1e30slpm"], ("supply", "1e30")),
         ("leak_negative_turns", ["--leak", "supply=-2"], ("supply", "-2")),
         ("leak_twice", ["--leak", "supply=3", "--leak", "supply=4"], ("supply",)),
+        ("leak_markup", ["--leak", "supply=[/bold]"], ("supply",)),
         ("machine_folder", ["--machine", "d"], ("d",)),
         ("machine_missing", ["--machine", "missing.toml"], ("missing.toml",)),
         ("max_cycle_s_nan", ["--max-cycle-s", "nan"], ("--max-cycle-s",)),

@@ -12,6 +12,7 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from pneufdd import __version__
 from pneufdd.cli import campaign, demo, diagnose, features, machine, reference, simulate, steps
@@ -82,8 +83,9 @@ def _internal_error(err: Console, exc: BaseException) -> int:
     if len(text) > 200:
         text = text[:197] + "..."
     err.print(
-        f"[bold red]internal error:[/] {type(exc).__name__}: {text} (a bug in pneufdd "
-        f"{__version__}; run again with --debug for the traceback and please report it)",
+        f"[bold red]internal error:[/] {type(exc).__name__}: {escape(text)} (a bug in "
+        f"pneufdd {__version__}; run again as 'pneufdd --debug ...' for the traceback, and "
+        "please report it)",
         highlight=False,
         markup=True,
         soft_wrap=True,
@@ -105,7 +107,9 @@ def main(argv: list[str] | None = None) -> int:
         # In non-standalone mode click returns a raised typer.Exit's code as the value.
         returned = _app_for(args)(args=args, standalone_mode=False, prog_name="pneufdd")
     except (InputError, PneufddError) as exc:
-        err.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True, soft_wrap=True)
+        err.print(
+            f"[bold red]error:[/] {escape(str(exc))}", highlight=False, markup=True, soft_wrap=True
+        )
         return ExitCode.INPUT_ERROR
     except typer.Exit as exc:
         return int(exc.exit_code)
@@ -117,7 +121,8 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(exc, "filename", None) is None:
             return _internal_error(err, exc)
         err.print(
-            f"[bold red]error:[/] {exc.strerror or type(exc).__name__}: {exc.filename!r}",
+            f"[bold red]error:[/] {escape(exc.strerror or type(exc).__name__)}: "
+            f"{escape(repr(exc.filename))}",
             highlight=False,
             markup=True,
             soft_wrap=True,

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
@@ -136,7 +137,7 @@ def diagnose(
         write_text_atomic(path, text)
     verdict = "[bold red]leak detected[/]" if result.detected else "[bold green]no leak[/]"
     console.print(
-        f"{run}: {verdict} ({result.cycles_analyzed} cycles; run statistic "
+        f"{escape(str(run))}: {verdict} ({result.cycles_analyzed} cycles; run statistic "
         f"{result.run_score:.3g} vs threshold {result.run_threshold:.3g})",
         highlight=False,
     )
@@ -152,7 +153,7 @@ def diagnose(
     if result.leaks:
         console.print(leak_table(result))
     for note in result.notes:
-        console.print(f"note: {note}", highlight=False)
+        console.print(f"note: {note}", highlight=False, markup=False)
     if result.detected:
         raise typer.Exit(ExitCode.LEAK_FOUND)
 

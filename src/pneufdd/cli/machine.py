@@ -63,6 +63,7 @@ def vary(
         f"wrote {path}: plant of {twin.name} at scale {scale:g}, seed {seed}, "
         f"{len(changes)} parameters changed; largest: {largest}",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
 

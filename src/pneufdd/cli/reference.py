@@ -117,6 +117,7 @@ def build(
         f"signatures: {sig}; cross-validated false-alarm rate per cycle "
         f"{100 * model.detector.reference_false_alarm_rate_:.2f} % -> {out}",
         highlight=False,
+        markup=False,
     )
 
 

@@ -99,7 +99,10 @@ def simulate_command(
             progress=lambda done, total: bar.update(task, completed=done),
         )
     path = recording.write(out, overwrite=overwrite)
-    err.print(f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)")
+    err.print(
+        f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)",
+        markup=False,
+    )
 
 
 def machines_command() -> None:
