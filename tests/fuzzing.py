@@ -1018,7 +1018,7 @@ def build_diagnose(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         )
     # a file name that looks like console markup is printed as written
     folder = _case_dir(root, "diagnose-markup-name")
-    run = _put(folder, "run[/bold].parquet", base["run"])
+    run = _put(folder, "run[bold].parquet", base["run"])
     ref = _put(folder, "ref.pnref", base["pnref"])
     cases.append(
         Case(
