@@ -39,3 +39,9 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build .numba_cache .pytest_cache .mypy_cache .ruff_cache
+
+# Issue 14: the full bad-input corpus (>= 500 invocations, each a fresh process);
+# `make test` runs a quick slice in-process (tests/test_fuzz_cli.py).
+.PHONY: fuzz
+fuzz: $(STAMP)
+	$(BIN)/python tests/fuzzing.py --out build/fuzz --json build/fuzz/outcomes.json

@@ -8,7 +8,7 @@ import pytest
 import pywt
 
 from pneufdd import Recording
-from pneufdd.errors import ChannelError, InputError, UnitError
+from pneufdd.errors import ChannelError, InputError, NoCompleteCycleError, UnitError
 from pneufdd.features import (
     REGISTRY,
     TABLE_4_5,
@@ -185,10 +185,26 @@ def test_nan_gaps_and_wrong_units() -> None:
         ],
         metadata=rec.metadata,
     )
-    df2 = feature_matrix(gappy, groups=["table44"])
-    col = "DNC.t44_06_air_a_extend_SL"
-    assert df2[col].isna().any()
-    assert "valid samples" in df2.attrs["nan_reasons"][col]
+    # The gap rule (issue 14, docs/data-quality.md): a gap longer than 0.05 s skips
+    # the cycles it touches; with 3 of 4 cycles gone the recording is refused, naming
+    # the channel.
+    with pytest.raises(NoCompleteCycleError, match=r"Q_DNC_A.*3 of 4"):
+        feature_matrix(gappy, groups=["table44"])
+    # A gap inside the last cycle only skips that cycle, reported with its channel.
+    last = rec.info("Q_DNC_A")
+    w = last.values.copy()
+    w[-int(0.5 * last.rate_hz) :] = np.nan
+    tail = Recording(
+        [
+            rec.info(n) if n != "Q_DNC_A" else type(last)(n, w, last.rate_hz, last.unit)
+            for n in rec.channels
+        ],
+        metadata=rec.metadata,
+    )
+    df2 = feature_matrix(tail, groups=["table44"])
+    gap_rows = [r for r in df2.attrs["rejected"] if "Q_DNC_A" in r["reason"]]
+    assert len(df2) + len(gap_rows) == len(df)
+    assert len(gap_rows) == 1
     # A pressure channel in volts is refused, naming the channel.
     chans = [rec.info(n) for n in rec.channels if n != "P_DNC_A"]
     p = rec.info("P_DNC_A")

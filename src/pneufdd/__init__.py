@@ -14,17 +14,17 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from pneufdd.recording import Recording
-
 if TYPE_CHECKING:
     from pneufdd.diagnosis.diagnoser import LeakDiagnoser
     from pneufdd.diagnosis.engine import Diagnosis
     from pneufdd.location import Location
+    from pneufdd.recording import Recording
 
 __all__ = ["Diagnosis", "LeakDiagnoser", "Location", "Recording", "__version__"]
 __version__ = "0.1.0"
 
 _LAZY = {
+    "Recording": "pneufdd.recording",
     "LeakDiagnoser": "pneufdd.diagnosis.diagnoser",
     "Diagnosis": "pneufdd.diagnosis.engine",
     "Location": "pneufdd.location",

@@ -20,6 +20,7 @@ __all__ = [
     "PneufddError",
     "UnitError",
     "describe",
+    "naming",
 ]
 
 
@@ -71,3 +72,13 @@ def describe(what: str, received: object, allowed: Iterable[object] | str | None
     if isinstance(allowed, str):
         return f"{message}; allowed: {allowed}"
     return f"{message}; allowed: " + ", ".join(repr(a) for a in allowed)
+
+
+def naming(exc: InputError, where: str) -> InputError:
+    """A copy of ``exc`` with ``where`` (a file) in front of its message, unless it names it.
+
+    >>> str(naming(ChannelError("no valve fires"), "run.parquet"))
+    'run.parquet: no valve fires'
+    """
+    message = str(exc) if where in str(exc) else f"{where}: {exc}"
+    return type(exc)(message)

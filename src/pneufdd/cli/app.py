@@ -1,4 +1,9 @@
-"""The ``pneufdd`` command. Each sub-command lives in its own module with a ``register``."""
+"""The ``pneufdd`` command. Each sub-command lives in its own module with a ``register``.
+
+Command modules import only typer, rich and :mod:`pneufdd.errors` at module level; the
+subsystem a command needs is imported inside the command function, so ``pneufdd
+--help`` and light commands start fast (``benchmarks/bench_startup.py``).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,7 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from pneufdd import __version__
 from pneufdd.cli import (
@@ -38,41 +44,109 @@ for module in (demo, simulate, machine, steps, features, reference, diagnose, ca
 for module in (import_data,):
     module.register(app)
 
+_STATE = {"debug": False}
+
 
 @app.callback(invoke_without_command=True)
 def _root(
     version: Annotated[bool, typer.Option("--version", help="Print the version and exit.")] = False,
+    debug: Annotated[
+        bool,
+        typer.Option("--debug", help="On an internal error, show the full traceback."),
+    ] = False,
 ) -> None:
+    _STATE["debug"] = debug
     if version:
         typer.echo(__version__)
         raise typer.Exit(ExitCode.OK)
 
 
+def _app_for(args: list[str]) -> typer.Typer:
+    """The app, holding only the command ``args`` invoke (building all costs ~0.1 s).
+
+    Typer builds every registered command (with its parameter converters) before
+    parsing; ``pneufdd machines`` needs only its own. Without a command name (``--help``,
+    ``--version``) or with an unknown one (click then lists the commands) the full app
+    answers.
+    """
+    name = next((a for a in args if not a.startswith("-")), None)
+    commands = [c for c in app.registered_commands if c.name == name]
+    groups = [g for g in app.registered_groups if g.name == name]
+    if name is None or not (commands or groups):
+        return app
+    single = typer.Typer(
+        name="pneufdd",
+        help=app.info.help,
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+    )
+    single.callback(invoke_without_command=True)(_root)
+    single.registered_commands = commands
+    single.registered_groups = groups
+    return single
+
+
+def _internal_error(err: Console, exc: BaseException) -> int:
+    """Exit 3 with one line (the traceback with ``--debug``): a bug, never "leak found"."""
+    if _STATE["debug"]:
+        err.print_exception(show_locals=False)
+    text = " ".join(str(exc).split())
+    if len(text) > 200:
+        text = text[:197] + "..."
+    err.print(
+        f"[bold red]internal error:[/] {type(exc).__name__}: {escape(text)} (a bug in "
+        f"pneufdd {__version__}; run again as 'pneufdd --debug ...' for the traceback, and "
+        "please report it)",
+        highlight=False,
+        markup=True,
+        soft_wrap=True,
+    )
+    return ExitCode.INTERNAL_ERROR
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; map library errors to documented exit codes (see exit_codes)."""
+    """Run the CLI; map errors to the documented exit codes (see exit_codes).
+
+    Bad input (:class:`~pneufdd.errors.InputError`, a file the system refuses to
+    read or write, a click usage error) exits 2; any other exception is a bug and
+    exits 3 with one line pointing to ``--debug``.
+    """
     err = Console(stderr=True)
+    args = sys.argv[1:] if argv is None else list(argv)
+    _STATE["debug"] = "--debug" in args[: args.index("--") if "--" in args else len(args)]
     try:
         # In non-standalone mode click returns a raised typer.Exit's code as the value.
-        returned = app(args=argv, standalone_mode=False)
-    except InputError as exc:
-        err.print(f"[bold red]error:[/] {exc}", highlight=False)
-        return ExitCode.INPUT_ERROR
-    except PneufddError as exc:
-        err.print(f"[bold red]error:[/] {exc}", highlight=False)
+        returned = _app_for(args)(args=args, standalone_mode=False, prog_name="pneufdd")
+    except (InputError, PneufddError) as exc:
+        err.print(
+            f"[bold red]error:[/] {escape(str(exc))}", highlight=False, markup=True, soft_wrap=True
+        )
         return ExitCode.INPUT_ERROR
     except typer.Exit as exc:
         return int(exc.exit_code)
     except (typer.Abort, KeyboardInterrupt):
         err.print("aborted")
         return ExitCode.INPUT_ERROR
-    except Exception as exc:  # click usage errors carry their own exit code
+    except OSError as exc:
+        # the system refused a file the user named (permissions, a folder, a full disk)
+        if getattr(exc, "filename", None) is None:
+            return _internal_error(err, exc)
+        err.print(
+            f"[bold red]error:[/] {escape(exc.strerror or type(exc).__name__)}: "
+            f"{escape(repr(exc.filename))}",
+            highlight=False,
+            markup=True,
+            soft_wrap=True,
+        )
+        return ExitCode.INPUT_ERROR
+    except Exception as exc:
         code = getattr(exc, "exit_code", None)
-        if code is not None:
-            show = getattr(exc, "show", None)
-            if callable(show):
-                show()
-            return int(code)
-        raise
+        show = getattr(exc, "show", None)
+        if isinstance(code, int) and callable(show):  # click usage errors
+            show()
+            return code
+        return _internal_error(err, exc)
     return int(returned) if isinstance(returned, int) else ExitCode.OK
 
 

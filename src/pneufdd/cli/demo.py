@@ -17,20 +17,9 @@ import time
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
-
-from pneufdd.cli.diagnose import leak_table
-from pneufdd.cli.progress_bar import progress_bars
-from pneufdd.diagnosis.engine import diagnose
-from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
-from pneufdd.diagnosis.pnref import save_reference
-from pneufdd.physics.leaks import leak_mass_flow
-from pneufdd.physics.units import kg_s_to_slpm, psig_to_pa
-from pneufdd.report.html import render_report, write_text_atomic
-from pneufdd.sim import as_exported, load_machine, run_simulation, simulate, vary_machine
 
 __all__ = ["DEMO_LEAKS", "DEMO_SEED", "register"]
 
@@ -49,6 +38,18 @@ def demo(
     reference_cycles: Annotated[int, typer.Option(help="Leak-free reference cycles.")] = 30,
 ) -> None:
     """Run the section 5.3.1.5 demonstration and write its outputs under OUT."""
+    import numpy as np
+
+    from pneufdd.cli.diagnose import leak_table
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.diagnosis.engine import diagnose
+    from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
+    from pneufdd.diagnosis.pnref import save_reference
+    from pneufdd.physics.leaks import leak_mass_flow
+    from pneufdd.physics.units import kg_s_to_slpm, psig_to_pa
+    from pneufdd.report.html import render_report, write_text_atomic
+    from pneufdd.sim import as_exported, load_machine, run_simulation, simulate, vary_machine
+
     console = Console()
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)

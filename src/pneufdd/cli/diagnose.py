@@ -9,29 +9,29 @@ error never leaves a partial file behind.
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
-from pneufdd.cli.progress_bar import progress_bars
+from pneufdd.cli.outputs import check_outputs, write_text_atomic
 from pneufdd.cli.recordings import MapOption, read_recording
-from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE, CostSettings
-from pneufdd.diagnosis.engine import Diagnosis
-from pneufdd.diagnosis.pipeline import diagnose_recording
-from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.errors import InputError, describe
-from pneufdd.report.html import render_report, write_text_atomic
+
+if TYPE_CHECKING:
+    from pneufdd.diagnosis.engine import Diagnosis
 
 __all__ = ["leak_table", "register"]
 
 
 def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first") -> Table:
     """A rich table of the diagnosis' leaks."""
+    from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
+
     table = Table(title=title)
     for name in (
         "#",
@@ -112,8 +112,24 @@ def diagnose(
         typer.Option(help="Batch: run on an existing Dask cluster (tcp://host:8786)."),
     ] = None,
     tag_map: MapOption = None,
+    overwrite: Annotated[
+        bool, typer.Option(help="Replace existing --json/--report files (never an input).")
+    ] = False,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
+    from dataclasses import replace
+
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.diagnosis.cost import CostSettings
+    from pneufdd.diagnosis.pipeline import diagnose_recording
+    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.report.html import render_report
+
+    inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}
+    inputs.update({"RUN" if len(runs) == 1 else f"RUN {i + 1}": p for i, p in enumerate(runs)})
+    check_outputs({"--json": json_out, "--report": report}, inputs, overwrite=overwrite)
+    if max_leaks is not None and max_leaks not in (1, 2):
+        raise InputError(describe("--max-leaks", max_leaks, [1, 2]))
     console = Console()
     settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
     from pneufdd.cli.diagnose_batch import is_batch, run_batch
@@ -147,16 +163,25 @@ def diagnose(
         write_text_atomic(path, text)
     verdict = "[bold red]leak detected[/]" if result.detected else "[bold green]no leak[/]"
     console.print(
-        f"{run}: {verdict} ({result.cycles_analyzed} cycles"
+        f"{escape(str(run))}: {verdict} ({result.cycles_analyzed} cycles"
         + (f" after {result.startup_cycles} start-up" if result.startup_cycles else "")
         + "; run statistic "
         f"{result.run_score:.3g} vs threshold {result.run_threshold:.3g})",
         highlight=False,
     )
+    if result.cycles_skipped or result.gaps_repaired:
+        channels = sorted({channel for _, channel in result.cycles_skipped})
+        console.print(
+            f"data gaps: {len(result.cycles_skipped)} cycle(s) skipped"
+            + (f" (gaps longer than 0.05 s in {', '.join(channels)})" if channels else "")
+            + f", {result.gaps_repaired} short gap(s) interpolated (docs/data-quality.md)",
+            highlight=False,
+            markup=False,
+        )
     if result.leaks:
         console.print(leak_table(result))
     for note in result.notes:
-        console.print(f"note: {note}", highlight=False)
+        console.print(f"note: {note}", highlight=False, markup=False)
     if result.detected:
         raise typer.Exit(ExitCode.LEAK_FOUND)
 

@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 
 from pneufdd import __version__
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption
 from pneufdd.errors import FileExistsInputError, InputError, describe
 
@@ -48,8 +49,7 @@ def vary(
         raise InputError(
             describe("--scale", scale, f"a number from 0 to {MAX_SCALE:g} (1: a real machine)")
         )
-    if out.exists() and not overwrite:
-        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
+    check_outputs({"--out": out}, {"DESCRIPTION": description}, overwrite)
     twin = load_machine(description)
     plant = vary_machine(twin, scale=scale, seed=seed)
     origin = twin.name if twin.source == twin.name else f"{twin.name} ({twin.source})"
@@ -64,6 +64,7 @@ def vary(
         f"wrote {path}: plant of {twin.name} at scale {scale:g}, seed {seed}, "
         f"{len(changes)} parameters changed; largest: {largest}",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
 

@@ -9,14 +9,12 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich.console import Console
 
-from pneufdd.cli.progress_bar import progress_bars
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption
-from pneufdd.diagnosis.machine import MachineLike
-from pneufdd.diagnosis.pipeline import build_reference, parse_channels
-from pneufdd.diagnosis.pnref import save_reference
 from pneufdd.errors import InputError, describe
 
 if TYPE_CHECKING:
+    from pneufdd.diagnosis.machine import MachineLike
     from pneufdd.sim import MachineDescription
 
 __all__ = ["register"]
@@ -85,9 +83,15 @@ def build(
     ] = False,
 ) -> None:
     """Build a reference from leak-free RECORDINGS and write it to OUT."""
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.diagnosis.pipeline import build_reference, parse_channels
+    from pneufdd.diagnosis.pnref import save_reference
+
     console = Console(stderr=True)
-    if out.exists() and not overwrite:
-        raise InputError(describe(f"output file {str(out)!r}", "exists", "--overwrite"))
+    inputs: dict[str, str | Path | None] = {f"RECORDINGS[{i}]": r for i, r in enumerate(recordings)}
+    inputs["--machine"] = machine
+    inputs["--map"] = tag_map
+    check_outputs({"--out": out}, inputs, overwrite)
     if signature_cycles < 1:
         raise InputError(describe("--signature-cycles", signature_cycles, ">= 1"))
     ladder = None
@@ -100,6 +104,10 @@ def build(
             ) from exc
         if not ladder or any(b <= a for a, b in itertools.pairwise(ladder)):
             raise InputError(describe("--signature-sizes", signature_sizes, "increasing sizes"))
+        if not all(0 < x <= 20_000 for x in ladder):  # also refuses nan and inf
+            raise InputError(
+                describe("--signature-sizes", signature_sizes, "sizes > 0 and <= 20000 [SLPM]")
+            )
     description: MachineLike | None = machine
     if calibrate:
         description = _calibrated(recordings, machine, tag_map, console)
@@ -128,6 +136,7 @@ def build(
         f"signatures: {sig}; cross-validated false-alarm rate per cycle "
         f"{100 * model.detector.reference_false_alarm_rate_:.2f} % -> {out}",
         highlight=False,
+        markup=False,
     )
 
 
@@ -137,6 +146,7 @@ def _calibrated(
     """Draft (without --machine) and calibrate: the description the reference keeps."""
     from pneufdd.calibration import draft_machine
     from pneufdd.calibration.calibrate import calibrate_machine
+    from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.cli.recordings import read_recordings
     from pneufdd.diagnosis.machine import recording_machine_name
     from pneufdd.sim import load_machine

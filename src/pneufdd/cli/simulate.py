@@ -7,11 +7,14 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import InputError, describe
 
-__all__ = ["parse_leak_option", "register"]
+__all__ = ["MAX_CYCLES", "parse_leak_option", "register"]
+
+MAX_CYCLES = 100_000
+"""Most cycles one ``simulate`` run may ask for (a long shift of a fast machine)."""
 
 
 def parse_leak_option(text: str) -> tuple[str, str]:
@@ -43,11 +46,31 @@ def simulate_command(
     seed: Annotated[int, typer.Option(min=0, help="Random seed (same seed, same bytes).")] = 0,
     out: Annotated[Path, typer.Option(help="Output Parquet file.")] = Path("run.parquet"),
     overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
+    max_cycle_s: Annotated[
+        float,
+        typer.Option(
+            "--max-cycle-s",
+            help="Longest a step may wait for its switch before the machine counts as stalled [s].",
+        ),
+    ] = 120.0,
 ) -> None:
     """Simulate a machine with optional leaks and write the recording to OUT."""
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
     from pneufdd.sim import load_machine, simulate
     from pneufdd.sim.leaks import resolve_leaks
 
+    check_outputs({"--out": out}, {"--machine": machine}, overwrite)
+    if cycles > MAX_CYCLES:
+        raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
+    if not 0.0 < max_cycle_s <= 3600.0:  # also refuses nan
+        raise InputError(describe("--max-cycle-s", max_cycle_s, "> 0 and <= 3600 [s]"))
     desc = load_machine(machine)
     leaks: dict[str, str] = {}
     for item in leak or []:
@@ -56,14 +79,14 @@ def simulate_command(
             raise InputError(describe("--leak location given twice", location, "once"))
         leaks[location] = size
     resolve_leaks(desc, leaks)  # unknown locations and bad sizes fail before the run
-    if out.exists() and not overwrite:
-        raise InputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
     err = Console(stderr=True)
     with Progress(
         TextColumn("simulating {task.description}"),
         BarColumn(),
         TextColumn("{task.completed}/{task.total} cycles"),
         TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
         console=err,
     ) as bar:
         task = bar.add_task(desc.name, total=cycles)
@@ -72,10 +95,14 @@ def simulate_command(
             cycles=cycles,
             leaks=leaks,
             seed=seed,
+            max_cycle_s=max_cycle_s,
             progress=lambda done, total: bar.update(task, completed=done),
         )
     path = recording.write(out, overwrite=overwrite)
-    err.print(f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)")
+    err.print(
+        f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)",
+        markup=False,
+    )
 
 
 def machines_command() -> None:

@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
 from pneufdd.cli.recordings import MapOption, read_recording
-from pneufdd.recording.model import Recording
-from pneufdd.signals.segmentation import Segmentation, actuator_of, segment
+
+if TYPE_CHECKING:
+    from pneufdd.recording.model import Recording
+    from pneufdd.signals.segmentation import Segmentation
 
 __all__ = ["register", "render_steps", "steps"]
 
@@ -31,6 +32,10 @@ def render_steps(
     "duration_s", "actuators"}]}], "rejected": [{"index", "start_s", "steps_found",
     "reason"}]}``.
     """
+    import numpy as np
+
+    from pneufdd.signals.segmentation import actuator_of, segment
+
     seg = segment(recording)
     if as_json:
         typer.echo(json.dumps(seg.to_dict()))
@@ -84,7 +89,16 @@ def steps(
     tag_map: MapOption = None,
 ) -> None:
     """Show the cycles and steps found in RUN, and the cycles rejected with their reason."""
-    render_steps(read_recording(run, tag_map), as_json=as_json, all_steps=all_steps)
+    from pneufdd.errors import InputError, naming
+    from pneufdd.signals.quality import check_carried_description, check_channels
+
+    recording = read_recording(run, tag_map)
+    try:
+        check_channels(recording, (), str(run))
+        check_carried_description(recording, str(run))
+        render_steps(recording, as_json=as_json, all_steps=all_steps)
+    except InputError as exc:
+        raise naming(exc, str(run)) from exc
 
 
 def register(app: typer.Typer) -> None:

@@ -35,6 +35,7 @@ from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.location import SUPPLY
 from pneufdd.physics.units import kg_s_to_slpm
+from pneufdd.signals.quality import MAX_REPAIR_S
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -82,6 +83,12 @@ class Diagnosis:
     startup_cycles : int
         Complete cycles at the start of the run left out as start-up cycles
         (:attr:`~pneufdd.diagnosis.reference.DetectionSettings.startup_cycles`).
+    cycles_skipped : tuple of (int, str)
+        Complete cycles of the run left out by the gap rule
+        (:mod:`pneufdd.signals.quality`): each one's number and the channel whose
+        gap skipped it.
+    gaps_repaired : int
+        Short gaps (NaN, infinite or out-of-range samples) repaired by interpolation.
     """
 
     detected: bool
@@ -101,6 +108,8 @@ class Diagnosis:
     settings: CostSettings
     notes: list[str] = field(default_factory=list)
     startup_cycles: int = 0
+    cycles_skipped: tuple[tuple[int, str], ...] = ()
+    gaps_repaired: int = 0
 
     def to_pandas(self) -> pd.DataFrame:
         """The leaks as a table, one row per leak, largest annual cost first.
@@ -148,6 +157,16 @@ class Diagnosis:
             "detected": self.detected,
             "cycles_analyzed": self.cycles_analyzed,
             "startup_cycles_excluded": self.startup_cycles,
+            "data_gaps": {
+                "rule": "samples NaN, infinite or out of their quantity's physical range are "
+                f"gaps; gaps up to {MAX_REPAIR_S:g} s are interpolated, a cycle touched by a "
+                "longer one is skipped (docs/data-quality.md)",
+                "cycles_skipped": len(self.cycles_skipped),
+                "skipped": [
+                    {"cycle": cycle, "channel": channel} for cycle, channel in self.cycles_skipped
+                ],
+                "gaps_repaired": self.gaps_repaired,
+            },
             "leaks": [
                 {
                     "location": str(leak.location),
@@ -490,4 +509,6 @@ def diagnose(
         observed_change=observed,
         settings=settings,
         notes=notes,
+        cycles_skipped=tuple(run.skipped_cycles),
+        gaps_repaired=int(run.repaired_gaps),
     )

@@ -21,6 +21,7 @@ from pneufdd.diagnosis.localisation import LocalisationSettings
 from pneufdd.diagnosis.machine import (
     MachineLike,
     check_plc_channels,
+    recording_description,
     recording_machine_name,
     resolve_machine,
 )
@@ -40,9 +41,10 @@ from pneufdd.diagnosis.twin_effects import (
     compute_signatures,
     signature_spread,
 )
-from pneufdd.errors import ChannelError, InputError, MachineError, describe
+from pneufdd.errors import ChannelError, InputError, MachineError, describe, naming
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
+from pneufdd.signals.quality import check_channels
 from pneufdd.signals.segmentation import Cycle
 
 __all__ = [
@@ -145,6 +147,7 @@ def build_reference_from_recordings(
                 f"{where} lacks analog channel(s) {missing} of the requested sensor set; "
                 f"it has {list(rec.analog_channels)}"
             )
+        check_channels(rec, analog, where)
     advance = counter(progress, "segmenting reference", len(recordings))
     # from the machine description when there is one, else learned from the first
     sequence = machine_sequence(description)
@@ -160,8 +163,10 @@ def build_reference_from_recordings(
     lengths = np.stack([np.diff(trace_offsets(c, TRACE_RATE_HZ)) for c in all_cycles])
     offsets = np.concatenate([[0], np.cumsum(np.median(lengths, axis=0).round().astype(np.int64))])
     tables = [
-        step_table(rec, cycles, machine_name, analog, offsets if analog else None, TRACE_RATE_HZ)
-        for rec, cycles in zip(recordings, all_cycles, strict=True)
+        step_table(
+            rec, cycles, machine_name, analog, offsets if analog else None, TRACE_RATE_HZ, where
+        )
+        for rec, cycles, where in zip(recordings, all_cycles, labels, strict=True)
     ]
     table = StepTable.concatenate(tables)
     signatures = None
@@ -189,6 +194,23 @@ def build_reference_from_recordings(
                     progress=progress,
                 )
             )
+    try:
+        return _build_model(
+            table, description, signatures, settings, labels, sequence, localisation
+        )
+    except InputError as exc:
+        raise naming(exc, ", ".join(labels)) from exc
+
+
+def _build_model(
+    table: StepTable,
+    description: Any,
+    signatures: Any,
+    settings: DetectionSettings | None,
+    labels: Sequence[str],
+    sequence: Sequence[Any],
+    localisation: LocalisationSettings | None,
+) -> ReferenceModel:
     return ReferenceModel.build(
         table,
         machine_description=None if description is None else description.raw,
@@ -274,22 +296,31 @@ def _run_table(model: ReferenceModel, recording: Recording, where: str) -> tuple
             describe(f"machine of {where}", name, [model.machine])
             + " (the reference was built for another machine)"
         )
+    recording_description(recording, where)  # a malformed description it carries is refused
     if model.description is not None:
         check_plc_channels(recording, model.description, where)
     sequence = sequence_from_records(model.sequence) if model.sequence else None
     needed = list(model.channels)
     if sequence:
         needed += sorted({v.removesuffix(":off") for s in sequence for v in s.valves})
+        needed += sorted({name for s in sequence for name, _ in s.switches} - set(needed))
     missing = [c for c in needed if c not in recording.channels]
     if missing:
         raise ChannelError(
             f"{where} lacks channel(s) {missing} that the reference needs; "
             f"it has {list(recording.channels)}"
         )
+    check_channels(recording, model.channels, where)
     cycles, _, _ = segment_cycles(recording, sequence, where)
     running = running_cycles(cycles, model.settings.startup_cycles)
     table = step_table(
-        recording, running, model.machine, model.channels, model.trace_offsets, model.trace_rate_hz
+        recording,
+        running,
+        model.machine,
+        model.channels,
+        model.trace_offsets,
+        model.trace_rate_hz,
+        where,
     )
     return table, len(cycles) - len(running)
 

@@ -38,7 +38,10 @@ machine looked up by name) and the localisation settings. A file of another vers
 is refused with a message asking to rebuild the reference.
 
 The file is written to a temporary name and renamed into place; it is read with
-``allow_pickle=False`` and every entry's presence, dtype and shape is checked.
+``allow_pickle=False`` and every entry's presence, dtype and shape is checked. Before
+any entry is loaded, the shape its ``.npy`` header declares must fit the bytes the
+archive holds for it (a damaged header never asks for gigabytes), and the JSON
+header's fields are checked for type and range (issue 14).
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ import math
 import os
 import tempfile
 import zipfile
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +68,7 @@ from pneufdd.errors import (
     MissingFileError,
     describe,
 )
+from pneufdd.physics.units import UNITS
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
 
@@ -189,7 +194,117 @@ def load_reference(path: str | Path) -> ReferenceModel:
         return _load(handle, source)
 
 
+MAX_DEFLATE_RATIO = 1032
+"""Largest expansion of deflate (zlib's documented limit is 1032:1)."""
+
+
+def _check_entries(handle: Any, source: Path) -> None:
+    """Refuse entries whose declared dtype or shape the archive cannot hold."""
+    try:
+        archive = zipfile.ZipFile(handle)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise _bad(source, "not readable", type(exc).__name__, "a .pnref (NPZ) file") from exc
+    with archive:
+        for info in archive.infolist():
+            if not info.filename.endswith(".npy"):
+                continue
+            name = info.filename[:-4]
+            try:
+                with archive.open(info) as member:
+                    version = np.lib.format.read_magic(member)
+                    if version == (1, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_1_0(member)
+                    else:
+                        shape, _, dtype = np.lib.format.read_array_header_2_0(member)
+            except (ValueError, OSError, EOFError, zlib.error, zipfile.BadZipFile) as exc:
+                raise _bad(source, f"entry {name!r}", str(exc)[:80], "a NumPy array") from exc
+            if dtype.hasobject:
+                raise _bad(source, f"dtype of {name!r}", str(dtype), "numbers or text (no pickle)")
+            declared = math.prod(shape) * dtype.itemsize
+            if declared > info.file_size or info.file_size > MAX_DEFLATE_RATIO * max(
+                info.compress_size, 1
+            ) + (1 << 16):
+                raise _bad(
+                    source,
+                    f"shape of {name!r}",
+                    f"{shape} ({declared:,} bytes)",
+                    f"what the file holds ({info.file_size:,} bytes uncompressed)",
+                )
+
+
+def _header_fields(header: dict[str, Any], source: Path) -> None:
+    """Check the JSON header's fields for type and range before they are used."""
+
+    def need(key: str, ok: bool, allowed: str) -> None:
+        if not ok:
+            raise _bad(source, f"header field {key!r}", header.get(key), allowed)
+
+    def is_int(value: object, low: int, high: int) -> bool:
+        return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
+
+    def str_list(value: object) -> bool:
+        return isinstance(value, list) and all(isinstance(v, str) for v in value)
+
+    need("channels", str_list(header.get("channels")), "a list of channel names")
+    need("units", str_list(header.get("units")), "a list of units, one per channel")
+    need(
+        "units",
+        len(header["units"]) == len(header["channels"]),
+        f"{len(header['channels'])} units (one per channel)",
+    )
+    need(
+        "units",
+        all(u in UNITS and UNITS[u].si_unit == u for u in header["units"]),
+        "SI units ('Pa', 'kg/s', 'm', ...)",
+    )
+    need("n_steps", is_int(header.get("n_steps"), 1, 100_000), "an integer from 1 to 100000")
+    need("n_cycles", is_int(header.get("n_cycles"), 1, 10**8), "an integer >= 1")
+    need("feature_names", str_list(header.get("feature_names")), "a list of feature names")
+    rate = header.get("trace_rate_hz")
+    need(
+        "trace_rate_hz",
+        isinstance(rate, int | float)
+        and not isinstance(rate, bool)
+        and math.isfinite(rate)
+        and 0 < rate <= 1e5,
+        "a rate > 0 and <= 100000 Hz",
+    )
+    need("machine", isinstance(header.get("machine"), str), "the machine's name")
+    for key in ("settings", "localisation"):
+        need(key, isinstance(header.get(key), dict), "a table of settings")
+    supply = header.get("supply_pressure")
+    need(
+        "supply_pressure",
+        supply is None
+        or (isinstance(supply, int | float) and not isinstance(supply, bool) and supply > 0),
+        "null or a pressure > 0 [Pa]",
+    )
+    need("sources", str_list(header.get("sources", [])), "a list of file names")
+    locations = header.get("signature_locations")
+    need("signature_locations", locations is None or str_list(locations), "null or names")
+    sequence = header.get("sequence", [])
+    need("sequence", isinstance(sequence, list), "a list of steps")
+    for step in sequence:
+        need(
+            "sequence",
+            isinstance(step, dict)
+            and str_list(step.get("valves"))
+            and isinstance(step.get("switches", []), list)
+            and all(
+                isinstance(s, list)
+                and len(s) == 2
+                and isinstance(s[0], str)
+                and s[1] in (0, 1)
+                and not isinstance(s[1], bool)
+                for s in step.get("switches", [])
+            ),
+            "steps of {'valves': [...], 'switches': [[name, 0 or 1], ...]}",
+        )
+
+
 def _load(handle: Any, source: Path) -> ReferenceModel:
+    _check_entries(handle, source)
+    handle.seek(0)
     try:
         data = np.load(handle, allow_pickle=False)
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
@@ -200,7 +315,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
         with data:
             try:
                 header = json.loads(str(_array(data, source, "header", "U", ())))
-            except json.JSONDecodeError as exc:
+            except (json.JSONDecodeError, RecursionError) as exc:
                 raise _bad(source, "header", "invalid JSON", "a JSON object") from exc
             if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
                 raise _bad(
@@ -220,6 +335,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                     "leak-free recordings (add --machine DESCRIPTION when they carry no "
                     "machine description)"
                 )
+            _header_fields(header, source)
             try:
                 channels = tuple(str(c) for c in header["channels"])
                 units = tuple(str(u) for u in header["units"])
@@ -233,7 +349,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                     raise TypeError("machine_description is not a table")
                 machine = str(header["machine"])
                 rate = float(header["trace_rate_hz"])
-            except (KeyError, TypeError, ValueError) as exc:
+            except (KeyError, TypeError, ValueError, AttributeError) as exc:
                 raise _bad(source, "header field", str(exc), "a complete header") from exc
             n_feat = len(names)
             features = _array(data, source, "features", "f", (n_cycles, n_feat))
@@ -245,6 +361,9 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 offsets = _array(data, source, "trace_offsets", "i", (n_steps + 1,))
                 if int(offsets[-1]) != n_samples:
                     raise _bad(source, "trace_offsets[-1]", int(offsets[-1]), n_samples)
+                std_ok = np.isnan(band_std) | (band_std >= 0)
+                if not np.all(std_ok) or np.any(np.isinf(band_std)):
+                    raise _bad(source, "band_std", "negative or infinite values", ">= 0")
             signatures = None
             locations = header.get("signature_locations")
             if locations is not None:
@@ -306,7 +425,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
             )
     except FileFormatError:
         raise
-    except (InputError, zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+    except (InputError, zipfile.BadZipFile, OSError, ValueError, EOFError, zlib.error) as exc:
         raise _bad(source, "content", str(exc), "a valid pneufdd reference") from exc
     if model.feature_names != names:
         raise _bad(source, "feature_names", "inconsistent with channels/n_steps", "consistent")

@@ -16,9 +16,9 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.diagnosis.steps import StepTable
-from pneufdd.errors import NoCompleteCycleError, describe
+from pneufdd.errors import InputError, NoCompleteCycleError, describe, naming
 from pneufdd.recording.model import Recording
-from pneufdd.signals.filtering import fill_gaps
+from pneufdd.signals.quality import usable_cycles
 from pneufdd.signals.segmentation import (
     Cycle,
     StepSpec,
@@ -83,8 +83,11 @@ def segment_cycles(
     NoCompleteCycleError
         If the recording holds no complete cycle.
     """
-    specs = tuple(sequence) if sequence else learn_sequence(recording)
-    seg = segment(recording, specs)
+    try:
+        specs = tuple(sequence) if sequence else learn_sequence(recording)
+        seg = segment(recording, specs)
+    except InputError as exc:
+        raise naming(exc, where) from exc
     cycles = list(seg.complete)
     reasons = [f"cycle {c.index}: {c.reason}" for c in seg.rejected]
     if not cycles:
@@ -110,7 +113,8 @@ def _summaries(values: FloatArray, start: IntArray, end: IntArray) -> FloatArray
     s = np.clip(start, 0, n - 1)
     e = np.clip(np.maximum(end, start + 1), 1, n)
     e = np.maximum(e, s + 1)
-    csum = np.concatenate([[0.0], np.cumsum(values)])
+    # long gaps stay NaN (in skipped cycles only): keep them out of the running sum
+    csum = np.concatenate([[0.0], np.cumsum(np.where(np.isnan(values), 0.0, values))])
     mean = (csum[e] - csum[s]) / (e - s)
     bounds = np.stack([s.ravel(), e.ravel()], axis=1).ravel()
     order_ok = np.all(np.diff(bounds) >= 0)
@@ -156,8 +160,13 @@ def step_table(
     channels: Sequence[str] | None = None,
     offsets: IntArray | None = None,
     trace_rate_hz: float = 100.0,
+    where: str = "recording",
 ) -> StepTable:
     """Summarise ``cycles`` of ``recording`` into a :class:`StepTable`.
+
+    The gap rule of :mod:`pneufdd.signals.quality` applies first: short gaps (NaN,
+    infinite or out-of-range samples) are interpolated, cycles touched by a longer gap
+    are left out and listed in ``skipped_cycles``.
 
     Parameters
     ----------
@@ -173,13 +182,22 @@ def step_table(
         Template offsets (:func:`trace_offsets`); no traces when omitted.
     trace_rate_hz : float
         Rate of the step-aligned traces [Hz].
+    where : str
+        The recording's file, named in messages.
 
     Returns
     -------
     StepTable
+
+    Raises
+    ------
+    NoCompleteCycleError
+        If gaps leave too few cycles usable (the message names file and channel).
     """
     names = tuple(recording.analog_channels if channels is None else channels)
     recording.require(names, "the diagnosis sensor set")
+    repaired, gaps = usable_cycles(recording, cycles, names, where)
+    cycles = [c for c, ok in zip(cycles, gaps.usable, strict=True) if ok]
     start = np.array([[s.start_s for s in c.steps] for c in cycles], dtype=np.float64)
     end = np.array([[s.end_s for s in c.steps] for c in cycles], dtype=np.float64)
     n_cycles, n_steps = start.shape
@@ -187,7 +205,7 @@ def step_table(
     traces = None if offsets is None or not names else np.zeros((n_cycles, len(names), offsets[-1]))
     for i, name in enumerate(names):
         info = recording.info(name)
-        values, _ = fill_gaps(np.asarray(info.values, dtype=np.float64))
+        values = repaired[name]
         s_idx, e_idx = sample_bounds(cycles, info.rate_hz, info.t0)
         summaries[:, :, i, :] = _summaries(values, s_idx, e_idx)
         if traces is not None and offsets is not None:
@@ -203,4 +221,6 @@ def step_table(
         trace_offsets=offsets if traces is not None else None,
         trace_rate_hz=trace_rate_hz,
         cycle_index=np.array([c.index for c in cycles], dtype=np.int64),
+        skipped_cycles=gaps.skipped,
+        repaired_gaps=gaps.repaired_gaps,
     )

@@ -122,6 +122,11 @@ class StepTable:
         Sample rate of ``traces`` [Hz].
     cycle_index : ndarray of int, shape (n_cycles,)
         Number of each cycle in its recording (0-based).
+    skipped_cycles : tuple of (int, str)
+        Complete cycles left out by the gap rule (:mod:`pneufdd.signals.quality`):
+        each one's number in its recording and the channel whose gap skipped it.
+    repaired_gaps : int
+        Short gaps repaired by interpolation in the summarised channels.
     """
 
     machine: str
@@ -134,6 +139,8 @@ class StepTable:
     trace_offsets: IntArray | None = None
     trace_rate_hz: float = 100.0
     cycle_index: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    skipped_cycles: tuple[tuple[int, str], ...] = ()
+    repaired_gaps: int = 0
 
     def __post_init__(self) -> None:
         start = _as_float("step_start", self.step_start, 2)

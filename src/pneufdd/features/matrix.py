@@ -23,13 +23,20 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
-from pneufdd.errors import ChannelError, InputError, describe
+from pneufdd.errors import ChannelError, InputError, describe, naming
 from pneufdd.features import air, motion, table44, wavelet  # noqa: F401 - registration
 from pneufdd.features.context import CycleView, Options, RecordingData
 from pneufdd.features.registry import REGISTRY, Feature, Unavailable, column_name
-from pneufdd.recording.model import Recording
+from pneufdd.recording.model import Channel, Recording
+from pneufdd.signals.quality import (
+    check_carried_description,
+    check_channels,
+    check_sequence_channels,
+    usable_cycles,
+)
 from pneufdd.signals.segmentation import (
     Segmentation,
     StepSpec,
@@ -83,6 +90,7 @@ def feature_matrix(
     sequence: Sequence[StepSpec] | None = None,
     options: Options | None = None,
     on_missing: str = "raise",
+    names: Sequence[str] | None = None,
 ) -> pd.DataFrame:
     """Build the (cycles x features) table of one or more recordings.
 
@@ -103,6 +111,13 @@ def feature_matrix(
     on_missing : {"raise", "nan"}
         A feature whose channels the recording lacks: raise a ChannelError that
         names them, or give NaN columns (with the reason in ``attrs``).
+    names : sequence of str, optional
+        The recordings' file names, for messages.
+
+    The analog channels the features use are judged first
+    (:func:`pneufdd.signals.quality.check_channels`), then the gap rule applies:
+    short gaps are interpolated, cycles touched by longer ones are left out and
+    listed in ``attrs["rejected"]`` with the channel (docs/data-quality.md).
 
     Returns
     -------
@@ -118,7 +133,12 @@ def feature_matrix(
     wavelet.check_wavelet(opts.wavelet)
     feats = features_of(groups)
     if sequence is None:
-        sequence = sequence_from_metadata(recs[0].metadata) or learn_sequence(recs[0])
+        first = names[0] if names is not None else "recording 1"
+        try:
+            check_carried_description(recs[0], first)
+            sequence = sequence_from_metadata(recs[0].metadata) or learn_sequence(recs[0])
+        except InputError as exc:
+            raise naming(exc, first) from exc
     specs = tuple(sequence)
     rows: list[dict[str, Any]] = []
     index: list[tuple[int, int]] = []
@@ -126,12 +146,33 @@ def feature_matrix(
     reasons: dict[str, str] = {}
     rejected: list[dict[str, Any]] = []
     for r, rec in enumerate(recs):
-        seg = segment(rec, specs)
+        where = names[r] if names is not None else f"recording {r + 1}"
+        check_carried_description(rec, where)
+        check_sequence_channels(
+            rec,
+            [name for spec in specs for name, _ in spec.switches],
+            [v.removesuffix(":off") for spec in specs for v in spec.valves],
+            where,
+        )
+        try:
+            seg = segment(rec, specs)
+        except InputError as exc:
+            raise naming(exc, where) from exc
         rejected += [{"recording": r, "cycle": c.index, "reason": c.reason} for c in seg.rejected]
-        plan = _plan(rec, seg, feats, actuators, on_missing, reasons)
+        used: set[str] = set()
+        plan = _plan(rec, seg, feats, actuators, on_missing, reasons, used)
+        analog = [c for c in rec.analog_channels if c in used]
+        check_channels(rec, analog, where)
+        repaired, gaps = usable_cycles(rec, seg.complete, analog, where)
+        rejected += [
+            {"recording": r, "cycle": i, "reason": f"data gap in {channel} (gap rule)"}
+            for i, channel in gaps.skipped
+        ]
+        rec = _with_values(rec, repaired)
         data = RecordingData(rec, opts)
         labels = labels_of(rec.metadata)
-        for cycle in seg.complete:
+        cycles = [c for c, ok in zip(seg.complete, gaps.usable, strict=True) if ok]
+        for cycle in cycles:
             view = CycleView(data, cycle)
             row: dict[str, Any] = {}
             for feat, target, col in plan:
@@ -161,6 +202,17 @@ def feature_matrix(
     return df
 
 
+def _with_values(rec: Recording, values: dict[str, npt.NDArray[np.float64]]) -> Recording:
+    """``rec`` with the samples of some channels replaced (same rates, units, offsets)."""
+    channels = []
+    for name in rec.channels:
+        ch = rec.info(name)
+        if name in values:
+            ch = Channel(name, values[name], ch.rate_hz, ch.unit, ch.kind, ch.t0)
+        channels.append(ch)
+    return Recording(channels, rec.start_time, rec.metadata)
+
+
 def _plan(
     rec: Recording,
     seg: Segmentation,
@@ -168,6 +220,7 @@ def _plan(
     actuators: Sequence[str],
     on_missing: str,
     reasons: dict[str, str],
+    used: set[str],
 ) -> list[tuple[Feature, Any, str]]:
     steps = range(1, len(seg.sequence) + 1)
     plan: list[tuple[Feature, Any, str]] = []
@@ -180,6 +233,7 @@ def _plan(
             col = column_name(feat, target)
             need = feat.channels(str(target) if feat.scope == "actuator" else None)
             missing = [n for n in need if n not in rec.channels]
+            used.update(n for n in need if n in rec.channels)
             if missing:
                 if on_missing == "raise":
                     raise ChannelError(

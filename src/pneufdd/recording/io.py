@@ -55,6 +55,17 @@ def read_any(path: str | Path, **options: Any) -> Recording:
     if suffix == ".csv":
         from pneufdd.recording.csv import read_csv
 
+        missing = [k for k in ("column_map", "units") if k not in options]
+        if missing:
+            raise InputError(
+                describe(
+                    f"{file_label(path)}: a CSV export needs {' and '.join(missing)} "
+                    "(which column is which channel, in which unit)",
+                    "none",
+                    "pneufdd.recording.read_csv(path, column_map, units) in Python, then "
+                    "recording.write('run.parquet'); the commands read .parquet recordings",
+                )
+            )
         return read_csv(path, **options)
     from pneufdd.recording.tdms import read_tdms
 

@@ -468,6 +468,15 @@ def read_parquet(path: str | Path) -> Recording:
         for row in range(table.num_rows):
             scalars = {c: table.column(c)[row].as_py() for c in _SCALAR_COLUMNS}
             name = scalars["name"]
+            for column in _SCALAR_COLUMNS:  # a null cell: the file is damaged
+                if scalars[column] is None:
+                    raise FileFormatError(
+                        describe(
+                            f"{label}: {column} of channel row {row} ({name!r})",
+                            None,
+                            "a value (the file is damaged; re-copy or re-write it)",
+                        )
+                    )
             channels.append(
                 Channel(
                     name,

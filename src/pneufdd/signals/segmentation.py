@@ -444,15 +444,9 @@ def sequence_from_machine(machine: Any) -> tuple[StepSpec, ...]:
         steps = machine.get("step")
         if not isinstance(steps, list) or not steps:
             raise InputError(describe("machine description 'step'", steps, "a list of steps"))
-        for step in steps:
-            actions = []
-            for a in step.get("do", []):
-                if "reset" in a:
-                    actions.append((str(a["reset"]), "reset", ""))
-                else:
-                    actions.append((str(a["set"]), "set", str(a.get("until", ""))))
-            wait = step.get("wait", [a[2] for a in actions if a[2]])
-            specs.append(_spec_from_actions(actions, wait, step.get("wait_off", [])))
+        for k, step in enumerate(steps, start=1):
+            actions, wait, wait_off = _raw_step(step, f"machine description step {k}")
+            specs.append(_spec_from_actions(actions, wait, wait_off))
         return tuple(specs)
     steps = getattr(machine, "steps", None)
     if steps is None:
@@ -463,6 +457,38 @@ def sequence_from_machine(machine: Any) -> tuple[StepSpec, ...]:
         actions = [(a.solenoid, a.mode, a.switch) for a in step.actions]
         specs.append(_spec_from_actions(actions, step.wait, step.wait_off))
     return tuple(specs)
+
+
+def _names(value: object, where: str) -> list[str]:
+    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+        raise InputError(describe(where, value, "a list of channel names"))
+    return list(value)
+
+
+def _raw_step(step: object, where: str) -> tuple[list[tuple[str, str, str]], list[str], list[str]]:
+    """Check one raw TOML step (types, required keys) and return its actions and waits."""
+    if not isinstance(step, dict):
+        raise InputError(describe(where, step, "a table with 'do' actions"))
+    do = step.get("do", [])
+    if not isinstance(do, list):
+        raise InputError(describe(f"{where}: 'do'", do, "a list of actions"))
+    actions = []
+    for a in do:
+        allowed = "{set = 'U_...', until = 'S_...'} or {reset = 'U_...'}"
+        if not isinstance(a, dict):
+            raise InputError(describe(f"{where}: action", a, allowed))
+        if isinstance(a.get("reset"), str) and a["reset"]:
+            actions.append((a["reset"], "reset", ""))
+        elif isinstance(a.get("set"), str) and a["set"]:
+            until = a.get("until", "")
+            if not isinstance(until, str):
+                raise InputError(describe(f"{where}: 'until'", until, "a switch name"))
+            actions.append((a["set"], "set", until))
+        else:
+            raise InputError(describe(f"{where}: action", a, allowed))
+    wait = _names(step.get("wait", [a[2] for a in actions if a[2]]), f"{where}: 'wait'")
+    wait_off = _names(step.get("wait_off", []), f"{where}: 'wait_off'")
+    return actions, wait, wait_off
 
 
 def sequence_from_metadata(metadata: dict[str, Any]) -> tuple[StepSpec, ...] | None:

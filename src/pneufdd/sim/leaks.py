@@ -72,6 +72,10 @@ class LeakSpec:
         }
 
 
+MAX_SIZE = {"mm": 20.0, "SLPM": 20_000.0}
+"""Largest leak sizes accepted: a 20 mm hole or 20,000 SLPM is a broken 3/4 in line."""
+
+
 def parse_leak_size(text: str | float, where: str = "leak size") -> tuple[float, str]:
     """Parse a leak size: a number (turns), ``"2.5mm"``, ``"30slpm"`` or ``"3turns"``.
 
@@ -99,6 +103,11 @@ def parse_leak_size(text: str | float, where: str = "leak size") -> tuple[float,
         raise InputError(describe(where, text, ">= 0"))
     if unit == "turns" and value > MAX_TURNS:
         raise InputError(describe(where, text, "0 to 6 turns of the GR-3/8B valve (Table 3.3)"))
+    limit = MAX_SIZE.get(unit)
+    if limit is not None and value > limit:
+        raise InputError(
+            describe(where, text, f"at most {limit:g} {unit} (a broken supply line; issue 14)")
+        )
     return value, unit
 
 

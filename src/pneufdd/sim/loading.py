@@ -33,11 +33,60 @@ def _builtin(name: str) -> MachineDescription:
     return parse_description(_read_toml(res.read_text("utf-8"), f"{name}.toml"), name)
 
 
+MAX_DEPTH = 12
+"""Deepest nesting of tables and arrays a machine file may have (it needs 4)."""
+
+MAX_BYTES = 4 << 20
+"""Largest machine file read [bytes] (the built-in ones are under 30 kB)."""
+
+
+def _depth(value: object) -> int:
+    depth, level = 0, [value]
+    while level and depth <= MAX_DEPTH:
+        depth += 1
+        nxt: list[object] = []
+        for v in level:
+            if isinstance(v, dict):
+                nxt.extend(v.values())
+            elif isinstance(v, list):
+                nxt.extend(v)
+        level = nxt
+    return depth
+
+
 def _read_toml(text: str, source: str) -> dict[str, Any]:
+    """Parse a machine file's text; refuse invalid TOML and absurd nesting."""
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise MachineError(f"{source}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise MachineError(
+            describe(f"{source}: nesting of tables and arrays", "too deep to read", "<= 12 levels")
+        ) from None
+    if _depth(data) > MAX_DEPTH:
+        raise MachineError(
+            describe(f"{source}: nesting of tables and arrays", f"> {MAX_DEPTH}", f"<= {MAX_DEPTH}")
+        )
+    return data
+
+
+def _read_file(path: Path) -> str:
+    """The machine file's text: UTF-8 (TOML's encoding), of a sane size."""
+    size = path.stat().st_size
+    if size > MAX_BYTES:
+        raise MachineError(describe(f"{path}: size [bytes]", size, f"<= {MAX_BYTES}"))
+    data = path.read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MachineError(
+            describe(
+                f"{path}: encoding (byte {exc.start})",
+                data[exc.start : exc.start + 4],
+                "UTF-8 text (TOML files are UTF-8)",
+            )
+        ) from None
 
 
 def load_machine(
@@ -76,7 +125,7 @@ def load_machine(
     if path.suffix.lower() == ".toml" or path.exists():
         if not path.is_file():
             raise MachineError(describe("machine file", str(path), "an existing .toml file"))
-        return parse_description(_read_toml(path.read_text("utf-8"), str(path)), str(path))
+        return parse_description(_read_toml(_read_file(path), str(path)), str(path))
     raise MachineError(
         describe("machine", str(machine), [*builtin_machines(), "a path to a .toml file"])
     )

@@ -82,13 +82,20 @@ def _ou_grid(rng: np.random.Generator, start: float, std: float, tau: float, n: 
     return lfilter([1.0], [1.0, -a], drive)
 
 
-def _stall_message(machine: MachineDescription, cycle: int, step: int) -> str:
+def _stall_message(
+    machine: MachineDescription, cycle: int, step: int, leaks: int = 0, max_cycle_s: float = 120.0
+) -> str:
     st = machine.steps[min(step, len(machine.steps) - 1)]
+    cause = (
+        "a leak this large keeps an actuator from reaching its switch"
+        if leaks
+        else "no leak is simulated: the description's supply, valves or loads cannot move "
+        "the actuator to its switch"
+    )
     return (
         f"machine {machine.name!r} stalled in cycle {cycle + 1}, step {step + 1} "
-        f"({st.name!r}) waiting for {list(st.wait) + ['not ' + w for w in st.wait_off]}; "
-        "a leak this large keeps an actuator from reaching its switch, or max_cycle_s is "
-        "too short"
+        f"({st.name!r}) waiting for {list(st.wait) + ['not ' + w for w in st.wait_off]} "
+        f"longer than max_cycle_s = {max_cycle_s:g} s; {cause}, or max_cycle_s is too short"
     )
 
 
@@ -173,7 +180,8 @@ def run_simulation(
         )
         total_sub += nsub
         if status != 0:
-            raise MachineStalledError(_stall_message(desc, cyc, int(state["istate"][lay.IS_STEP])))
+            step_now = int(state["istate"][lay.IS_STEP])
+            raise MachineStalledError(_stall_message(desc, cyc, step_now, len(specs), max_cycle_s))
         elapsed = float(state["ss"][lay.SS_TIME]) - t_start
         ou_now = float(np.interp(elapsed / 0.1, np.arange(n_ou), ou))
         step_start[cyc] = buf.step_t

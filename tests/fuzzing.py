@@ -1,0 +1,1448 @@
+"""Bad-input fuzz suite of the ``pneufdd`` command (issue 14).
+
+A corpus generator mutates valid inputs (recordings, references, machine files and
+options) the way real users and real DAQ files do, and a runner invokes every
+command over them and checks, for each invocation:
+
+* no traceback and no internal error (exit 3);
+* the exit code is one the case allows (0/1 on usable input, 2 on bad input);
+* an exit 2 prints one ``error:`` line naming the file, channel, key or option;
+* every input file is unchanged (bytes and mode);
+* no partial output: after a failure no output file and no temporary file exists;
+  after a success every output exists and parses.
+
+Commands are discovered from :data:`pneufdd.cli.app.app`; each needs a case builder in
+:data:`BUILDERS` (or a reason in :data:`NOT_FUZZED`), so a command added later is
+caught by ``test_every_command_is_fuzzed`` until it joins the corpus.
+
+``python tests/fuzzing.py`` (``make fuzz``) runs the full corpus in subprocesses and
+prints the summary; ``tests/test_fuzz_cli.py`` runs a quick slice in-process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import copy
+import hashlib
+import io
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import zipfile
+import zlib
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pneufdd import Recording
+from pneufdd.recording import Channel
+
+MACHINE = "press-fit-cell"
+"""The smallest built-in machine (4 actuators, 7 steps): cheap to simulate."""
+
+SEED = 96_000_101
+"""Seed of the base recordings (>= 96,000,000: never used while developing methods)."""
+
+EXIT_OK, EXIT_LEAK, EXIT_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+
+# --------------------------------------------------------------------- cases
+
+
+@dataclass
+class Case:
+    """One invocation: ``argv`` run in ``folder``, and what it may do.
+
+    ``inputs`` are files the command reads (checked unchanged); ``outputs`` the files
+    it may write (absent after a failure, present and readable after success);
+    ``expect`` the allowed exit codes; ``mentions``: on exit 2 the message names at
+    least one of these (file, channel, key or option).
+    """
+
+    name: str
+    command: str
+    argv: list[str]
+    folder: Path
+    inputs: list[str]
+    outputs: list[str] = field(default_factory=list)
+    expect: frozenset[int] = frozenset({EXIT_INPUT})
+    mentions: tuple[str, ...] = ()
+
+
+@dataclass
+class Outcome:
+    """What one invocation did, and what was wrong with it (``problems``)."""
+
+    case: Case
+    code: int
+    stderr: str
+    seconds: float
+    problems: list[str]
+
+
+# --------------------------------------------------------------- base inputs
+
+
+def _simulate(cycles: int, seed: int, leaks: dict[str, str] | None = None) -> Recording:
+    from pneufdd.sim import as_exported, load_machine, simulate
+
+    rec = simulate(load_machine(MACHINE), cycles=cycles, leaks=leaks or {}, seed=seed)
+    return rec if leaks is None else as_exported(rec)
+
+
+def make_base(folder: Path, full: bool = False) -> dict[str, Path]:
+    """Valid inputs every mutation starts from, written into ``folder`` (cached)."""
+    from pneufdd.cli.app import main
+    from pneufdd.sim import load_machine
+    from pneufdd.sim.variation import write_machine
+
+    folder.mkdir(parents=True, exist_ok=True)
+    base = {
+        "ref": folder / "ref.parquet",
+        "run": folder / "run.parquet",
+        "pnref": folder / "ref.pnref",
+        "toml": folder / "machine.toml",
+    }
+    if full:
+        base["leak"] = folder / "leak.parquet"
+    if not base["ref"].exists():
+        _simulate(11, SEED).write(base["ref"])
+    if not base["run"].exists():
+        if full:
+            _simulate(4, SEED + 1).write(base["run"])
+        else:  # the quick slice diagnoses the reference recording itself
+            shutil.copy(base["ref"], base["run"])
+    if full and not base["leak"].exists():
+        _simulate(4, SEED + 2, {"PRESS_A": "40slpm"}).write(base["leak"])
+    if not base["toml"].exists():
+        write_machine(load_machine(MACHINE), base["toml"], header="fuzz base")
+    if not base["pnref"].exists():
+        with contextlib.redirect_stderr(io.StringIO()):
+            code = main(
+                [
+                    "reference",
+                    "build",
+                    str(base["ref"]),
+                    "--out",
+                    str(base["pnref"]),
+                    "--no-signatures",
+                ]
+            )
+        if code != 0:
+            raise RuntimeError(f"base reference failed with exit {code}")
+    return base
+
+
+# ----------------------------------------------------------------- mutations
+
+
+def _channels(rec: Recording) -> list[Channel]:
+    return [rec.info(n) for n in rec.channels]
+
+
+def _replace(rec: Recording, channel: str, **changes: Any) -> Recording:
+    out = []
+    for ch in _channels(rec):
+        if ch.name == channel:
+            fields = {
+                "name": ch.name,
+                "values": ch.values,
+                "rate_hz": ch.rate_hz,
+                "unit": ch.unit,
+                "kind": ch.kind,
+                "t0": ch.t0,
+            }
+            fields.update(changes)
+            if fields["name"] is None:
+                continue
+            ch = Channel(
+                fields["name"],
+                fields["values"],
+                fields["rate_hz"],
+                fields["unit"],
+                fields["kind"],
+                fields["t0"],
+            )
+        out.append(ch)
+    return Recording(out, rec.start_time, rec.metadata)
+
+
+def _drop(rec: Recording, channel: str) -> Recording:
+    return Recording([c for c in _channels(rec) if c.name != channel], rec.start_time, rec.metadata)
+
+
+def _map_analog(rec: Recording, fn: Callable[[Channel], Channel | None]) -> Recording:
+    out = []
+    for ch in _channels(rec):
+        new = fn(ch) if ch.kind == "analog" else ch
+        if new is not None:
+            out.append(new)
+    return Recording(out, rec.start_time, rec.metadata)
+
+
+def _with(
+    ch: Channel,
+    values: Any = None,
+    rate: float | None = None,
+    t0: float | None = None,
+    unit: str | None = None,
+) -> Channel:
+    return Channel(
+        ch.name,
+        ch.values if values is None else values,
+        ch.rate_hz if rate is None else rate,
+        ch.unit if unit is None else unit,
+        ch.kind,
+        ch.t0 if t0 is None else t0,
+    )
+
+
+def _bursts(values: np.ndarray, fraction: float, seed: int, fill: float = np.nan) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    v = values.astype(np.float64).copy()
+    width = 10
+    starts = rng.integers(0, v.size - width, max(1, int(fraction * v.size / width)))
+    v[(starts[:, None] + np.arange(width)).ravel()] = fill
+    return v
+
+
+def recording_mutations(rec: Recording) -> Iterator[tuple[str, Recording | None, tuple[str, ...]]]:
+    """(name, mutated recording, words the error must mention) for data mutations.
+
+    A None recording marks a mutation handled elsewhere. Data mutations keep a valid
+    file: the command must judge the content (gaps are repaired or skipped, nonsense
+    refused naming the channel).
+    """
+    analog = rec.analog_channels
+    first = analog[0]
+    flow = next(c for c in analog if c.startswith("Q_"))
+    yield (
+        "nan_all_first_analog",
+        _replace(rec, first, values=np.full(rec.info(first).values.size, np.nan)),
+        (first,),
+    )
+    yield (
+        "inf_all_flow",
+        _replace(rec, flow, values=np.full(rec.info(flow).values.size, np.inf)),
+        (flow,),
+    )
+    yield (
+        "huge_1e308_flow",
+        _replace(rec, flow, values=np.full(rec.info(flow).values.size, 1e308)),
+        (flow,),
+    )
+    yield (
+        "huge_1e308_spikes",
+        _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 3, 1e308))),
+        (),
+    )
+    yield "empty_flow", _replace(rec, flow, values=np.zeros(0)), (flow,)
+    yield "nan_bursts_1pct", _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 4))), ()
+    yield (
+        "inf_bursts_1pct",
+        _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.01, 5, np.inf))),
+        (),
+    )
+    yield "nan_bursts_30pct", _map_analog(rec, lambda c: _with(c, _bursts(c.values, 0.3, 6))), ()
+    yield (
+        "nan_half_of_flow",
+        _replace(
+            rec,
+            flow,
+            values=np.where(
+                np.arange(rec.info(flow).values.size) > rec.info(flow).values.size // 2,
+                np.nan,
+                rec.info(flow).values,
+            ),
+        ),
+        (),
+    )
+    yield "analog_t0_plus_1e9", _map_analog(rec, lambda c: _with(c, t0=c.t0 + 1e9)), ("time",)
+    yield "analog_t0_minus_1e3", _map_analog(rec, lambda c: _with(c, t0=c.t0 - 1e3)), ("time",)
+    yield "analog_at_1hz", _map_analog(rec, lambda c: _with(c, c.values[::1000], rate=1.0)), ("Hz",)
+    yield (
+        "analog_rate_mislabelled_10x",
+        _map_analog(rec, lambda c: _with(c, rate=c.rate_hz * 10)),
+        (),
+    )
+    yield "flow_labelled_pa", _replace(rec, flow, unit="Pa"), (flow,)
+    yield "pressure_labelled_kg_s", _replace(rec, first, unit="kg/s"), (first,)
+    yield "pressure_in_bar_values", _replace(rec, first, values=rec.info(first).values / 1e5), ()
+    yield "negative_pressure", _replace(rec, first, values=-rec.info(first).values), (first,)
+    switch = next(c for c in rec.digital_channels if c.startswith("S_"))
+    valve = next(c for c in rec.digital_channels if c.startswith("U_"))
+    yield "missing_switch", _drop(rec, switch), (switch,)
+    yield "missing_valve", _drop(rec, valve), (valve,)
+    yield "missing_flow", _drop(rec, flow), (flow,)
+    yield "switch_stuck_on", _replace(rec, switch, values=np.ones_like(rec.info(switch).values)), ()
+    yield (
+        "valves_never_fire",
+        Recording(
+            [
+                _with(c, np.zeros_like(c.values)) if c.name.startswith("U_") else c
+                for c in _channels(rec)
+            ],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
+    yield (
+        "truncated_half",
+        Recording(
+            [_with(c, c.values[: c.values.size // 2]) for c in _channels(rec)],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
+    yield (
+        "truncated_one_cycle",
+        Recording(
+            [_with(c, c.values[: int(3.5 * c.rate_hz)]) for c in _channels(rec)],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
+    yield (
+        "digital_t0_plus_5s",
+        Recording(
+            [c if c.kind == "analog" else _with(c, t0=c.t0 + 5.0) for c in _channels(rec)],
+            rec.start_time,
+            rec.metadata,
+        ),
+        (),
+    )
+    for name, md in metadata_mutations(rec.metadata):
+        yield (
+            f"metadata_{name}",
+            Recording(_channels(rec), rec.start_time, md),
+            ("metadata", "machine"),
+        )
+
+
+def metadata_mutations(metadata: dict[str, Any]) -> Iterator[tuple[str, dict[str, Any]]]:
+    """Malformed free metadata, chiefly the machine description a recording carries."""
+
+    def edit(fn: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
+        md = copy.deepcopy(metadata)
+        fn(md)
+        return md
+
+    def desc(md: dict[str, Any]) -> dict[str, Any]:
+        return md["machine"]["description"]
+
+    yield "steps_are_ints", edit(lambda md: desc(md).__setitem__("step", [1, 2, 3]))
+    yield "step_without_set", edit(lambda md: desc(md)["step"][0]["do"][0].pop("set"))
+    yield "step_do_is_string", edit(lambda md: desc(md)["step"][0].__setitem__("do", "U_FEED_A"))
+    yield "no_steps", edit(lambda md: desc(md).__setitem__("step", []))
+    yield "description_is_list", edit(lambda md: md["machine"].__setitem__("description", [1]))
+    yield "machine_is_int", edit(lambda md: md.__setitem__("machine", 7))
+    yield "machine_name_other", edit(lambda md: md["machine"].__setitem__("name", "festo-dsd"))
+    yield (
+        "actuator_bore_null",
+        edit(lambda md: desc(md)["actuator"][0].__setitem__("bore_mm", None)),
+    )
+    yield (
+        "actuator_bore_negative",
+        edit(lambda md: desc(md)["actuator"][0].__setitem__("bore_mm", -25.0)),
+    )
+    yield "supply_psig_string", edit(lambda md: desc(md)["supply"].__setitem__("house_psig", "108"))
+    yield (
+        "sensor_range_nested",
+        edit(lambda md: desc(md)["sensor"][0].__setitem__("range", [[[[0.0]]]])),
+    )
+    yield "deeply_nested", edit(lambda md: md.__setitem__("extra", _nested(200)))
+    yield "cycle_start_null", edit(lambda md: md.__setitem__("cycle_start_s", None))
+
+
+def _nested(depth: int) -> Any:
+    value: Any = 1
+    for _ in range(depth):
+        value = {"a": [value]}
+    return value
+
+
+def parquet_mutations(path: Path) -> Iterator[tuple[str, bytes]]:
+    """Valid Parquet, CRCs intact, with malformed pneufdd content: null or absurd
+    rates and offsets, a null or garbled start time, a wrong channel count."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    kv = dict(table.schema.metadata or {})
+    info = json.loads(kv[b"pneufdd.recording"])
+
+    def write(tab: Any, new_info: Any = None) -> bytes:
+        meta = dict(kv)
+        if new_info is not None:
+            raw = json.dumps(new_info).encode()
+            meta[b"pneufdd.recording"] = raw
+            meta[b"pneufdd.recording.crc32"] = str(zlib.crc32(raw)).encode()
+        buf = io.BytesIO()
+        pq.write_table(tab.replace_schema_metadata(meta), buf, row_group_size=1)
+        return buf.getvalue()
+
+    def column(name: str, values: list[Any]) -> Any:
+        idx = table.column_names.index(name)
+        return table.set_column(idx, name, pa.array(values, type=table.schema.field(name).type))
+
+    n = table.num_rows
+    rates = table.column("rate_hz").to_pylist()
+    t0s = table.column("t0_s").to_pylist()
+    names = table.column("name").to_pylist()
+    yield "parquet_rate_null", write(column("rate_hz", [None, *rates[1:]]))
+    yield "parquet_rate_nan", write(column("rate_hz", [float("nan"), *rates[1:]]))
+    yield "parquet_rate_zero", write(column("rate_hz", [0.0, *rates[1:]]))
+    yield "parquet_rate_negative", write(column("rate_hz", [-1000.0, *rates[1:]]))
+    yield "parquet_t0_null", write(column("t0_s", [None, *t0s[1:]]))
+    yield "parquet_t0_inf", write(column("t0_s", [float("inf"), *t0s[1:]]))
+    yield "parquet_name_null", write(column("name", [None, *names[1:]]))
+    yield "parquet_kind_bogus", write(column("kind", ["sideways"] * n))
+    yield "parquet_unit_furlong", write(column("unit", ["furlong"] * n))
+    yield "parquet_n_samples_lie", write(column("n_samples", [10**12] * n))
+    yield "parquet_start_time_null", write(table, {**info, "start_time": None})
+    yield "parquet_start_time_garbage", write(table, {**info, "start_time": "yesterday"})
+    yield "parquet_n_channels_wrong", write(table, {**info, "n_channels": n + 3})
+    yield "parquet_n_channels_string", write(table, {**info, "n_channels": "many"})
+    yield "parquet_metadata_list", write(table, {**info, "metadata": [1, 2]})
+    yield "parquet_info_is_list", write(table, [info])
+
+
+def truncations(data: bytes) -> Iterator[tuple[str, bytes]]:
+    """The file cut at several places (and emptied)."""
+    yield "empty", b""
+    yield "one_byte", data[:1]
+    for fraction in (0.05, 0.3, 0.5, 0.9):
+        yield f"cut_{int(100 * fraction)}pct", data[: int(len(data) * fraction)]
+    yield "minus_1_byte", data[:-1]
+    yield "minus_8_bytes", data[:-8]
+
+
+def bit_flips(data: bytes, count: int, seed: int) -> Iterator[tuple[str, bytes]]:
+    """``count`` copies of ``data`` with 1-8 random bits flipped (heads and tails too)."""
+    rng = np.random.default_rng(seed)
+    n = len(data)
+    for k in range(count):
+        buf = bytearray(data)
+        region = k % 3  # head, tail, anywhere
+        for _ in range(int(rng.integers(1, 9))):
+            if region == 0:
+                pos = int(rng.integers(0, min(n, 512)))
+            elif region == 1:
+                pos = int(rng.integers(max(0, n - 2048), n))
+            else:
+                pos = int(rng.integers(0, n))
+            buf[pos] ^= 1 << int(rng.integers(0, 8))
+        yield f"bitflip_{k}", bytes(buf)
+
+
+def pnref_mutations(path: Path) -> Iterator[tuple[str, bytes, tuple[str, ...]]]:
+    """Damaged ``.pnref`` files: header fields of wrong types/sizes, shapes, entries."""
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: np.asarray(data[k]) for k in data.files}
+    header = json.loads(str(arrays["header"]))
+
+    def pack(arrs: dict[str, np.ndarray], compress: bool = True) -> bytes:
+        buf = io.BytesIO()
+        (np.savez_compressed if compress else np.savez)(buf, **arrs)
+        return buf.getvalue()
+
+    def with_header(**changes: Any) -> bytes:
+        h = dict(header)
+        for k, v in changes.items():
+            if v is _DROP:
+                h.pop(k, None)
+            else:
+                h[k] = v
+        return pack({**arrays, "header": np.array(json.dumps(h))})
+
+    fields: list[tuple[str, Any]] = [
+        ("trace_rate_hz", 0),
+        ("trace_rate_hz", -100.0),
+        ("trace_rate_hz", "fast"),
+        ("trace_rate_hz", None),
+        ("trace_rate_hz", 1e300),
+        ("n_cycles", 10**12),
+        ("n_cycles", -1),
+        ("n_cycles", "12"),
+        ("n_steps", 0),
+        ("n_steps", 10**9),
+        ("channels", 5),
+        ("channels", ["P_In"]),
+        ("units", ["furlong"] * len(header["units"])),
+        ("feature_names", []),
+        ("settings", "strict"),
+        ("settings", {"alpha": "x"}),
+        ("localisation", [1, 2]),
+        ("machine_description", 3),
+        ("machine_description", {"actuator": 1}),
+        ("machine", None),
+        ("sequence", [1, 2]),
+        ("sequence", [{"valves": 3}]),
+        ("sources", 4),
+        ("supply_pressure", "high"),
+        ("signature_locations", ["supply"]),
+        ("version", 99),
+        ("format", "something-else"),
+    ]
+    for key, value in fields:
+        yield f"header_{key}_{str(value)[:12]}", with_header(**{key: value}), (key,)
+    for key in ("channels", "n_steps", "trace_rate_hz", "settings"):
+        yield f"header_without_{key}", with_header(**{key: _DROP}), (key,)
+    yield "header_not_json", pack({**arrays, "header": np.array("{not json")}), ("header",)
+    yield (
+        "header_deeply_nested",
+        pack({**arrays, "header": np.array("[" * 100_000 + "]" * 100_000)}),
+        ("header",),
+    )
+    yield (
+        "features_nan",
+        pack({**arrays, "features": np.full_like(arrays["features"], np.nan)}),
+        ("features",),
+    )
+    yield (
+        "features_wrong_shape",
+        pack({**arrays, "features": arrays["features"][:, :3]}),
+        ("features",),
+    )
+    yield (
+        "features_int",
+        pack({**arrays, "features": arrays["features"].astype(np.int64)}),
+        ("features",),
+    )
+    yield "features_object", _object_entry(pack, arrays), ("features",)
+    without = {k: v for k, v in arrays.items() if k != "features"}
+    yield "features_missing", pack(without), ("features",)
+    if "band_mean" in arrays:
+        yield "band_std_negative", pack({**arrays, "band_std": -arrays["band_std"]}), ("band_std",)
+        yield (
+            "trace_offsets_decreasing",
+            pack({**arrays, "trace_offsets": arrays["trace_offsets"][::-1].copy()}),
+            ("trace_offsets",),
+        )
+    yield "huge_shape", _huge_shape(pack({**arrays}, compress=False)), ("features", "shape")
+    yield "damaged_deflate", _damage_deflate(pack(arrays)), ("ref",)
+    yield "zip_of_nothing", _zip_of({"readme.txt": b"hello"}), ("header",)
+    yield "pickle_entry", _zip_of({"header.npy": _pickle_npy()}), ("header",)
+
+
+class _Drop:
+    pass
+
+
+_DROP = _Drop()
+
+
+def _object_entry(pack: Callable[..., bytes], arrays: dict[str, np.ndarray]) -> bytes:
+    data = pack(arrays)
+    # an entry saved with dtype object needs pickle to load: must be refused unread
+    return _replace_member(data, "features.npy", _pickle_npy())
+
+
+def _pickle_npy() -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    return buf.getvalue()
+
+
+def _zip_of(members: dict[str, bytes]) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        for name, content in members.items():
+            z.writestr(name, content)
+    return buf.getvalue()
+
+
+def _replace_member(data: bytes, name: str, content: bytes) -> bytes:
+    src = zipfile.ZipFile(io.BytesIO(data))
+    members = {n: src.read(n) for n in src.namelist()}
+    members[name] = content
+    return _zip_of(members)
+
+
+def _huge_shape(data: bytes) -> bytes:
+    """features.npy whose header asks for 74.5 GiB (10^5 x 10^5 float64)."""
+    src = zipfile.ZipFile(io.BytesIO(data))
+    members = {n: src.read(n) for n in src.namelist()}
+    raw = members["features.npy"]
+    header = np.lib.format.header_data_from_array_1_0(np.zeros((1, 1)))
+    header["shape"] = (100_000, 100_000)
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, header)
+    members["features.npy"] = buf.getvalue() + raw[128:]
+    return _zip_of(members)
+
+
+def _damage_deflate(data: bytes) -> bytes:
+    """Flip bytes inside the compressed stream of the largest member (zlib.error)."""
+    src = zipfile.ZipFile(io.BytesIO(data))
+    info = max(src.infolist(), key=lambda i: i.compress_size)
+    start = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)
+    buf = bytearray(data)
+    for k in range(start + 16, start + min(info.compress_size, 4096), 97):
+        buf[k] ^= 0x5A
+    return bytes(buf)
+
+
+def toml_mutations(text: str) -> Iterator[tuple[str, bytes, tuple[str, ...]]]:
+    """Malformed machine files: encoding, depth, syntax, types and values."""
+    yield "latin1", text.replace("#", "# \u00e9\u00e8 ", 1).encode("latin-1", "replace"), ("UTF-8",)
+    yield "binary_garbage", bytes(range(256)) * 4, ("UTF-8", "TOML")
+    yield "utf16", text.encode("utf-16"), ("UTF-8", "TOML")
+    yield "empty", b"", ()
+    yield (
+        "nested_arrays_10000",
+        ("x = " + "[" * 10_000 + "]" * 10_000 + "\n" + text).encode(),
+        ("deep",),
+    )
+    yield (
+        "nested_tables_300",
+        ("".join(f"[{'.'.join(['t'] * k)}]\n" for k in range(1, 300)) + text).encode(),
+        ("deep",),
+    )
+    yield (
+        "nested_inline_5000",
+        ("y = " + "{a = " * 5000 + "1" + "}" * 5000 + "\n" + text).encode(),
+        ("deep",),
+    )
+    yield "truncated", text[: len(text) // 2].encode(), ()
+    yield "not_toml", b"<machine><actuator/></machine>", ("TOML",)
+    for k, (old, new, why) in enumerate(
+        (
+            ("bore_mm = 25.0", 'bore_mm = "25"', "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = -25.0", "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = nan", "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = inf", "bore_mm"),
+            ("bore_mm = 25.0", "bore_mm = 1e308", "bore_mm"),
+            ("house_psig = 108.0", "house_psig = -5.0", "house_psig"),
+            ("house_psig = 108.0", "house_psig = 1e9", "house_psig"),
+            ('set = "U_FEED_A"', "set = 7", "set"),
+            ('set = "U_FEED_A"', 'set = "U_NOWHERE"', "U_NOWHERE"),
+            ("[[step]]", "[[stepp]]", "step"),
+            ("[[actuator]]", "[[actuatorz]]", "actuator"),
+            ("scan_time_s = 0.005", "scan_time_s = -0.005", "scan_time_s"),
+            ("scan_time_s = 0.005", "scan_time_s = 1e6", "scan_time_s"),
+        )
+    ):
+        if old in text:
+            yield f"value_{k:02d}_{why}", text.replace(old, new, 1).encode(), (why,)
+
+
+# ------------------------------------------------------------ case builders
+
+Builder = Callable[[dict[str, Path], Path, bool], list[Case]]
+
+
+def _case_dir(root: Path, name: str) -> Path:
+    folder = root / name
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def _put(folder: Path, name: str, source: Path | bytes | Recording) -> str:
+    target = folder / name
+    if isinstance(source, Recording):
+        source.write(target)
+    elif isinstance(source, bytes):
+        target.write_bytes(source)
+    else:
+        shutil.copy(source, target)
+    return name
+
+
+def _same_recording(path: Path, original: Recording) -> bool:
+    """True if ``path`` reads back as ``original`` (a flipped bit in unchecked padding)."""
+    try:
+        back = Recording.read(path)
+    except Exception:
+        return False
+    if back.channels != original.channels or back.metadata != original.metadata:
+        return False
+    return all(
+        np.array_equal(back.info(n).values, original.info(n).values, equal_nan=True)
+        for n in original.channels
+    )
+
+
+def _bad_recordings(
+    base: dict[str, Path], root: Path, full: bool, source: str = "run"
+) -> list[tuple[str, Path, tuple[str, ...], bool]]:
+    """(name, file, mentions, structural) of every damaged ``source``: each written once.
+
+    ``structural`` damage (truncated, flipped, foreign files) must be refused; a bit
+    flip the format cannot see (it reads back identical) counts as no damage.
+    """
+    store = root / f"_recordings_{source}"
+    store.mkdir(parents=True, exist_ok=True)
+    items: list[tuple[str, Path, tuple[str, ...], bool]] = []
+    data = base[source].read_bytes()
+    rec = Recording.read(base[source])
+    for name, content in truncations(data):
+        path = store / f"{name}.parquet"
+        path.write_bytes(content)
+        items.append((name, path, ("run.parquet",), True))
+    for name, content in bit_flips(data, 32 if full else 4, SEED):
+        path = store / f"{name}.parquet"
+        path.write_bytes(content)
+        items.append((name, path, ("run.parquet",), not _same_recording(path, rec)))
+    for name, content in parquet_mutations(base[source]):
+        path = store / f"{name}.parquet"
+        path.write_bytes(content)
+        items.append((name, path, ("run.parquet",), True))
+    for name, mutated, words in recording_mutations(rec):
+        if not full and name not in QUICK_RECORDING_MUTATIONS:
+            continue
+        if mutated is None:
+            continue
+        path = store / f"{name}.parquet"
+        if not path.exists():
+            mutated.write(path)
+        items.append((name, path, ("run.parquet", *words), False))
+    csv = store / "export.csv"
+    csv.write_text("t,P_In\n0,600000\n0.001,600100\n")
+    items.append(("csv_file", csv, ("run.csv", "column"), True))
+    tdms = store / "garbage.tdms"
+    tdms.write_bytes(b"TDSm" + bytes(64))
+    items.append(("tdms_garbage", tdms, ("run.tdms",), True))
+    return items
+
+
+QUICK_RECORDING_MUTATIONS = frozenset(
+    {
+        "nan_all_first_analog",
+        "huge_1e308_flow",
+        "empty_flow",
+        "nan_bursts_1pct",
+        "analog_t0_plus_1e9",
+        "analog_at_1hz",
+        "flow_labelled_pa",
+        "missing_switch",
+        "metadata_steps_are_ints",
+        "metadata_step_without_set",
+        "metadata_cycle_start_null",
+    }
+)
+
+#: Data mutations a command may accept (exit 0/1): gaps repaired or skipped by the
+#: documented rule, or content that is odd but not nonsense.
+MAY_ACCEPT = frozenset(
+    {
+        "nan_bursts_1pct",
+        "inf_bursts_1pct",
+        "huge_1e308_spikes",
+        "switch_stuck_on",
+        "analog_rate_mislabelled_10x",
+        "metadata_deeply_nested",
+        "metadata_cycle_start_null",
+        "metadata_machine_is_int",
+        "metadata_machine_name_other",
+        "missing_flow",
+        "nan_half_of_flow",
+        "truncated_half",
+        "truncated_one_cycle",
+    }
+)
+
+
+def _run_name(path: Path) -> str:
+    return "run" + path.suffix
+
+
+def build_steps(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = []
+    for name, path, words, structural in _bad_recordings(base, root, full):
+        folder = _case_dir(root, f"steps-{name}")
+        run = _put(folder, _run_name(path), path)
+        expect = {EXIT_INPUT} if structural else {EXIT_INPUT, EXIT_OK}
+        cases.append(
+            Case(
+                f"steps/{name}",
+                "steps",
+                ["steps", run, "--json"],
+                folder,
+                [run],
+                [],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
+    return cases
+
+
+def build_features(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = []
+    for name, path, words, structural in _bad_recordings(base, root, full):
+        folder = _case_dir(root, f"features-{name}")
+        run = _put(folder, _run_name(path), path)
+        accept = name in MAY_ACCEPT or name.startswith("bitflip")
+        expect = {EXIT_INPUT, EXIT_OK} if accept and not structural else {EXIT_INPUT}
+        cases.append(
+            Case(
+                f"features/{name}",
+                "features",
+                ["features", run, "--out", "f.csv", "--group", "air", "--actuator", "PRESS"],
+                folder,
+                [run],
+                ["f.csv"],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
+    # outputs pointing at inputs, folders, existing files
+    folder = _case_dir(root, "features-out-is-input")
+    run = _put(folder, "run.parquet", base["run"])
+    cases.append(
+        Case(
+            "features/out_is_input_overwrite",
+            "features",
+            ["features", run, "--out", run, "--overwrite"],
+            folder,
+            [run],
+            [],
+            mentions=("--out",),
+        )
+    )
+    folder = _case_dir(root, "features-out-is-dir")
+    run = _put(folder, "run.parquet", base["run"])
+    (folder / "d").mkdir(exist_ok=True)
+    cases.append(
+        Case(
+            "features/out_is_folder",
+            "features",
+            ["features", run, "--out", "d", "--overwrite"],
+            folder,
+            [run],
+            [],
+            mentions=("--out",),
+        )
+    )
+    folder = _case_dir(root, "features-bad-group")
+    run = _put(folder, "run.parquet", base["run"])
+    cases.append(
+        Case(
+            "features/bad_group",
+            "features",
+            ["features", run, "--out", "f.csv", "--group", "nonsense"],
+            folder,
+            [run],
+            ["f.csv"],
+            mentions=("--group",),
+        )
+    )
+    cases.append(
+        Case(
+            "features/bad_wavelet",
+            "features",
+            ["features", run, "--out", "g.csv", "--group", "wavelet", "--wavelet", "nope"],
+            folder,
+            [run],
+            ["g.csv"],
+            mentions=("wavelet", "nope"),
+        )
+    )
+    return cases
+
+
+def build_reference(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = []
+    for name, path, words, structural in _bad_recordings(base, root, full, "ref"):
+        if (
+            not full
+            and not structural
+            and name not in {"nan_all_first_analog", "analog_at_1hz", "flow_labelled_pa"}
+        ):
+            continue
+        folder = _case_dir(root, f"reference-{name}")
+        run = _put(folder, _run_name(path), path)
+        # the damaged recording is the only one: it must make a usable reference or be refused
+        accept = name in MAY_ACCEPT or (name.startswith("bitflip") and not structural)
+        expect = {EXIT_INPUT, EXIT_OK} if accept and not structural else {EXIT_INPUT}
+        cases.append(
+            Case(
+                f"reference build/{name}",
+                "reference build",
+                ["reference", "build", run, "--out", "r.pnref", "--no-signatures"],
+                folder,
+                [run],
+                ["r.pnref"],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
+    text = base["toml"].read_text("utf-8")
+    muts = list(toml_mutations(text))
+    if not full:
+        muts = [m for m in muts if m[0] in {"binary_garbage", "nested_inline_5000"}]
+    for name, content, words in muts:
+        folder = _case_dir(root, f"reference-toml-{name}")
+        run = _put(folder, "run.parquet", base["ref"])
+        toml = _put(folder, "m.toml", content)
+        cases.append(
+            Case(
+                f"reference build/toml_{name}",
+                "reference build",
+                [
+                    "reference",
+                    "build",
+                    run,
+                    "--machine",
+                    toml,
+                    "--out",
+                    "r.pnref",
+                    "--no-signatures",
+                ],
+                folder,
+                [run, toml],
+                ["r.pnref"],
+                frozenset({EXIT_INPUT}),
+                ("m.toml", *words),
+            )
+        )
+    folder = _case_dir(root, "reference-out-is-input")
+    run = _put(folder, "run.parquet", base["ref"])
+    cases.append(
+        Case(
+            "reference build/out_is_input_overwrite",
+            "reference build",
+            ["reference", "build", run, "--out", run, "--overwrite", "--no-signatures"],
+            folder,
+            [run],
+            [],
+            mentions=("--out",),
+        )
+    )
+    toml = _put(folder, "m.toml", base["toml"])
+    cases.append(
+        Case(
+            "reference build/out_is_machine_overwrite",
+            "reference build",
+            [
+                "reference",
+                "build",
+                run,
+                "--machine",
+                toml,
+                "--out",
+                toml,
+                "--overwrite",
+                "--no-signatures",
+            ],
+            folder,
+            [run, toml],
+            [],
+            mentions=("--out",),
+        )
+    )
+    for opt, value, words in (
+        ("--channels", "P_In,NOPE", ("NOPE",)),
+        ("--channels", ",", ("--channels",)),
+        ("--signature-cycles", "0", ("--signature-cycles",)),
+        ("--signature-sizes", "5,3", ("--signature-sizes",)),
+        ("--signature-sizes", "nan,inf", ("--signature-sizes",)),
+        ("--signature-sizes", "-5,3", ("--signature-sizes",)),
+        ("--uncertainty-plants", "-1", ("--uncertainty-plants",)),
+        ("--machine", "no-such-machine", ("no-such-machine",)),
+        ("--machine", "d", ("d",)),
+    ):
+        (folder / "d").mkdir(exist_ok=True)
+        out = f"o{len(cases)}.pnref"
+        cases.append(
+            Case(
+                f"reference build/{opt}={value}",
+                "reference build",
+                ["reference", "build", run, "--out", out, opt, value],
+                folder,
+                [run],
+                [out],
+                mentions=words,
+            )
+        )
+    return cases
+
+
+def build_diagnose(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = []
+    for name, path, words, structural in _bad_recordings(base, root, full):
+        folder = _case_dir(root, f"diagnose-{name}")
+        run = _put(folder, _run_name(path), path)
+        ref = _put(folder, "ref.pnref", base["pnref"])
+        if structural:
+            expect = {EXIT_INPUT}
+        elif name in MAY_ACCEPT or name.startswith("bitflip"):
+            expect = {EXIT_INPUT, EXIT_OK}  # leak-free data: never "leak found"
+        else:
+            expect = {EXIT_INPUT}
+        cases.append(
+            Case(
+                f"diagnose/{name}",
+                "diagnose",
+                ["diagnose", run, "--reference", ref, "--json", "d.json"],
+                folder,
+                [run, ref],
+                ["d.json"],
+                frozenset(expect),
+                (run, *words),
+            )
+        )
+    # damaged references
+    ref_items: list[tuple[str, bytes, tuple[str, ...]]] = []
+    data = base["pnref"].read_bytes()
+    ref_items += [(n, c, ()) for n, c in truncations(data)]
+    ref_items += [(n, c, ()) for n, c in bit_flips(data, 16 if full else 3, SEED + 7)]
+    muts = list(pnref_mutations(base["pnref"]))
+    ref_items += muts if full else [m for m in muts if m[0] in QUICK_PNREF]
+    for name, content, words in ref_items:
+        folder = _case_dir(root, f"diagnose-ref-{name}")
+        run = _put(folder, "run.parquet", base["run"])
+        ref = _put(folder, "ref.pnref", content)
+        cases.append(
+            Case(
+                f"diagnose/ref_{name}",
+                "diagnose",
+                ["diagnose", run, "--reference", ref, "--report", "r.html"],
+                folder,
+                [run, ref],
+                ["r.html"],
+                frozenset({EXIT_INPUT}),
+                ("ref.pnref", *words),
+            )
+        )
+    # a file name that looks like console markup is printed as written
+    folder = _case_dir(root, "diagnose-markup-name")
+    run = _put(folder, "run[bold].parquet", base["run"])
+    ref = _put(folder, "ref.pnref", base["pnref"])
+    cases.append(
+        Case(
+            "diagnose/markup_in_file_name",
+            "diagnose",
+            ["diagnose", run, "--reference", ref, "--json", "[red]d.json"],
+            folder,
+            [run, ref],
+            ["[red]d.json"],
+            frozenset({EXIT_OK}),
+        )
+    )
+    # outputs pointing at inputs or at each other
+    folder = _case_dir(root, "diagnose-outputs")
+    run = _put(folder, "run.parquet", base["run"])
+    ref = _put(folder, "ref.pnref", base["pnref"])
+    (folder / "d").mkdir(exist_ok=True)
+    for label, extra, words in (
+        ("json_is_run", ["--json", run], ("--json",)),
+        ("json_is_run_overwrite", ["--json", run, "--overwrite"], ("--json",)),
+        ("report_is_reference", ["--report", ref], ("--report",)),
+        ("report_is_reference_overwrite", ["--report", ref, "--overwrite"], ("--report",)),
+        ("json_and_report_same", ["--json", "x.out", "--report", "x.out"], ("--report",)),
+        ("json_is_folder", ["--json", "d"], ("--json",)),
+        ("json_under_a_file", ["--json", f"{run}/x.json"], ("--json",)),
+        ("json_via_dotdot", ["--json", f"d/../{run}", "--overwrite"], ("--json",)),
+        ("max_leaks_3", ["--max-leaks", "3"], ("--max-leaks",)),
+        ("hours_negative", ["--hours", "-1"], ("hours",)),
+        ("hours_nan", ["--hours", "nan"], ("hours",)),
+        ("price_inf", ["--price", "inf"], ("price",)),
+        ("hours_text", ["--hours", "lots"], ("--hours",)),
+        ("reference_missing", ["--reference", "nope.pnref"], ("nope.pnref",)),
+        ("reference_is_folder", ["--reference", "d"], ("d",)),
+        ("reference_is_run", ["--reference", run], ("run.parquet",)),
+    ):
+        argv = ["diagnose", run, "--reference", ref, *extra]
+        outs = [x for x in ("x.out",) if "x.out" in extra]
+        cases.append(
+            Case(f"diagnose/{label}", "diagnose", argv, folder, [run, ref], outs, mentions=words)
+        )
+    return cases
+
+
+QUICK_PNREF = frozenset(
+    {
+        "header_trace_rate_hz_0",
+        "header_n_cycles_100000000000",
+        "header_sequence_[1, 2]",
+        "header_settings_strict",
+        "huge_shape",
+        "damaged_deflate",
+        "header_deeply_nested",
+        "features_object",
+    }
+)
+
+
+def build_simulate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = []
+    text = base["toml"].read_text("utf-8")
+    muts = list(toml_mutations(text))
+    if not full:
+        muts = [m for m in muts if m[0] in {"latin1", "nested_arrays_10000", "value_02_bore_mm"}]
+    for name, content, words in muts:
+        folder = _case_dir(root, f"simulate-{name}")
+        toml = _put(folder, "m.toml", content)
+        cases.append(
+            Case(
+                f"simulate/toml_{name}",
+                "simulate",
+                ["simulate", "--machine", toml, "--cycles", "1", "--out", "o.parquet"],
+                folder,
+                [toml],
+                ["o.parquet"],
+                frozenset({EXIT_INPUT}),
+                ("m.toml", *words),
+            )
+        )
+    folder = _case_dir(root, "simulate-options")
+    toml = _put(folder, "m.toml", base["toml"])
+    (folder / "d").mkdir(exist_ok=True)
+    for label, extra, words in (
+        ("out_is_machine_overwrite", ["--machine", toml, "--out", toml, "--overwrite"], ("--out",)),
+        ("out_is_folder", ["--out", "d"], ("--out",)),
+        ("cycles_20_digits", ["--cycles", "99999999999999999999999"], ("--cycles",)),
+        ("cycles_1e6", ["--cycles", "1000000"], ("--cycles",)),
+        ("cycles_0", ["--cycles", "0"], ("--cycles",)),
+        ("cycles_negative", ["--cycles", "-3"], ("--cycles",)),
+        ("seed_negative", ["--seed", "-1"], ("--seed",)),
+        ("seed_huge", ["--seed", "99999999999999999999999999"], ("--seed",)),
+        ("leak_unknown_location", ["--leak", "NOWHERE_A=3"], ("NOWHERE_A",)),
+        ("leak_no_size", ["--leak", "supply="], ("--leak",)),
+        ("leak_nan", ["--leak", "supply=nanslpm"], ("supply", "nan")),
+        ("leak_huge", ["--leak", "supply=1e30slpm"], ("supply", "1e30")),
+        ("leak_negative_turns", ["--leak", "supply=-2"], ("supply", "-2")),
+        ("leak_twice", ["--leak", "supply=3", "--leak", "supply=4"], ("supply",)),
+        ("leak_markup", ["--leak", "supply=[/bold]"], ("supply",)),
+        ("machine_folder", ["--machine", "d"], ("d",)),
+        ("machine_missing", ["--machine", "missing.toml"], ("missing.toml",)),
+        ("max_cycle_s_nan", ["--max-cycle-s", "nan"], ("--max-cycle-s",)),
+        ("max_cycle_s_zero", ["--max-cycle-s", "0"], ("--max-cycle-s",)),
+        ("max_cycle_s_stall", ["--max-cycle-s", "0.2"], ("max_cycle_s",)),
+    ):
+        argv = ["simulate", "--machine", MACHINE, "--out", f"o{len(cases)}.parquet", *extra]
+        # any seed >= 0 is a seed: a 26-digit one simulates like any other
+        expect = {EXIT_INPUT, EXIT_OK} if label == "seed_huge" else {EXIT_INPUT}
+        cases.append(
+            Case(
+                f"simulate/{label}",
+                "simulate",
+                argv,
+                folder,
+                [toml],
+                [f"o{len(cases)}.parquet"],
+                frozenset(expect),
+                words,
+            )
+        )
+    return cases
+
+
+def build_machines(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "machines")
+    return [
+        Case("machines/list", "machines", ["machines"], folder, [], [], frozenset({EXIT_OK})),
+        Case("machines/extra_arg", "machines", ["machines", "x"], folder, [], [], mentions=("x",)),
+    ]
+
+
+def build_machine_vary(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = []
+    text = base["toml"].read_text("utf-8")
+    muts = list(toml_mutations(text))
+    if not full:
+        muts = [m for m in muts if m[0] in {"utf16", "nested_tables_300"}]
+    for name, content, words in muts:
+        folder = _case_dir(root, f"vary-{name}")
+        toml = _put(folder, "m.toml", content)
+        cases.append(
+            Case(
+                f"machine vary/toml_{name}",
+                "machine vary",
+                ["machine", "vary", toml, "--out", "p.toml"],
+                folder,
+                [toml],
+                ["p.toml"],
+                frozenset({EXIT_INPUT}),
+                ("m.toml", *words),
+            )
+        )
+    folder = _case_dir(root, "vary-options")
+    toml = _put(folder, "m.toml", base["toml"])
+    (folder / "d").mkdir(exist_ok=True)
+    for label, extra, words in (
+        ("out_is_input_overwrite", [toml, "--out", toml, "--overwrite"], ("--out",)),
+        ("out_is_folder", [toml, "--out", "d"], ("--out",)),
+        ("scale_nan", [toml, "--out", "a.toml", "--scale", "nan"], ("--scale",)),
+        ("scale_huge", [toml, "--out", "a.toml", "--scale", "1e9"], ("--scale",)),
+        ("seed_negative", [toml, "--out", "a.toml", "--seed", "-4"], ("--seed",)),
+        ("unknown_machine", ["nope", "--out", "a.toml"], ("nope",)),
+    ):
+        cases.append(
+            Case(
+                f"machine vary/{label}",
+                "machine vary",
+                ["machine", "vary", *extra],
+                folder,
+                [toml],
+                ["a.toml"],
+                mentions=words,
+            )
+        )
+    return cases
+
+
+BUILDERS: dict[str, Builder] = {
+    "steps": build_steps,
+    "features": build_features,
+    "reference build": build_reference,
+    "diagnose": build_diagnose,
+    "simulate": build_simulate,
+    "machines": build_machines,
+    "machine vary": build_machine_vary,
+}
+"""Case builders by command path; a command added to the CLI adds one here."""
+
+NOT_FUZZED: dict[str, str] = {
+    "demo": "takes no input files; writes only under its own --out folder (minutes per run)",
+    "campaign": "takes only built-in machine names and numbers; hours per run",
+}
+"""Commands outside the corpus, with the reason."""
+
+
+def discover_commands() -> list[str]:
+    """Every command path of the ``pneufdd`` CLI (``"reference build"``...)."""
+    import typer.main
+
+    from pneufdd.cli.app import app
+
+    group = typer.main.get_command(app)
+    found: list[str] = []
+
+    def walk(cmd: Any, prefix: str) -> None:
+        for name, sub in sorted(getattr(cmd, "commands", {}).items()):
+            path = f"{prefix} {name}".strip()
+            if getattr(sub, "commands", None):
+                walk(sub, path)
+            else:
+                found.append(path)
+
+    walk(group, "")
+    return found
+
+
+def build_corpus(
+    base: dict[str, Path], root: Path, full: bool = True, commands: Iterable[str] | None = None
+) -> list[Case]:
+    """Every case of the corpus (``full``) or of its quick slice."""
+    cases: list[Case] = []
+    for command in commands or discover_commands():
+        builder = BUILDERS.get(command)
+        if builder is not None:
+            cases.extend(builder(base, root, full))
+    return cases
+
+
+# ------------------------------------------------------------------ running
+
+
+def _digest(path: Path) -> tuple[str, int] | None:
+    if not path.exists():
+        return None
+    if path.is_dir():
+        return ("dir", 0)
+    return hashlib.sha256(path.read_bytes()).hexdigest(), path.stat().st_mode
+
+
+def run_case(case: Case, in_process: bool) -> Outcome:
+    """Run one case and check it (see the module docstring)."""
+    before = {name: _digest(case.folder / name) for name in case.inputs}
+    outputs_before = {name: _digest(case.folder / name) for name in case.outputs}
+    listing_before = set(os.listdir(case.folder))
+    start = time.perf_counter()
+    if in_process:
+        code, stderr = _in_process(case)
+    else:
+        code, stderr = _subprocess(case)
+    seconds = time.perf_counter() - start
+    problems = check(case, code, stderr, before, outputs_before, listing_before)
+    return Outcome(case, code, stderr, seconds, problems)
+
+
+def _in_process(case: Case) -> tuple[int, str]:
+    from pneufdd.cli.app import main
+
+    err, out = io.StringIO(), io.StringIO()
+    cwd = os.getcwd()
+    os.chdir(case.folder)
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+            code = main(list(case.argv))
+    finally:
+        os.chdir(cwd)
+    return code, err.getvalue()
+
+
+def _subprocess(case: Case) -> tuple[int, str]:
+    exe = Path(sys.executable).with_name("pneufdd")
+    env = dict(os.environ, COLUMNS="200", NO_COLOR="1")
+    proc = subprocess.run(
+        [str(exe), *case.argv],
+        cwd=case.folder,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+        check=False,
+    )
+    return proc.returncode, proc.stderr
+
+
+def check(
+    case: Case,
+    code: int,
+    stderr: str,
+    before: dict[str, Any],
+    outputs_before: dict[str, Any],
+    listing_before: set[str],
+) -> list[str]:
+    """The problems of one invocation (empty: it behaved)."""
+    problems = []
+    if "Traceback" in stderr:
+        problems.append("traceback")
+    if code == EXIT_INTERNAL:
+        problems.append("internal error (exit 3)")
+    if code not in case.expect:
+        problems.append(f"exit {code}, allowed {sorted(case.expect)}")
+    for name, digest in before.items():
+        if _digest(case.folder / name) != digest:
+            problems.append(f"input {name} changed")
+    leftovers = [n for n in set(os.listdir(case.folder)) - listing_before if n.endswith(".tmp")]
+    if leftovers:
+        problems.append(f"temporary files left: {leftovers}")
+    for name in case.outputs:
+        now = _digest(case.folder / name)
+        if code in (EXIT_OK, EXIT_LEAK):
+            if now is None:
+                problems.append(f"output {name} missing after exit {code}")
+            elif not _readable(case.folder / name):
+                problems.append(f"output {name} unreadable")
+        elif now != outputs_before[name]:
+            problems.append(f"partial output {name} after exit {code}")
+    if code == EXIT_INPUT:
+        text = " ".join(stderr.split())
+        if "error" not in text.lower():
+            problems.append("exit 2 without an error message")
+        elif case.mentions and not any(w.lower() in text.lower() for w in case.mentions):
+            problems.append(f"message names none of {list(case.mentions)}")
+    return problems
+
+
+def _readable(path: Path) -> bool:
+    try:
+        if path.suffix == ".json":
+            json.loads(path.read_text("utf-8"))
+        elif path.suffix == ".parquet":
+            Recording.read(path)
+        elif path.suffix == ".pnref":
+            from pneufdd.diagnosis.pnref import load_reference
+
+            load_reference(path)
+        elif path.suffix in (".csv", ".html", ".toml"):
+            text = path.read_text("utf-8")
+            if path.suffix == ".html" and "</html>" not in text:
+                return False
+            if path.suffix == ".toml":
+                import tomllib
+
+                tomllib.loads(text)
+        return True
+    except Exception:
+        return False
+
+
+def run_corpus(
+    cases: list[Case], in_process: bool, workers: int = 1, log: Callable[[str], None] | None = None
+) -> list[Outcome]:
+    """Run ``cases`` (in ``workers`` threads when in subprocesses)."""
+    if in_process or workers <= 1:
+        outcomes = []
+        for k, case in enumerate(cases):
+            outcomes.append(run_case(case, in_process))
+            if log and outcomes[-1].problems:
+                log(f"[{k + 1}/{len(cases)}] {case.name}: {outcomes[-1].problems}")
+        return outcomes
+    with ThreadPoolExecutor(workers) as pool:
+        outcomes = list(pool.map(lambda c: run_case(c, False), cases))
+    if log:
+        for o in outcomes:
+            if o.problems:
+                log(f"{o.case.name}: {o.problems}")
+    return outcomes
+
+
+def summary(outcomes: list[Outcome]) -> dict[str, Any]:
+    """Counts for the report: invocations, tracebacks, changed inputs, partial outputs."""
+    by_command: dict[str, dict[int, int]] = {}
+    for o in outcomes:
+        counts = by_command.setdefault(o.case.command, {})
+        counts[o.code] = counts.get(o.code, 0) + 1
+    flat = [p for o in outcomes for p in o.problems]
+    return {
+        "invocations": len(outcomes),
+        "tracebacks": sum("Traceback" in o.stderr for o in outcomes),
+        "internal_errors": sum(o.code == EXIT_INTERNAL for o in outcomes),
+        "inputs_changed": sum(p.startswith("input ") for p in flat),
+        "partial_outputs": sum(p.startswith(("partial output", "temporary")) for p in flat),
+        "cases_with_problems": sum(bool(o.problems) for o in outcomes),
+        "exit_codes_by_command": {
+            c: dict(sorted(v.items())) for c, v in sorted(by_command.items())
+        },
+        "seconds": round(sum(o.seconds for o in outcomes), 1),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("build/fuzz"), help="work folder")
+    parser.add_argument("--quick", action="store_true", help="only the quick slice")
+    parser.add_argument("--in-process", action="store_true", help="call main() in-process")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--command", action="append", help="only these commands")
+    parser.add_argument("--json", type=Path, help="write every outcome here")
+    args = parser.parse_args(argv)
+    full = not args.quick
+    base = make_base(args.out / "base", full=full)
+    cases_root = args.out / "cases"
+    if cases_root.exists():
+        shutil.rmtree(cases_root)
+    cases = build_corpus(base, cases_root, full, args.command)
+    missing = [c for c in discover_commands() if c not in BUILDERS and c not in NOT_FUZZED]
+    print(f"{len(cases)} invocations; commands without cases: {missing or 'none'}", flush=True)
+    outcomes = run_corpus(cases, args.in_process, args.workers, lambda s: print(s, flush=True))
+    result = summary(outcomes)
+    print(json.dumps(result, indent=2))
+    if args.json:
+        args.json.write_text(
+            json.dumps(
+                [
+                    {
+                        "case": o.case.name,
+                        "argv": o.case.argv,
+                        "exit": o.code,
+                        "problems": o.problems,
+                        "stderr": o.stderr[-2000:],
+                        "seconds": round(o.seconds, 2),
+                    }
+                    for o in outcomes
+                ],
+                indent=1,
+            )
+        )
+    return 1 if result["cases_with_problems"] or missing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
