@@ -40,8 +40,8 @@ def test_voronoi_is_exactly_brute_force_on_10000_queries(n, dim):
     queries = rng.normal(scale=1.3, size=(10_000, dim))  # also outside the data's hull
     search = VoronoiSearch().fit(train)
     dist, idx = search.query(queries)
-    ref_dist, ref_idx = NearestNeighbors(n_neighbors=1, algorithm="brute").fit(train).kneighbors(
-        queries
+    ref_dist, ref_idx = (
+        NearestNeighbors(n_neighbors=1, algorithm="brute").fit(train).kneighbors(queries)
     )
     assert np.array_equal(idx, ref_idx[:, 0])
     np.testing.assert_allclose(dist, ref_dist[:, 0], rtol=1e-9)
@@ -161,7 +161,8 @@ def test_vectorized_map_sum_of_vectors_and_stepwise_features():
     q = base + np.array([0.3, 0.0, 0.0]) + 0.01 * rng.normal(size=(10, 3))
     label, reach, used = vmap.locate(q)
     assert label.tolist() == ["A@2"] * 10
-    assert reach.tolist() == [1] * 10 and used.tolist() == [2] * 10
+    assert reach.tolist() == [1] * 10
+    assert used.tolist() == [2] * 10
 
 
 def test_wavelet_transformer_agrees_with_the_feature_registry():

@@ -95,7 +95,8 @@ class SignTableClassifier(ClassifierMixin, BaseEstimator):  # type: ignore[misc]
         data = validate_data(self, X, dtype=np.float64, reset=False)
         signs = self._signs(data)
         agree = np.sum(signs[:, None, :] == self.table_[None, :, :], axis=2).astype(np.float64)
-        return agree[:, 1] - agree[:, 0] if self.classes_.size == 2 else agree
+        out = agree[:, 1] - agree[:, 0] if self.classes_.size == 2 else agree
+        return np.asarray(out, dtype=np.float64)
 
     def predict(self, X: npt.ArrayLike) -> npt.NDArray[Any]:
         """Class whose sign row agrees most; leak-free when nothing changed."""

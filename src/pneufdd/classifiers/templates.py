@@ -72,7 +72,9 @@ class MinimumDistanceClassifier(ClassifierMixin, BaseEstimator):  # type: ignore
         data, labels = validate_data(self, X, y, dtype=np.float64)
         check_classification_targets(labels)
         self.classes_, codes = np.unique(labels, return_inverse=True)
-        self.templates_ = np.vstack([data[codes == k].mean(axis=0) for k in range(self.classes_.size)])
+        self.templates_ = np.vstack(
+            [data[codes == k].mean(axis=0) for k in range(self.classes_.size)]
+        )
         if self.metric == "mahalanobis":
             self.whitener_ = pooled_whitener(data, codes, self.shrinkage)
         else:
@@ -87,7 +89,8 @@ class MinimumDistanceClassifier(ClassifierMixin, BaseEstimator):  # type: ignore
         t = self.templates_ @ self.whitener_
         d2 = np.sum(z**2, axis=1)[:, None] - 2.0 * z @ t.T + np.sum(t**2, axis=1)[None, :]
         g = -0.5 * np.maximum(d2, 0.0)
-        return g[:, 1] - g[:, 0] if self.classes_.size == 2 else g
+        out = g[:, 1] - g[:, 0] if self.classes_.size == 2 else g
+        return np.asarray(out, dtype=np.float64)
 
     def predict(self, X: npt.ArrayLike) -> npt.NDArray[Any]:
         """Class of the nearest template."""

@@ -74,7 +74,9 @@ class VectorizedMap(ClassifierMixin, BaseEstimator):  # type: ignore[misc]
     [0.5, 0.5]
     """
 
-    def __init__(self, normal_class: str | int = "none", radius: float = 3.0, min_features: int = 2):
+    def __init__(
+        self, normal_class: str | int = "none", radius: float = 3.0, min_features: int = 2
+    ):
         self.normal_class = normal_class
         self.radius = radius
         self.min_features = min_features

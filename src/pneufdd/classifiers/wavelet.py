@@ -92,8 +92,7 @@ class WaveletTransformer(TransformerMixin, BaseEstimator):  # type: ignore[misc]
         coeffs = pywt.wavedec(row, w, mode=MODE, level=self.level)
         details = [np.asarray(c) for c in coeffs[:0:-1]]  # cD1 .. cD_level
         approx = [
-            np.asarray(pywt.downcoef("a", row, w, mode=MODE, level=i))
-            for i in range(1, self.level)
+            np.asarray(pywt.downcoef("a", row, w, mode=MODE, level=i)) for i in range(1, self.level)
         ] + [np.asarray(coeffs[0])]
         return approx + details
 

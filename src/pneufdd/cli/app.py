@@ -10,7 +10,7 @@ from rich.console import Console
 
 from pneufdd import __version__
 from pneufdd.cli import campaign, demo, diagnose, features, machine, reference, simulate, steps
-from pneufdd.cli import evaluate
+from pneufdd.cli import evaluate as evaluate_commands
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.errors import InputError, PneufddError
 
@@ -26,7 +26,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-evaluate.register(app)
+evaluate_commands.register(app)
 
 
 @app.callback(invoke_without_command=True)

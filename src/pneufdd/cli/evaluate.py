@@ -1,4 +1,5 @@
-"""``pneufdd evaluate CAMPAIGN_DIR``: every method against the engine on a campaign's plants."""
+"""``pneufdd evaluate CAMPAIGN_DIR`` (every method against the engine on a campaign's plants)
+and ``pneufdd vector-map`` (Fig. 5.18, eq. 5.23 and the learned Table 4.5)."""
 
 from __future__ import annotations
 
@@ -40,7 +41,9 @@ def evaluate(
     folder = out or campaign_dir / "evaluation"
     table = folder / "evaluation.csv"
     if table.exists() and not overwrite:
-        raise InputError(describe(f"output {str(table)!r}", "exists", "a new folder or --overwrite"))
+        raise InputError(
+            describe(f"output {str(table)!r}", "exists", "a new folder or --overwrite")
+        )
     with progress_bars() as progress:
         paths = write_labelled(campaign_dir, workers, progress)
     result = compare(campaign_dir, labelled_frames(paths), log=console.print)
@@ -55,6 +58,51 @@ def evaluate(
     console.print(f"table: {table}; {len(figures)} confusion figures in {folder}")
 
 
+def vector_map(
+    out: Annotated[Path, typer.Option(help="New folder for the figures and the numbers.")],
+    machine: Annotated[str, typer.Option(help="Built-in machine name or TOML path.")] = "festo-dsd",
+    actuator: Annotated[str, typer.Option(help="Actuator whose two lines leak.")] = "DNC",
+    plant_scale: Annotated[
+        float, typer.Option(min=0.0, max=5.0, help="Plant variation scale (0: the twin).")
+    ] = 1.0,
+    sizes: Annotated[str, typer.Option(help="Leak sizes, comma separated (turns).")] = "2,4,6",
+    cycles: Annotated[int, typer.Option(min=2, help="Cycles per run.")] = 8,
+    seed: Annotated[int, typer.Option(min=0, help="First seed (plant, then runs).")] = 96_200_000,
+) -> None:
+    """Fig. 5.18 and eq. 5.23 on a plant: combined extend + retract leaks as vector sums.
+
+    Also learns the sign table of the Table 4.4 features and sets it beside Table 4.5.
+    """
+    from rich.console import Console
+
+    from pneufdd.errors import InputError, describe
+    from pneufdd.evaluation.vector_sum import check_lines, vector_sum_check
+    from pneufdd.features import TABLE_4_5
+    from pneufdd.report.classifier_figures import sign_table_figure, vector_map_figure
+
+    if (out / "vector_sum.txt").exists():
+        raise InputError(describe(f"output folder {str(out)!r}", "holds a result", "a new folder"))
+    chosen = tuple(s.strip() for s in sizes.split(",") if s.strip())
+    result = vector_sum_check(machine, actuator, plant_scale, chosen, cycles, seed)
+    out.mkdir(parents=True, exist_ok=True)
+    singles = [c for c in result.vmap.classes_ if c != "none"]
+    vectors = {str(c): result.vmap.vector(c).tolist() for c in singles}
+    title = f"{machine}, {actuator}, plant scale {plant_scale:g}, seed {seed}"
+    vector_map_figure(result.normalised, vectors, result.axes, title).savefig(
+        out / "vector_map.png", dpi=110
+    )
+    sign_table_figure(result.learned_table, TABLE_4_5, title).savefig(
+        out / "sign_table.png", dpi=110
+    )
+    lines = check_lines(result, TABLE_4_5)
+    (out / "vector_sum.txt").write_text("\n".join(lines) + "\n", "utf-8")
+    console = Console()
+    for line in lines:
+        console.print(line, highlight=False, markup=False)
+    console.print(f"figures: {out / 'vector_map.png'}, {out / 'sign_table.png'}")
+
+
 def register(app: typer.Typer) -> None:
-    """Attach the ``evaluate`` command to ``app``."""
+    """Attach the ``evaluate`` and ``vector-map`` commands to ``app``."""
     app.command("evaluate")(evaluate)
+    app.command("vector-map")(vector_map)

@@ -71,9 +71,7 @@ class TwinReplay:
     pressure: FloatArray
 
     @classmethod
-    def of(
-        cls, machine: str | MachineDescription, cycles: int = 4, seed: int = 0
-    ) -> TwinReplay:
+    def of(cls, machine: str | MachineDescription, cycles: int = 4, seed: int = 0) -> TwinReplay:
         """Run the twin (the description as written) leak-free for ``cycles`` cycles.
 
         The PLC sequence of the description issues the same valve commands as the
@@ -164,7 +162,9 @@ class ResidualDetector(BaseEstimator):  # type: ignore[misc]
     def _split(self, n_features: int) -> int:
         k = (n_features + 1) // 2 if self.flow_columns is None else int(self.flow_columns)
         if not 1 <= k <= n_features:
-            raise ValueError(f"flow_columns: received {self.flow_columns!r}; allowed: 1..{n_features}")
+            raise ValueError(
+                f"flow_columns: received {self.flow_columns!r}; allowed: 1..{n_features}"
+            )
         return k
 
     def fit(self, X: npt.ArrayLike, y: object = None) -> ResidualDetector:
@@ -175,7 +175,9 @@ class ResidualDetector(BaseEstimator):  # type: ignore[misc]
             )
         data = validate_data(self, X, dtype=np.float64)
         if data.shape[0] < 2:
-            raise ValueError(f"ResidualDetector needs at least 2 samples; got n_samples = {data.shape[0]}")
+            raise ValueError(
+                f"ResidualDetector needs at least 2 samples; got n_samples = {data.shape[0]}"
+            )
         k = self._split(data.shape[1])
         self.bias_ = data.mean(axis=0)
         spread = data.std(axis=0, ddof=1)
@@ -222,7 +224,7 @@ class ResidualDetector(BaseEstimator):  # type: ignore[misc]
         flagged = np.max(z[:, : self.n_flow_columns_], axis=1) > self.threshold_
         if self.require_consistency:
             flagged &= self._pressure_fell(z)
-        return flagged.astype(np.int64)
+        return np.asarray(flagged, dtype=np.int64)
 
     def verdict(self, X: npt.ArrayLike) -> list[Verdict]:
         """Eq. 4.21 for each cycle: a flow rise with a pressure drop is a leak."""

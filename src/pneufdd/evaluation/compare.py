@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
-from sklearn.base import BaseEstimator, clone
+from sklearn.base import BaseEstimator
 from sklearn.decomposition import PCA
 from sklearn.impute import SimpleImputer
 from sklearn.pipeline import Pipeline, make_pipeline
@@ -249,15 +249,16 @@ def _fit_predict(
     answers: dict[int, str] = {}
     groups: dict[int, int] = {}
     start = time.perf_counter()
-    for seed, rows in test.groupby("seed", sort=True):
+    for key, rows in test.groupby("seed", sort=True):
+        seed = int(str(key))
         x = rows[air].to_numpy()
         if name in AIR_ONLY:
             vmap: VectorizedMap = pipe[-1]
             label, reach, _ = vmap.locate(pipe[:-1].transform(x))
-            answers[int(seed)] = _vote(label)
-            groups[int(seed)] = int(np.round(np.mean(reach)))
+            answers[seed] = _vote(label)
+            groups[seed] = int(np.round(np.mean(reach)))
         else:
-            answers[int(seed)] = _vote(pipe.predict(x))
+            answers[seed] = _vote(pipe.predict(x))
     seconds = (time.perf_counter() - start) / max(len(answers), 1)
     return answers, (groups if name in AIR_ONLY else {}), seconds
 
@@ -272,9 +273,9 @@ def _residual_answers(
     flagged_free: list[int] = []
     flagged_leak: list[int] = []
     start = time.perf_counter()
-    for seed, rows in test.groupby("seed", sort=True):
+    for key, rows in test.groupby("seed", sort=True):
         flags = det.predict(rows[cols].to_numpy())
-        answers[int(seed)] = "leak" if flags.mean() > 0.5 else "none"
+        answers[int(str(key))] = "leak" if flags.mean() > 0.5 else "none"
         (flagged_free if rows["kind"].iloc[0] == "free" else flagged_leak).extend(flags.tolist())
     seconds = (time.perf_counter() - start) / max(len(answers), 1)
     cycles = {
@@ -397,9 +398,13 @@ def compare(
             if part.empty:
                 continue
             runs = _run_table(part)
-            level_flow = (
-                part[part["kind"] == "single"].groupby("level", sort=True)["truth_kg_s"].mean()
-            ).to_dict()
+            level_flow = {
+                str(k): float(v)
+                for k, v in part[part["kind"] == "single"]
+                .groupby("level", sort=True)["truth_kg_s"]
+                .mean()
+                .items()
+            }
             n_loc = part.loc[part["kind"] == "single", "location"].nunique()
             n_size = part.loc[part["kind"] == "single", "size"].nunique()
             for sensors, channels in sets.items():
@@ -448,7 +453,9 @@ def compare(
                                 continue
                             splits = [(others, labelled)]
                         for train, test in splits:
-                            train_runs.append(int(train.loc[train["kind"] == "single", "seed"].nunique()))
+                            train_runs.append(
+                                int(train.loc[train["kind"] == "single", "seed"].nunique())
+                            )
                             for name in chosen:
                                 a, g, s = _fit_predict(name, train, test, cols)
                                 answers_by[name].update(a)
@@ -465,7 +472,9 @@ def compare(
                         f"{int(np.mean(train_runs))} labelled leak runs ({n_loc} locations x "
                         f"{n_size} sizes) + leak-free"
                     )
-                    tested = runs[runs["seed"].isin(list(answers_by[chosen[0]]))] if chosen else runs
+                    tested = (
+                        runs[runs["seed"].isin(list(answers_by[chosen[0]]))] if chosen else runs
+                    )
                     for name in chosen:
                         key = {**base, "split": split, "method": name}
                         figs = _judge(tested, answers_by[name], level_flow, groups_by[name])
@@ -510,7 +519,9 @@ def confusion_figures(comparison: Comparison, out: Path) -> list[Path]:
         clfs = part[part["method"].isin(list(METHODS))]
         if clfs.empty:
             continue
-        best = str(clfs.sort_values("location_acc", ascending=False, kind="stable")["method"].iloc[0])
+        best = str(
+            clfs.sort_values("location_acc", ascending=False, kind="stable")["method"].iloc[0]
+        )
         fig, axes = plt.subplots(1, 2, figsize=(13, 6))
         for ax, method in zip(axes, (ENGINE, best), strict=True):
             labels, m = comparison.confusions[(machine, scale, sensors, "within-plant", method)]

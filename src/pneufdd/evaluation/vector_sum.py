@@ -24,8 +24,8 @@ import pandas as pd
 from pneufdd.classifiers import SignTableClassifier, VectorizedMap
 from pneufdd.features import feature_matrix
 from pneufdd.features.table44 import TABLE_44_NAMES
-from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
 from pneufdd.signals.segmentation import sequence_from_machine
+from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
 
 __all__ = ["VectorSumCheck", "vector_sum_check"]
 
@@ -144,5 +144,3 @@ def check_lines(result: VectorSumCheck, published: dict[str, str]) -> list[str]:
         same = sum(x == y for x, y in zip(mine, text, strict=False))
         out.append(f"  {row:8s} {mine} | {text} | {same}/{len(text)}")
     return out
-
-
