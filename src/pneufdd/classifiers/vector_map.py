@@ -65,7 +65,7 @@ class VectorizedMap(ClassifierMixin, BaseEstimator):  # type: ignore[misc]
 
     Examples
     --------
-    >>> X = [[10.0, 20.0], [10.2, 19.8], [15.0, 20.0], [15.2, 20.2], [10.0, 30.0], [10.1, 29.9]]
+    >>> X = [[10.0, 20.0], [10.0, 20.0], [15.0, 20.0], [15.0, 20.0], [10.0, 30.0], [10.0, 30.0]]
     >>> y = ["none", "none", "A@2", "A@2", "B@2", "B@2"]
     >>> vmap = VectorizedMap().fit(X, y)
     >>> np.round(vmap.vector("A@2"), 2).tolist(), np.round(vmap.vector("B@2"), 2).tolist()

@@ -83,8 +83,8 @@ def voronoi_boxes(points: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     Examples
     --------
     >>> lo, hi = voronoi_boxes([[0.0, 0.0], [2.0, 0.0], [0.0, 2.0], [2.0, 2.0], [1.0, 1.0]])
-    >>> np.round(lo[4], 6).tolist(), np.round(hi[4], 6).tolist()
-    ([0.0, 0.0], [2.0, 2.0])
+    >>> np.round(lo[4], 6) + 0.0, np.round(hi[4], 6) + 0.0
+    (array([0., 0.]), array([2., 2.]))
     """
     c = np.asarray(points, dtype=np.float64)
     n, dim = c.shape
