@@ -74,7 +74,7 @@ class NearestNeighbourClassifier(ClassifierMixin, BaseEstimator):  # type: ignor
         else:
             self.whitener_ = np.eye(data.shape[1])
         k = min(int(self.n_neighbors), data.shape[0])
-        self.search_ = NearestNeighbors(n_neighbors=k).fit(data @ self.whitener_)
+        self.search_ = NearestNeighbors(n_neighbors=k, algorithm="brute").fit(data @ self.whitener_)
         return self
 
     def predict_proba(self, X: npt.ArrayLike) -> FloatArray:
