@@ -19,6 +19,7 @@ from pneufdd.cli import (
     campaign,
     demo,
     diagnose,
+    evaluate,
     features,
     import_data,
     machine,
@@ -41,7 +42,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data,):
+for module in (import_data, evaluate):
     module.register(app)
 
 _STATE = {"debug": False}

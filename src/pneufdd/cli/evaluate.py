@@ -1,0 +1,108 @@
+"""``pneufdd evaluate CAMPAIGN_DIR`` (every method against the engine on a campaign's plants)
+and ``pneufdd vector-map`` (Fig. 5.18, eq. 5.23 and the learned Table 4.5)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def evaluate(
+    campaign_dir: Annotated[
+        Path, typer.Argument(help="A campaign folder written by `pneufdd campaign`.")
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option(help="Folder for the table and figures (default CAMPAIGN_DIR/evaluation)."),
+    ] = None,
+    workers: Annotated[
+        int, typer.Option(min=1, help="Plants labelled in parallel (simulation).")
+    ] = 1,
+    overwrite: Annotated[
+        bool, typer.Option(help="Replace an existing table in the output folder.")
+    ] = False,
+) -> None:
+    """Cross-validate the dissertation's classifiers, the residual detector and the engine.
+
+    Re-simulates the campaign's runs from its manifest (CAMPAIGN_DIR/labelled/*.parquet,
+    kept for later calls), then writes evaluation.md, evaluation.csv (reproducible from
+    the manifest), evaluation_times.csv (measured) and confusion-matrix figures.
+    """
+    from rich.console import Console
+
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.errors import InputError, describe
+    from pneufdd.evaluation.compare import compare, confusion_figures
+    from pneufdd.evaluation.labelled import labelled_frames, write_labelled
+
+    console = Console()
+    folder = out or campaign_dir / "evaluation"
+    table = folder / "evaluation.csv"
+    if table.exists() and not overwrite:
+        raise InputError(
+            describe(f"output {str(table)!r}", "exists", "a new folder or --overwrite")
+        )
+    with progress_bars() as progress:
+        paths = write_labelled(campaign_dir, workers, progress)
+    result = compare(campaign_dir, labelled_frames(paths), log=console.print)
+    folder.mkdir(parents=True, exist_ok=True)
+    result.table.to_csv(table, index=False)
+    result.times.to_csv(folder / "evaluation_times.csv", index=False)
+    (folder / "evaluation.md").write_text(
+        "# Leak diagnosis methods compared on simulated plants\n" + result.markdown(), "utf-8"
+    )
+    figures = confusion_figures(result, folder)
+    console.print(result.markdown(), highlight=False, markup=False)
+    console.print(f"table: {table}; {len(figures)} confusion figures in {folder}")
+
+
+def vector_map(
+    out: Annotated[Path, typer.Option(help="New folder for the figures and the numbers.")],
+    machine: Annotated[str, typer.Option(help="Built-in machine name or TOML path.")] = "festo-dsd",
+    actuator: Annotated[str, typer.Option(help="Actuator whose two lines leak.")] = "DNC",
+    plant_scale: Annotated[
+        float, typer.Option(min=0.0, max=5.0, help="Plant variation scale (0: the twin).")
+    ] = 1.0,
+    sizes: Annotated[str, typer.Option(help="Leak sizes, comma separated (turns).")] = "2,4,6",
+    cycles: Annotated[int, typer.Option(min=2, help="Cycles per run.")] = 8,
+    seed: Annotated[int, typer.Option(min=0, help="First seed (plant, then runs).")] = 96_200_000,
+) -> None:
+    """Fig. 5.18 and eq. 5.23 on a plant: combined extend + retract leaks as vector sums.
+
+    Also learns the sign table of the Table 4.4 features and sets it beside Table 4.5.
+    """
+    from rich.console import Console
+
+    from pneufdd.errors import InputError, describe
+    from pneufdd.evaluation.vector_sum import check_lines, vector_sum_check
+    from pneufdd.features import TABLE_4_5
+    from pneufdd.report.classifier_figures import sign_table_figure, vector_map_figure
+
+    if (out / "vector_sum.txt").exists():
+        raise InputError(describe(f"output folder {str(out)!r}", "holds a result", "a new folder"))
+    chosen = tuple(s.strip() for s in sizes.split(",") if s.strip())
+    result = vector_sum_check(machine, actuator, plant_scale, chosen, cycles, seed)
+    out.mkdir(parents=True, exist_ok=True)
+    singles = [c for c in result.vmap.classes_ if c != "none"]
+    vectors = {str(c): result.vmap.vector(c).tolist() for c in singles}
+    title = f"{machine}, {actuator}, plant scale {plant_scale:g}, seed {seed}"
+    vector_map_figure(result.normalised, vectors, result.axes, title).savefig(
+        out / "vector_map.png", dpi=110
+    )
+    sign_table_figure(result.learned_table, TABLE_4_5, title).savefig(
+        out / "sign_table.png", dpi=110
+    )
+    lines = check_lines(result, TABLE_4_5)
+    (out / "vector_sum.txt").write_text("\n".join(lines) + "\n", "utf-8")
+    console = Console()
+    for line in lines:
+        console.print(line, highlight=False, markup=False)
+    console.print(f"figures: {out / 'vector_map.png'}, {out / 'sign_table.png'}")
+
+
+def register(app: typer.Typer) -> None:
+    """Attach the ``evaluate`` and ``vector-map`` commands to ``app``."""
+    app.command("evaluate")(evaluate)
+    app.command("vector-map")(vector_map)
