@@ -10,6 +10,8 @@ from rich.console import Console
 
 from pneufdd import __version__
 from pneufdd.cli import campaign, demo, diagnose, features, machine, reference, simulate, steps
+from pneufdd.cli import history as history_cli
+from pneufdd.cli import monitor as monitor_cli
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.errors import InputError, PneufddError
 
@@ -24,6 +26,8 @@ app = typer.Typer(
 )
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
+    module.register(app)
+for module in (monitor_cli, history_cli):
     module.register(app)
 
 
