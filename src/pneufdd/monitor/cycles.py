@@ -209,8 +209,6 @@ class CycleStreamer:
             found,
             self.model.machine,
             self.model.channels,
-            self.model.trace_offsets,
-            self.model.trace_rate_hz,
         )
         out = [
             CompletedCycle(base + c.start_s, c.end_s - c.start_s, _row(table, i, c.start_s))

@@ -75,6 +75,17 @@ class GridBlock:
 class _Pending:
     index: list[npt.NDArray[np.int64]] = field(default_factory=list)
     values: list[FloatArray] = field(default_factory=list)
+    dense_start: int = -1  # grid index of dense_values[0]; -1: no dense run
+    dense_values: list[FloatArray] = field(default_factory=list)
+    dense_size: int = 0
+
+    def spill(self) -> None:
+        """Move the dense run into the general (index, value) lists."""
+        if self.dense_size:
+            values = np.concatenate(self.dense_values)
+            self.index.append(self.dense_start + np.arange(values.size, dtype=np.int64))
+            self.values.append(values)
+        self.dense_start, self.dense_values, self.dense_size = -1, [], 0
 
 
 class SampleAssembler:
@@ -118,6 +129,9 @@ class SampleAssembler:
         rate = self.rates_hz.get(batch.channel)
         if rate is None or np.size(batch.values) == 0:
             return
+        if batch.times is None and batch.rate_hz == rate and self.origin is not None:
+            if self._add_dense(batch, rate):
+                return
         times = batch.sample_times()
         values = np.asarray(batch.values, dtype=np.float64).ravel()
         if times.shape != values.shape:
@@ -137,8 +151,34 @@ class SampleAssembler:
             self.late_samples += int(np.sum(late))
             index, values = index[~late], values[~late]
         pending = self._pending[batch.channel]
+        pending.spill()
         pending.index.append(index)
         pending.values.append(values)
+
+    def _add_dense(self, batch: SampleBatch, rate: float) -> bool:
+        """Append a uniform batch that continues the channel's samples exactly (fast path)."""
+        origin = self.origin or 0.0
+        exact = (batch.t0 - origin) * rate
+        start = round(exact)
+        if abs(exact - start) > 1e-3:
+            return False
+        pending = self._pending[batch.channel]
+        expected = (
+            pending.dense_start + pending.dense_size
+            if pending.dense_size
+            else (self._next[batch.channel] if not pending.index else -1)
+        )
+        if start != expected:
+            return False
+        values = np.asarray(batch.values, dtype=np.float64).ravel()
+        if not np.all(np.isfinite(values)):
+            return False
+        if not pending.dense_size:
+            pending.dense_start = start
+        pending.dense_values.append(values)
+        pending.dense_size += values.size
+        self.newest = max(self.newest, batch.t0 + (values.size - 1) / rate)
+        return True
 
     def time_of(self, channel: str, index: int) -> float:
         """Time of grid sample ``index`` of ``channel`` [s since 1970-01-01 UTC]."""
@@ -153,7 +193,9 @@ class SampleAssembler:
             return None
         if len(self._last) < len(self.rates_hz):
             for name, pending in self._pending.items():
-                if name not in self._last and pending.index:
+                if name not in self._last and pending.dense_size:
+                    self._last[name] = float(pending.dense_values[0][0])
+                elif name not in self._last and pending.index:
                     idx = np.concatenate(pending.index)
                     vals = np.concatenate(pending.values)
                     self._last[name] = float(vals[int(np.argmin(idx))])
@@ -170,6 +212,22 @@ class SampleAssembler:
                 start[name], values[name] = first, np.zeros(0)
                 continue
             pending = self._pending[name]
+            if pending.dense_size and not pending.index and pending.dense_start == first:
+                run = (
+                    np.concatenate(pending.dense_values)
+                    if len(pending.dense_values) > 1
+                    else pending.dense_values[0]
+                )
+                if run.size >= count:
+                    start[name], values[name] = first, run[:count]
+                    rest = run[count:]
+                    pending.dense_start = first + count if rest.size else -1
+                    pending.dense_values = [rest] if rest.size else []
+                    pending.dense_size = rest.size
+                    self._last[name] = float(run[count - 1])
+                    self._next[name] = last + 1
+                    continue
+            pending.spill()
             out = np.full(count, np.nan)
             keep_index: list[npt.NDArray[np.int64]] = []
             keep_values: list[FloatArray] = []
