@@ -263,7 +263,9 @@ def kill(out: Path, kills: int = 20, cycles: int = 40) -> None:
     rng = random.Random(SEED + 3001)
     moments = []
     for _ in range(kills):
-        proc = subprocess.Popen(command(killed), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            command(killed), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
         moment = rng.uniform(0.5, full)
         moments.append(round(moment, 2))
         time.sleep(moment)

@@ -31,7 +31,7 @@ def files(tmp_path_factory):
 class _Hook(BaseHTTPRequestHandler):
     received: list[dict] = []
 
-    def do_POST(self) -> None:  # noqa: N802 - http.server's name
+    def do_POST(self) -> None:
         body = self.rfile.read(int(self.headers["Content-Length"]))
         _Hook.received.append(json.loads(body))
         self.send_response(204)
@@ -123,9 +123,7 @@ def test_history_command_prints_json_and_draws_a_figure(files, capsys, tmp_path)
     assert figure.stat().st_size > 10_000
     # never overwrite a figure; --since filters; unknown machine is bad input
     assert main(["history", "--history", f"sqlite:///{db}", "--figure", str(figure)]) == 2
-    code = main(
-        ["history", "--history", f"sqlite:///{db}", "--no-figure", "--since", "2027-01-01"]
-    )
+    code = main(["history", "--history", f"sqlite:///{db}", "--no-figure", "--since", "2027-01-01"])
     assert code == 0
     assert "0 cycles" in capsys.readouterr().out
     assert main(["history", "--history", f"sqlite:///{db}", "--machine", "nope"]) == 2
