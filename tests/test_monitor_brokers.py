@@ -67,8 +67,11 @@ def _check_history(db: HistoryDatabase, rec: Recording, sinks: AlarmSinks) -> No
     leak_alarms = [a for a in sinks.sent if a.kind == "leak"]
     assert len(leak_alarms) == 1
     alarm = leak_alarms[0]
-    assert alarm.machine == "festo-dsd" and "supply" in alarm.locations
-    assert alarm.flow_slpm > 30.0 and alarm.annual_cost > 0 and 0 < alarm.confidence <= 1
+    assert alarm.machine == "festo-dsd"
+    assert "supply" in alarm.locations
+    assert alarm.flow_slpm > 30.0
+    assert alarm.annual_cost > 0
+    assert 0 < alarm.confidence <= 1
     first_leaky = next(i for i, t in enumerate(starts) if t >= 40.0)
     assert t0 + starts[first_leaky] <= alarm.time <= t0 + starts[first_leaky + 2] + 0.1
     assert db.alarm_rows(machine)[0]["locations"] == list(alarm.locations)
@@ -265,7 +268,8 @@ def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path, tag_reference):
     try:
         deadline = time.monotonic() + 30
         while not ready.is_set():
-            assert time.monotonic() < deadline and not serving.done()
+            assert time.monotonic() < deadline
+            assert not serving.done()
             time.sleep(0.05)
         monitor = MachineMonitor(model, db, alarm=sinks)
         source = OpcUaSource(

@@ -10,6 +10,7 @@ import json
 import os
 import sqlite3
 import threading
+import typing
 from http.server import BaseHTTPRequestHandler, HTTPServer
 
 import pytest
@@ -29,7 +30,7 @@ def files(tmp_path_factory):
 
 
 class _Hook(BaseHTTPRequestHandler):
-    received: list[dict] = []
+    received: typing.ClassVar[list[dict]] = []
 
     def do_POST(self) -> None:
         body = self.rfile.read(int(self.headers["Content-Length"]))
@@ -76,7 +77,8 @@ def test_monitor_records_cycles_once_raises_a_located_alarm_and_posts_it(files, 
     (posted,) = _Hook.received
     logged = [json.loads(x) for x in (files["folder"] / "alarms.jsonl").read_text().splitlines()]
     assert logged == [posted]
-    assert posted["machine"] == "festo-dsd" and posted["locations"] == ["supply"]
+    assert posted["machine"] == "festo-dsd"
+    assert posted["locations"] == ["supply"]
     for key in ("time", "flow_slpm", "annual_cost", "confidence"):
         assert posted[key] is not None
     # 4 turns on the supply is about 130 SLPM at the festo-dsd's pressure (Table 3.3)
@@ -86,7 +88,8 @@ def test_monitor_records_cycles_once_raises_a_located_alarm_and_posts_it(files, 
     first = next(i for i, t in enumerate(starts) if t >= 40.0)
     t0 = leak_run().start_time.timestamp()
     declared = [i for i, t in enumerate(starts) if abs(t0 + t - posted["timestamp"]) < 0.05]
-    assert declared and 1 <= declared[0] - first + 1 <= 3
+    assert declared
+    assert 1 <= declared[0] - first + 1 <= 3
     history = HistoryDatabase(f"sqlite:///{db}")
     machine = history.machine_id("festo-dsd")
     assert history.cycle_count(machine) == len(starts)
@@ -117,8 +120,10 @@ def test_history_command_prints_json_and_draws_a_figure(files, capsys, tmp_path)
     assert entry["cycles"]["count"] == len(starts)
     assert entry["cycles"]["first"].startswith("2026-03-01T06:00:00")
     (leak,) = entry["leaks"]
-    assert leak["location"] == "supply" and leak["state"] in ("new", "stable", "growing")
-    assert leak["sizes"] and leak["cost_to_date"] > 0
+    assert leak["location"] == "supply"
+    assert leak["state"] in ("new", "stable", "growing")
+    assert leak["sizes"]
+    assert leak["cost_to_date"] > 0
     assert [a["kind"] for a in entry["alarms"]] == ["leak"]
     assert figure.stat().st_size > 10_000
     # never overwrite a figure; --since filters; unknown machine is bad input

@@ -129,9 +129,9 @@ class SampleAssembler:
         rate = self.rates_hz.get(batch.channel)
         if rate is None or np.size(batch.values) == 0:
             return
-        if batch.times is None and batch.rate_hz == rate and self.origin is not None:
-            if self._add_dense(batch, rate):
-                return
+        dense = batch.times is None and batch.rate_hz == rate and self.origin is not None
+        if dense and self._add_dense(batch, rate):
+            return
         times = batch.sample_times()
         values = np.asarray(batch.values, dtype=np.float64).ravel()
         if times.shape != values.shape:
