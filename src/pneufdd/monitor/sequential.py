@@ -131,7 +131,7 @@ class CusumDetector:
     --------
     >>> det = CusumDetector(chi2_scale=0.01, chi2_dof=100.0, threshold=1.4, arl0=10_000)
     >>> round(det.rho, 2), round(det.decision_threshold, 2)
-    (1.4, 8.97)
+    (1.4, 7.79)
     >>> state = CusumState()
     >>> [det.update(state, t, start=float(i)).event for i, t in enumerate([1.0, 9.0, 1.0, 1.0])]
     [None, None, None, None]
