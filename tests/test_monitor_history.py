@@ -1,17 +1,22 @@
 """The fault history through ``pneufdd monitor --once`` and ``pneufdd history`` (real SQLite).
 
-PostgreSQL is exercised when a server is reachable (``PNEUFDD_TEST_POSTGRES`` URL, or
-a local server started by ``.ci/run``); otherwise that test is skipped.
+PostgreSQL is exercised against a real server: ``PNEUFDD_TEST_POSTGRES`` (a URL), else a
+throwaway server started from the installed binaries; skipped when neither exists.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
+import socket
 import sqlite3
+import subprocess
+import tempfile
 import threading
 import typing
 from http.server import BaseHTTPRequestHandler, HTTPServer
+from pathlib import Path
 
 import pytest
 
@@ -159,28 +164,79 @@ def test_bad_sources_and_urls_are_input_errors(files, tmp_path):
     assert main([*base, "--source", f"replay:{files['run']}", "--history", "oracle://x"]) == 2
 
 
-def _postgres_url() -> str | None:
+def _postgres_binaries() -> Path | None:
+    found = sorted(Path("/usr/lib/postgresql").glob("*/bin/initdb"))
+    return found[-1].parent if found else None
+
+
+@pytest.fixture(scope="module")
+def postgres_url(tmp_path_factory):
+    """A real PostgreSQL: ``PNEUFDD_TEST_POSTGRES``, else a throwaway server started here
+    from the installed binaries (as user ``postgres`` when the tests run as root)."""
     url = os.environ.get("PNEUFDD_TEST_POSTGRES")
     if url:
-        return url
+        yield url
+        return
+    bins = _postgres_binaries()
+    if bins is None:
+        pytest.skip("PostgreSQL is not installed (set PNEUFDD_TEST_POSTGRES to use a server)")
+    folder = Path(tempfile.mkdtemp(prefix="pneufdd-pg-"))
+    data = folder / "data"
+    as_user: list[str] = []
+    if os.geteuid() == 0:
+        as_user = ["runuser", "-u", "postgres", "--"]
+        shutil.chown(folder, "postgres")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+
+    def run(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [*as_user, *args], capture_output=True, text=True, timeout=120, check=False
+        )
+
+    init = run(str(bins / "initdb"), "-D", str(data), "-A", "trust", "-U", "postgres")
+    if init.returncode != 0:
+        shutil.rmtree(folder, ignore_errors=True)
+        pytest.skip(f"initdb failed: {init.stderr.strip()[:200]}")
+    options = f"-p {port} -k {folder} -c listen_addresses=''"
+    log = folder / "server.log"
+    start = subprocess.run(  # the server keeps no pipe of ours open: it logs to a file
+        [
+            *as_user,
+            str(bins / "pg_ctl"),
+            "-D",
+            str(data),
+            "-l",
+            str(log),
+            "-o",
+            options,
+            "-w",
+            "start",
+        ],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        timeout=120,
+        check=False,
+    )
+    if start.returncode != 0:
+        text = log.read_text() if log.exists() else ""
+        shutil.rmtree(folder, ignore_errors=True)
+        pytest.skip(f"PostgreSQL did not start: {text.strip()[-200:]}")
     try:
-        import psycopg
-
-        with psycopg.connect("postgresql:///postgres", connect_timeout=2):
-            return "postgresql:///postgres"
-    except Exception:
-        return None
+        yield f"postgresql://postgres@/postgres?host={folder}&port={port}"
+    finally:
+        run(str(bins / "pg_ctl"), "-D", str(data), "-m", "fast", "-w", "stop")
+        shutil.rmtree(folder, ignore_errors=True)
 
 
-def test_postgresql_history_when_a_server_runs(tmp_path):
-    url = _postgres_url()
-    if url is None:
-        pytest.skip("no PostgreSQL server reachable (set PNEUFDD_TEST_POSTGRES)")
+def test_postgresql_history_when_a_server_runs(postgres_url):
     import sqlalchemy as sa
 
     from pneufdd.monitor import database
 
-    history = HistoryDatabase(url)
+    history = HistoryDatabase(postgres_url)
     try:
         name = f"pg-test-{SEED}-{os.getpid()}"
         machine = history.machine_id(name)

@@ -257,8 +257,13 @@ class HistoryDatabase:
             "supply_air_kg": _num(supply_air_kg),
             "supply_pressure_pa": _num(supply_pressure_pa),
         }
-        stmt = _insert(conn, cycles).values(**values).on_conflict_do_nothing()
-        return bool(conn.execute(stmt).rowcount == 1)
+        stmt = (
+            _insert(conn, cycles)
+            .values(**values)
+            .on_conflict_do_nothing()
+            .returning(cycles.c.start_ms)
+        )
+        return conn.execute(stmt).first() is not None
 
     def save_state(
         self, conn: Connection, machine_id: int, last_start: float, state: dict[str, Any]
