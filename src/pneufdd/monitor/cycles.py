@@ -156,8 +156,12 @@ class CycleStreamer:
             self._buffer[name].append(values)
             self._size[name] += values.size
         end = self._end_s()
-        # a new cycle can complete only about a cycle after the last one ended
-        due = max(self._tried_at + 0.25 * self.cycle_s, self._buffer_t0 + 0.9 * self.cycle_s)
+        # the next cycle completes when the one after it starts: about a cycle after the
+        # last one ended (the buffer starts MARGIN_S before that end); retry every 0.1 cycle
+        due = max(
+            self._tried_at + 0.1 * self.cycle_s,
+            self._buffer_t0 + MARGIN_S + 1.02 * self.cycle_s,
+        )
         if not final and end < due:
             return []
         self._tried_at = end

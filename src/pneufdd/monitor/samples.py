@@ -8,7 +8,8 @@ origin) * rate)``) and releases the grid up to a **watermark**, the newest time 
 minus an allowed lateness. A grid sample no batch wrote holds the channel's previous
 value (a PLC tag reports only its changes). Samples that arrive out of order but
 before the watermark passes them are sorted in; samples older than what was already
-released are counted as late and dropped (never crashed on). Memory is what arrived
+released are counted as late and dropped (never crashed on). NaN values inside a uniform
+block are kept (sensor gaps; the step summaries fill them as for files). Memory is what arrived
 since the last release.
 """
 
@@ -170,9 +171,9 @@ class SampleAssembler:
         )
         if start != expected:
             return False
-        values = np.asarray(batch.values, dtype=np.float64).ravel()
-        if not np.all(np.isfinite(values)):
-            return False
+        values = batch.values
+        if values.dtype != np.float64 or values.ndim != 1:
+            values = np.asarray(values, dtype=np.float64).ravel()
         if not pending.dense_size:
             pending.dense_start = start
         pending.dense_values.append(values)
