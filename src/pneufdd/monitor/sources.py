@@ -257,6 +257,9 @@ class MqttSource:
             ever.set()
             c.subscribe(self.topic, qos=1)
 
+        def on_subscribe(_c: Any, _u: Any, _mid: Any, _codes: Any, _p: Any = None) -> None:
+            self.log(f"subscribed to MQTT topic {self.topic}")
+
         def on_disconnect(_c: Any, _u: Any, _f: Any, reason: Any, _p: Any = None) -> None:
             self.log(f"MQTT connection lost ({reason}); reconnecting")
 
@@ -269,6 +272,7 @@ class MqttSource:
 
         client.on_connect = on_connect
         client.on_disconnect = on_disconnect
+        client.on_subscribe = on_subscribe
         client.on_message = on_message
         client.connect_async(self.host, self.port, keepalive=10)
         client.loop_start()
