@@ -21,8 +21,10 @@ from pneufdd.cli import (
     diagnose,
     evaluate,
     features,
+    history,
     import_data,
     machine,
+    monitor,
     reference,
     simulate,
     steps,
@@ -42,7 +44,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data, evaluate):
+for module in (import_data, evaluate, monitor, history):
     module.register(app)
 
 _STATE = {"debug": False}

@@ -39,9 +39,18 @@ def simulate_command(
     leak: Annotated[
         list[str] | None,
         typer.Option(
-            help="LOCATION=SIZE; repeatable. SIZE: turns of the GR-3/8B valve (bare "
-            "number, 0-6), '2.5mm' orifice, or '30slpm' at the nominal supply pressure."
+            help="LOCATION=SIZE[@TIME]; repeatable. SIZE: turns of the GR-3/8B valve (bare "
+            "number, 0-6), '2.5mm' orifice, or '30slpm' at the nominal supply pressure. "
+            "@TIME ('120s', '2min'): the leak appears in the first cycle starting then."
         ),
+    ] = None,
+    leak_growth: Annotated[
+        list[str] | None,
+        typer.Option(help="LOCATION=RATE: a scheduled leak grows, e.g. DNC_B=0.5/min."),
+    ] = None,
+    leak_repair: Annotated[
+        list[str] | None,
+        typer.Option(help="LOCATION@TIME: a scheduled leak is repaired, e.g. DNC_B@10min."),
     ] = None,
     seed: Annotated[int, typer.Option(min=0, help="Random seed (same seed, same bytes).")] = 0,
     out: Annotated[Path, typer.Option(help="Output Parquet file.")] = Path("run.parquet"),
@@ -65,6 +74,7 @@ def simulate_command(
 
     from pneufdd.sim import load_machine, simulate
     from pneufdd.sim.leaks import resolve_leaks
+    from pneufdd.sim.schedule import schedule_from_options
 
     check_outputs({"--out": out}, {"--machine": machine}, overwrite)
     if cycles > MAX_CYCLES:
@@ -73,12 +83,18 @@ def simulate_command(
         raise InputError(describe("--max-cycle-s", max_cycle_s, "> 0 and <= 3600 [s]"))
     desc = load_machine(machine)
     leaks: dict[str, str] = {}
+    timed = [item for item in leak or [] if "@" in item]
     for item in leak or []:
+        if "@" in item:
+            continue
         location, size = parse_leak_option(item)
         if location in leaks:
             raise InputError(describe("--leak location given twice", location, "once"))
         leaks[location] = size
-    resolve_leaks(desc, leaks)  # unknown locations and bad sizes fail before the run
+    specs = resolve_leaks(desc, leaks)  # unknown locations and bad sizes fail before the run
+    schedule = schedule_from_options(timed, leak_growth or [], leak_repair or [])
+    if schedule is not None:
+        schedule.check(desc, specs)
     err = Console(stderr=True)
     with Progress(
         TextColumn("simulating {task.description}"),
@@ -97,6 +113,7 @@ def simulate_command(
             seed=seed,
             max_cycle_s=max_cycle_s,
             progress=lambda done, total: bar.update(task, completed=done),
+            schedule=schedule,
         )
     path = recording.write(out, overwrite=overwrite)
     err.print(

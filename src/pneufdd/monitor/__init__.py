@@ -1,4 +1,12 @@
-"""Monitor: the leak history of a machine over many diagnosed runs."""
+"""Monitor: watch a running machine and keep its leak history.
+
+Live monitoring (``pneufdd monitor``, ``docs/monitor.md``): sources (replay, MQTT,
+OPC UA) -> :class:`~pneufdd.monitor.samples.SampleAssembler` ->
+:class:`~pneufdd.monitor.cycles.CycleStreamer` ->
+:class:`~pneufdd.monitor.live.MachineMonitor` (per-cycle score, CUSUM, location and
+sizing, leak lives) -> :class:`~pneufdd.monitor.database.HistoryDatabase` (SQLAlchemy).
+:mod:`pneufdd.monitor.history` writes one JSON line per diagnosed file.
+"""
 
 from __future__ import annotations
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import load_machine
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulationResult, Stroke
+from pneufdd.sim.schedule import LeakSchedule
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor
 
 __all__ = [
@@ -119,6 +121,7 @@ def run_simulation(
     keep_outputs: bool = True,
     max_cycle_s: float = 120.0,
     resolution: Resolution = DEFAULT_RESOLUTION,
+    schedule: LeakSchedule | None = None,
 ) -> SimulationResult:
     """Simulate ``cycles`` machine cycles and return true states plus the recording.
 
@@ -142,6 +145,10 @@ def run_simulation(
         A cycle longer than this is a stalled machine [s].
     resolution : Resolution
         Sub-step settings of the integrator (defaults are those benchmarked).
+    schedule : LeakSchedule, optional
+        Leaks that appear, grow and are repaired during the run
+        (:mod:`pneufdd.sim.schedule`): set between cycles from each cycle's start
+        time, recorded in the metadata (``leak_schedule``, ``leak_timeline``).
 
     Returns
     -------
@@ -151,6 +158,9 @@ def run_simulation(
     desc = load_machine(machine)
     specs = resolve_leaks(desc, leaks)
     plant = compile_plant(desc, specs, resolution)
+    if schedule is not None:
+        schedule.check(desc, specs)
+    timeline: list[dict[str, Any]] = []
     rng = np.random.default_rng(seed)
     state = initial_state(desc, plant)
     plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
@@ -175,6 +185,8 @@ def run_simulation(
         ou = _ou_grid(rng, ou_now, plant.sp[lay.SP_DRIFT_STD], tau, n_ou)
         t_start = float(state["ss"][lay.SS_TIME])
         k_start = int(state["istate"][lay.IS_SAMPLE])
+        if schedule is not None:
+            timeline += _apply_schedule(plant, desc, specs, schedule, t_start, cyc)
         n, status, n_ev, nsub = run_cycle(
             params, program, CycleDraws(jitter, fric, ou), records_state, outputs
         )
@@ -199,7 +211,43 @@ def run_simulation(
         chunks.append(_take(desc, buf, n, k_start, keep_outputs))
         if progress is not None:
             progress(cyc + 1, cycles)
-    return _assemble(desc, plant, specs, chunks, step_start, strokes, rng, seed, cycles, total_sub)
+    result = _assemble(
+        desc, plant, specs, chunks, step_start, strokes, rng, seed, cycles, total_sub
+    )
+    if schedule is None:
+        return result
+    meta = dict(result.recording.metadata)
+    meta["leak_schedule"] = schedule.as_metadata()
+    meta["leak_timeline"] = timeline
+    return replace(result, recording=result.recording.with_metadata(meta))
+
+
+def _apply_schedule(
+    plant: Plant,
+    desc: MachineDescription,
+    static: list[LeakSpec],
+    schedule: LeakSchedule,
+    time_s: float,
+    cycle: int,
+) -> list[dict[str, Any]]:
+    """Set the plant's leak areas for the cycle starting at ``time_s``; its ground truth."""
+    present = schedule.resolve(desc, time_s)
+    areas = {spec.location: spec.area_m2 for spec in [*static, *present]}
+    plant.sp[lay.SP_SUPPLY_LEAK] = areas.get("supply", 0.0)
+    for i, a in enumerate(desc.actuators):
+        for side in (0, 1):
+            plant.cp[2 * i + side, lay.CP_LEAK] = areas.get(f"{a.id}_{'AB'[side]}", 0.0)
+    return [
+        {
+            "cycle": cycle,
+            "cycle_start_s": time_s,
+            "location": spec.location,
+            "size": spec.size,
+            "unit": spec.unit,
+            "slpm": spec.nominal_slpm,
+        }
+        for spec in present
+    ]
 
 
 def _records(
@@ -377,6 +425,7 @@ def simulate(
     seed: int | None = 0,
     progress: Callable[[int, int], None] | None = None,
     max_cycle_s: float = 120.0,
+    schedule: LeakSchedule | None = None,
 ) -> Recording:
     """Simulate the machine and return what its sensors and PLC I/O record.
 
@@ -395,6 +444,8 @@ def simulate(
         ``progress(cycles_done, cycles)`` after each cycle.
     max_cycle_s : float
         A cycle longer than this is a stalled machine [s].
+    schedule : LeakSchedule, optional
+        Leaks that appear, grow and are repaired during the run.
 
     Returns
     -------
@@ -410,7 +461,14 @@ def simulate(
     ('supply', 1)
     """
     return run_simulation(
-        machine, cycles, leaks, seed, progress, keep_outputs=False, max_cycle_s=max_cycle_s
+        machine,
+        cycles,
+        leaks,
+        seed,
+        progress,
+        keep_outputs=False,
+        max_cycle_s=max_cycle_s,
+        schedule=schedule,
     ).recording
 
 

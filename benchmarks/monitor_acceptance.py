@@ -1,0 +1,314 @@
+"""Acceptance measurements of ``pneufdd monitor`` (issue 11); not part of ``make bench``.
+
+    python benchmarks/monitor_acceptance.py OUT_DIR [delay|false-alarms|life|kill|all]
+
+Seeds: 96_200_000 + k (never used while developing). The reference is built from two
+leak-free festo-dsd runs of 12 cycles (seeds 96_200_000, 96_200_001) with the default
+signatures; every figure printed names what it counts.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import random
+import signal
+import statistics
+import subprocess
+import sys
+import time
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+
+SEED = 96_200_000
+
+
+def reference(out: Path) -> Path:
+    from pneufdd.diagnosis.pipeline import build_reference_from_recordings
+    from pneufdd.diagnosis.pnref import save_reference
+    from pneufdd.sim import simulate
+
+    path = out / "ref.pnref"
+    if not path.exists():
+        refs = [simulate("festo-dsd", cycles=12, seed=SEED + i) for i in range(2)]
+        save_reference(build_reference_from_recordings(refs, workers=1), path)
+    return path
+
+
+def _shifted(rec, start: datetime):  # type: ignore[no-untyped-def]
+    from pneufdd.recording.model import Recording
+
+    return Recording([rec.info(c) for c in rec.channels], start_time=start, metadata=rec.metadata)
+
+
+def _monitor(model, url: str):  # type: ignore[no-untyped-def]
+    from pneufdd.monitor.alarms import AlarmSinks
+    from pneufdd.monitor.database import HistoryDatabase
+    from pneufdd.monitor.live import MachineMonitor
+
+    db = HistoryDatabase(url)
+    sinks = AlarmSinks()
+    return MachineMonitor(model, db, alarm=sinks), sinks, db
+
+
+def delay(out: Path) -> None:
+    """Detection delay of leaks appearing mid-run; location against pneufdd diagnose."""
+    from pneufdd.diagnosis.engine import diagnose
+    from pneufdd.diagnosis.pipeline import run_table
+    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.monitor.live import run_stream
+    from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.sim import simulate
+    from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
+
+    model = load_reference(reference(out))
+    cases = [("supply", s) for s in (1.0, 3.0, 6.0)]
+    for loc in ("DNC_A", "DNC_B", "HMPL_V_A", "HMPL_V_B", "SLT_B"):
+        cases += [(loc, s) for s in (1.0, 3.0, 6.0)]
+    delays = []
+    rows = []
+    for k, (loc, size) in enumerate(cases):
+        seed = SEED + 100 + k
+        appear = 60.0
+        sched = LeakSchedule([ScheduledLeak(loc, size, start_s=appear)])
+        rec = simulate("festo-dsd", cycles=10, seed=seed, schedule=sched)
+        starts = rec.metadata["cycle_start_s"]
+        first_leaky = next(i for i, t in enumerate(starts) if t >= appear - 1e-9)
+        url = f"sqlite:///{out / f'delay-{k}.db'}"
+        for suffix in ("", "-wal", "-shm"):
+            Path(str(out / f"delay-{k}.db") + suffix).unlink(missing_ok=True)
+        mon, sinks, db = _monitor(model, url)
+        src = ReplaySource(rec, math.inf, 1.0)
+        declared_at = None
+        position = 0
+
+        def seen(outcome, mon=mon):  # type: ignore[no-untyped-def]
+            nonlocal declared_at, position
+            if declared_at is None and any(a.kind == "leak" for a in outcome.alarms):
+                declared_at = position
+            position += 1
+
+        run_stream(mon, src, src.rates_hz, 0.0, on_cycle=seen)
+        db.close()
+        leak_alarm = next((a for a in sinks.sent if a.kind == "leak"), None)
+        # pneufdd diagnose on the leaky cycles of the same run
+        table = run_table(model, rec)
+        keep = table.step_start[:, 0] >= appear - 1e-9
+        from pneufdd.diagnosis.steps import StepTable
+
+        leaky = StepTable(
+            table.machine,
+            table.step_start[keep],
+            table.step_end[keep],
+            table.channels,
+            table.units,
+            table.summaries[keep],
+        )
+        offline = diagnose(model, leaky)
+        offline_loc = str(offline.leaks[0].location) if offline.leaks else None
+        cycles = None if declared_at is None else declared_at - first_leaky + 1
+        if cycles is not None:
+            delays.append(cycles)
+        row = {
+            "seed": seed,
+            "location": loc,
+            "turns": size,
+            "declared_after_cycles": cycles,
+            "false_alarm_before_leak": cycles is not None and cycles <= 0,
+            "monitor_locations": None if leak_alarm is None else list(leak_alarm.locations),
+            "diagnose_location": offline_loc,
+            "same_as_diagnose": leak_alarm is not None
+            and offline_loc is not None
+            and offline_loc in leak_alarm.locations,
+            "true_location_in_alarm": leak_alarm is not None and loc in leak_alarm.locations,
+        }
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    missed = sum(1 for r in rows if r["declared_after_cycles"] is None)
+    print(
+        json.dumps(
+            {
+                "leak_runs": len(rows),
+                "declared": len(delays),
+                "missed": missed,
+                "median_delay_cycles": statistics.median(delays) if delays else None,
+                "max_delay_cycles": max(delays) if delays else None,
+                "located_as_diagnose": sum(r["same_as_diagnose"] for r in rows),
+                "true_location_in_alarm": sum(r["true_location_in_alarm"] for r in rows),
+            }
+        ),
+        flush=True,
+    )
+
+
+def false_alarms(out: Path, cycles: int = 2000, per_run: int = 200) -> None:
+    """Alarms over ``cycles`` leak-free cycles streamed as one machine's history."""
+    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.monitor.live import run_stream
+    from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.sim import simulate
+
+    model = load_reference(reference(out))
+    path = out / "false-alarms.db"
+    for suffix in ("", "-wal", "-shm"):
+        Path(str(path) + suffix).unlink(missing_ok=True)
+    mon, sinks, db = _monitor(model, f"sqlite:///{path}")
+    start = datetime(2026, 1, 1, tzinfo=UTC)
+    scores: list[float] = []
+    peak = 0.0
+    for k in range(math.ceil(cycles / per_run)):
+        rec = simulate("festo-dsd", cycles=per_run, seed=SEED + 1000 + k)
+        rec = _shifted(rec, start)
+        start += timedelta(seconds=rec.duration + 60.0)
+        src = ReplaySource(rec, math.inf, 1.0)
+
+        def seen(outcome):  # type: ignore[no-untyped-def]
+            nonlocal peak
+            if outcome.recorded:
+                scores.append(outcome.score)
+                peak = max(peak, outcome.cusum)
+
+        run_stream(mon, src, src.rates_hz, 0.0, on_cycle=seen)
+        print(
+            json.dumps(
+                {"runs": k + 1, "cycles": len(scores), "alarms": len(sinks.sent), "peak": peak}
+            ),
+            flush=True,
+        )
+    det = model.detector
+    s = np.array(scores)
+    print(
+        json.dumps(
+            {
+                "leak_free_cycles": len(scores),
+                "alarms": len(sinks.sent),
+                "cusum_threshold": mon.cusum.decision_threshold,
+                "cusum_peak": peak,
+                "per_cycle_threshold": det.threshold_,
+                "cycles_over_per_cycle_threshold": int(np.sum(s > det.threshold_)),
+                "score_mean": float(np.mean(s)),
+                "reference_cv_score_mean": float(np.mean(det.reference_scores_)),
+            }
+        ),
+        flush=True,
+    )
+    db.close()
+
+
+def life(out: Path) -> None:
+    """A leak appears, grows and is repaired: what the history shows."""
+    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.monitor.live import run_stream
+    from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.sim import simulate
+    from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
+
+    model = load_reference(reference(out))
+    sched = LeakSchedule(
+        [ScheduledLeak("DNC_B", 1.5, start_s=60.0, growth_per_s=1.5 / 60.0, repair_s=260.0)]
+    )
+    rec = simulate("festo-dsd", cycles=26, seed=SEED + 2000, schedule=sched)
+    path = out / "life.db"
+    for suffix in ("", "-wal", "-shm"):
+        Path(str(path) + suffix).unlink(missing_ok=True)
+    mon, sinks, db = _monitor(model, f"sqlite:///{path}")
+    src = ReplaySource(rec, math.inf, 1.0)
+    run_stream(mon, src, src.rates_hz, 0.0)
+    for row in db.leak_rows(mon.machine_id):
+        sizes = [round(f or 0.0, 1) for _, f, _ in db.leak_sizes(row.id)]
+        print(json.dumps({"location": row.location, "state": row.state, "sizes_slpm": sizes}))
+    print(json.dumps({"alarms": [a.message() for a in sinks.sent]}))
+    truth = [(t["cycle"], round(t["slpm"], 1)) for t in rec.metadata["leak_timeline"]]
+    print(json.dumps({"true_timeline_cycle_slpm": truth}))
+    db.close()
+
+
+def kill(out: Path, kills: int = 20, cycles: int = 40) -> None:
+    """SIGKILL the monitor at random moments during a replay; restart; check the history."""
+    from pneufdd.monitor.database import HistoryDatabase
+    from pneufdd.sim import simulate
+
+    ref = reference(out)
+    run = out / "kill-run.parquet"
+    if not run.exists():
+        simulate("festo-dsd", cycles=cycles, seed=SEED + 3000).write(run)
+    exe = str(Path(sys.executable).with_name("pneufdd"))
+
+    def command(db: Path) -> list[str]:
+        return [
+            exe,
+            "monitor",
+            "--reference",
+            str(ref),
+            "--source",
+            f"replay:{run}?speed=max",
+            "--history",
+            f"sqlite:///{db}",
+            "--once",
+            "--alarm-log",
+            str(out / "kill-alarms.jsonl"),
+        ]
+
+    clean = out / "kill-clean.db"
+    killed = out / "kill.db"
+    for p in (clean, killed):
+        for suffix in ("", "-wal", "-shm"):
+            Path(str(p) + suffix).unlink(missing_ok=True)
+    began = time.perf_counter()
+    subprocess.run(command(clean), check=False, capture_output=True)
+    full = time.perf_counter() - began
+    rng = random.Random(SEED + 3001)
+    moments = []
+    for _ in range(kills):
+        proc = subprocess.Popen(
+            command(killed), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        moment = rng.uniform(0.5, full)
+        moments.append(round(moment, 2))
+        time.sleep(moment)
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    done = subprocess.run(command(killed), check=False, capture_output=True)
+    a, b = HistoryDatabase(f"sqlite:///{clean}"), HistoryDatabase(f"sqlite:///{killed}")
+    expected = a.cycle_starts(a.machine_id("festo-dsd"))
+    got = b.cycle_starts(b.machine_id("festo-dsd"))
+    print(
+        json.dumps(
+            {
+                "kills": kills,
+                "kill_moments_s": moments,
+                "full_run_s": round(full, 2),
+                "final_exit_code": done.returncode,
+                "expected_cycles": len(expected),
+                "recorded_cycles": len(got),
+                "distinct_recorded": len(set(got)),
+                "identical_cycle_keys": expected == got,
+                "integrity_check_ok": b.integrity_ok(),
+            }
+        ),
+        flush=True,
+    )
+
+
+def main() -> int:
+    out = Path(sys.argv[1])
+    out.mkdir(parents=True, exist_ok=True)
+    what = sys.argv[2] if len(sys.argv) > 2 else "all"
+    for name, func in (
+        ("delay", delay),
+        ("false-alarms", false_alarms),
+        ("life", life),
+        ("kill", kill),
+    ):
+        if what in (name, "all"):
+            print(f"== {name}", flush=True)
+            func(out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

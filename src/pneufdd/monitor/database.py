@@ -1,0 +1,554 @@
+"""The fault history: a real database through SQLAlchemy (SQLite by default, PostgreSQL by URL).
+
+Tables (schema version :data:`SCHEMA_VERSION`, migrations in :data:`MIGRATIONS`):
+
+``schema_info``
+    the schema version.
+``machines``
+    one row per machine name.
+``cycles``
+    one row per completed cycle, keyed by ``(machine_id, start_ms)`` (start in
+    milliseconds since 1970-01-01 UTC): start, duration, score, CUSUM, supply air.
+    Feeding the same data twice records its cycles once.
+``monitor_state``
+    the sequential detector's state after the machine's newest cycle; written in the
+    same transaction as that cycle, so a restart resumes exactly where the last
+    committed cycle left off.
+``alarms``
+    leaks declared and repairs, with location(s), size, cost and confidence.
+``diagnoses``
+    every location/sizing run (JSON of :meth:`~pneufdd.diagnosis.engine.Diagnosis.to_dict`).
+``leaks``
+    tracked leaks with a life: ``new``, ``growing``, ``stable``, ``repaired``.
+``leak_sizes``
+    every size estimate of a tracked leak over time.
+
+A cycle, the detector state, the cost accrued by the active leaks and any alarm or
+diagnosis the cycle triggered are one transaction: a crash (even SIGKILL) loses at most
+the cycle being processed and never duplicates one. SQLite runs in WAL mode with
+``synchronous=NORMAL``, which survives a killed process (a power cut may lose the last
+transactions, never the file's integrity).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.engine import Connection, Engine
+
+from pneufdd.errors import InputError, describe
+
+__all__ = [
+    "DEFAULT_HISTORY_URL",
+    "MIGRATIONS",
+    "SCHEMA_VERSION",
+    "HistoryDatabase",
+    "LeakRow",
+    "open_history",
+]
+
+DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
+SCHEMA_VERSION = 1
+
+metadata = sa.MetaData()
+
+schema_info = sa.Table("schema_info", metadata, sa.Column("version", sa.Integer, nullable=False))
+machines = sa.Table(
+    "machines",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("name", sa.String(200), nullable=False, unique=True),
+)
+cycles = sa.Table(
+    "cycles",
+    metadata,
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), primary_key=True),
+    sa.Column("start_ms", sa.BigInteger, primary_key=True, autoincrement=False),
+    sa.Column("start", sa.Float, nullable=False),
+    sa.Column("duration_s", sa.Float, nullable=False),
+    sa.Column("score", sa.Float),
+    sa.Column("cusum", sa.Float),
+    sa.Column("supply_air_kg", sa.Float),
+    sa.Column("supply_pressure_pa", sa.Float),
+)
+monitor_state = sa.Table(
+    "monitor_state",
+    metadata,
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), primary_key=True),
+    sa.Column("last_start_ms", sa.BigInteger, nullable=False),
+    sa.Column("state", sa.Text, nullable=False),
+)
+alarms = sa.Table(
+    "alarms",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
+    sa.Column("time", sa.Float, nullable=False),
+    sa.Column("kind", sa.String(20), nullable=False),
+    sa.Column("data", sa.Text, nullable=False),
+)
+diagnoses = sa.Table(
+    "diagnoses",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
+    sa.Column("time", sa.Float, nullable=False),
+    sa.Column("first_cycle", sa.Float, nullable=False),
+    sa.Column("n_cycles", sa.Integer, nullable=False),
+    sa.Column("data", sa.Text, nullable=False),
+)
+leaks = sa.Table(
+    "leaks",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
+    sa.Column("location", sa.String(100), nullable=False),
+    sa.Column("state", sa.String(20), nullable=False),
+    sa.Column("first_seen", sa.Float, nullable=False),
+    sa.Column("last_seen", sa.Float, nullable=False),
+    sa.Column("repaired_at", sa.Float),
+    sa.Column("flow_slpm", sa.Float),
+    sa.Column("annual_cost", sa.Float),
+    sa.Column("confidence", sa.Float),
+    sa.Column("cost_to_date", sa.Float, nullable=False, default=0.0),
+)
+leak_sizes = sa.Table(
+    "leak_sizes",
+    metadata,
+    sa.Column("leak_id", sa.Integer, sa.ForeignKey("leaks.id"), nullable=False),
+    sa.Column("time", sa.Float, nullable=False),
+    sa.Column("flow_slpm", sa.Float),
+    sa.Column("annual_cost", sa.Float),
+)
+sa.Index("ix_alarms_machine_time", alarms.c.machine_id, alarms.c.time)
+sa.Index("ix_leaks_machine", leaks.c.machine_id, leaks.c.state)
+sa.Index("ix_leak_sizes_leak", leak_sizes.c.leak_id, leak_sizes.c.time)
+
+
+def _create_v1(conn: Connection) -> None:
+    metadata.create_all(conn)
+
+
+MIGRATIONS: tuple[Callable[[Connection], None], ...] = (_create_v1,)
+"""``MIGRATIONS[k]`` takes a database from version ``k`` to ``k + 1``."""
+
+
+def _num(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+@dataclass(frozen=True)
+class LeakRow:
+    """A tracked leak as stored."""
+
+    id: int
+    location: str
+    state: str
+    first_seen: float
+    last_seen: float
+    repaired_at: float | None
+    flow_slpm: float | None
+    annual_cost: float | None
+    confidence: float | None
+    cost_to_date: float
+
+
+class HistoryDatabase:
+    """The history database at a SQLAlchemy URL (created and migrated on open).
+
+    Parameters
+    ----------
+    url : str
+        ``sqlite:///path/history.db`` or ``postgresql://user@host/db`` (psycopg).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     db = HistoryDatabase(f"sqlite:///{pathlib.Path(d) / 'h.db'}")
+    ...     m = db.machine_id("festo-dsd")
+    ...     with db.begin() as conn:
+    ...         first = db.add_cycle(conn, m, 100.0, 14.8, 0.5, 0.0, 0.01, 6e5)
+    ...         again = db.add_cycle(conn, m, 100.0, 14.8, 0.5, 0.0, 0.01, 6e5)
+    ...     (first, again, db.cycle_count(m), db.schema_version())
+    ...     db.close()
+    (True, False, 1, 1)
+    """
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.engine: Engine = _engine(url)
+        self._machines: dict[str, int] = {}
+        self.migrate()
+
+    # ----------------------------------------------------------- schema
+    def schema_version(self) -> int:
+        """Version of the stored schema (0: empty database)."""
+        with self.engine.connect() as conn:
+            if not sa.inspect(conn).has_table("schema_info"):
+                return 0
+            value = conn.execute(sa.select(schema_info.c.version)).scalar()
+            return int(value or 0)
+
+    def migrate(self) -> None:
+        """Bring the schema to :data:`SCHEMA_VERSION` (each step one transaction)."""
+        version = self.schema_version()
+        if version > SCHEMA_VERSION:
+            raise InputError(
+                describe(
+                    f"schema version of history {self.url!r}",
+                    version,
+                    f"<= {SCHEMA_VERSION} (a newer pneufdd wrote it)",
+                )
+            )
+        while version < SCHEMA_VERSION:
+            with self.engine.begin() as conn:
+                MIGRATIONS[version](conn)
+                conn.execute(sa.delete(schema_info))
+                conn.execute(sa.insert(schema_info).values(version=version + 1))
+            version += 1
+
+    def begin(self) -> Any:
+        """A transaction (context manager yielding a connection)."""
+        return self.engine.begin()
+
+    def close(self) -> None:
+        """Release the connections."""
+        self.engine.dispose()
+
+    # ----------------------------------------------------------- writes
+    def machine_id(self, name: str) -> int:
+        """The id of machine ``name`` (created when new)."""
+        if name in self._machines:
+            return self._machines[name]
+        with self.engine.begin() as conn:
+            found = conn.execute(sa.select(machines.c.id).where(machines.c.name == name)).scalar()
+            if found is None:
+                found = conn.execute(
+                    sa.insert(machines).values(name=name).returning(machines.c.id)
+                ).scalar_one()
+        self._machines[name] = int(found)
+        return int(found)
+
+    def add_cycle(
+        self,
+        conn: Connection,
+        machine_id: int,
+        start: float,
+        duration_s: float,
+        score: float,
+        cusum: float,
+        supply_air_kg: float | None,
+        supply_pressure_pa: float | None,
+    ) -> bool:
+        """Record a cycle; False (and nothing written) when it is already recorded."""
+        values = {
+            "machine_id": machine_id,
+            "start_ms": round(start * 1000.0),
+            "start": start,
+            "duration_s": duration_s,
+            "score": _num(score),
+            "cusum": _num(cusum),
+            "supply_air_kg": _num(supply_air_kg),
+            "supply_pressure_pa": _num(supply_pressure_pa),
+        }
+        stmt = (
+            _insert(conn, cycles)
+            .values(**values)
+            .on_conflict_do_nothing()
+            .returning(cycles.c.start_ms)
+        )
+        return conn.execute(stmt).first() is not None
+
+    def save_state(
+        self, conn: Connection, machine_id: int, last_start: float, state: dict[str, Any]
+    ) -> None:
+        """Store the detector state after the cycle starting at ``last_start``."""
+        text = json.dumps(state, allow_nan=False)
+        ms = round(last_start * 1000.0)
+        stmt = _insert(conn, monitor_state).values(
+            machine_id=machine_id, last_start_ms=ms, state=text
+        )
+        conn.execute(
+            stmt.on_conflict_do_update(
+                index_elements=[monitor_state.c.machine_id],
+                set_={"last_start_ms": ms, "state": text},
+            )
+        )
+
+    def load_state(self, machine_id: int) -> tuple[float, dict[str, Any]] | None:
+        """The newest cycle's start [s] and the detector state after it; None when new."""
+        with self.engine.connect() as conn:
+            row = conn.execute(
+                sa.select(monitor_state.c.last_start_ms, monitor_state.c.state).where(
+                    monitor_state.c.machine_id == machine_id
+                )
+            ).first()
+        if row is None:
+            return None
+        return row[0] / 1000.0, dict(json.loads(row[1]))
+
+    def add_alarm(
+        self, conn: Connection, machine_id: int, time: float, kind: str, data: dict[str, Any]
+    ) -> None:
+        """Record an alarm (``kind``: ``leak`` or ``repaired``)."""
+        conn.execute(
+            sa.insert(alarms).values(
+                machine_id=machine_id, time=time, kind=kind, data=json.dumps(data, allow_nan=False)
+            )
+        )
+
+    def add_diagnosis(
+        self,
+        conn: Connection,
+        machine_id: int,
+        time: float,
+        first_cycle: float,
+        n_cycles: int,
+        data: dict[str, Any],
+    ) -> None:
+        """Record a location and sizing run."""
+        conn.execute(
+            sa.insert(diagnoses).values(
+                machine_id=machine_id,
+                time=time,
+                first_cycle=first_cycle,
+                n_cycles=n_cycles,
+                data=json.dumps(data, allow_nan=False),
+            )
+        )
+
+    def new_leak(
+        self,
+        conn: Connection,
+        machine_id: int,
+        location: str,
+        time: float,
+        flow_slpm: float,
+        annual_cost: float,
+        confidence: float,
+    ) -> int:
+        """Start tracking a leak; its id."""
+        leak_id = conn.execute(
+            sa.insert(leaks)
+            .values(
+                machine_id=machine_id,
+                location=location,
+                state="new",
+                first_seen=time,
+                last_seen=time,
+                flow_slpm=_num(flow_slpm),
+                annual_cost=_num(annual_cost),
+                confidence=_num(confidence),
+                cost_to_date=0.0,
+            )
+            .returning(leaks.c.id)
+        ).scalar_one()
+        self.add_size(conn, int(leak_id), time, flow_slpm, annual_cost)
+        return int(leak_id)
+
+    def add_size(
+        self, conn: Connection, leak_id: int, time: float, flow_slpm: float, annual_cost: float
+    ) -> None:
+        """Record a size estimate of a tracked leak."""
+        conn.execute(
+            sa.insert(leak_sizes).values(
+                leak_id=leak_id, time=time, flow_slpm=_num(flow_slpm), annual_cost=_num(annual_cost)
+            )
+        )
+
+    def update_leak(self, conn: Connection, leak_id: int, **values: Any) -> None:
+        """Change stored fields of a tracked leak."""
+        clean = {k: (_num(v) if isinstance(v, float) else v) for k, v in values.items()}
+        conn.execute(sa.update(leaks).where(leaks.c.id == leak_id).values(**clean))
+
+    def accrue_cost(
+        self, conn: Connection, leak_ids: Sequence[int], amounts: Sequence[float], time: float
+    ) -> None:
+        """Add ``amounts`` [$] to the cost to date of the leaks ``leak_ids``."""
+        for leak_id, amount in zip(leak_ids, amounts, strict=True):
+            if not math.isfinite(amount):
+                continue
+            conn.execute(
+                sa.update(leaks)
+                .where(leaks.c.id == leak_id)
+                .values(cost_to_date=leaks.c.cost_to_date + amount, last_seen=time)
+            )
+
+    def mark_repaired(self, machine: str, location: str, time: float) -> int:
+        """The operator marks the active leak(s) at ``location`` repaired; how many."""
+        machine_id = self.machine_id(machine)
+        with self.engine.begin() as conn:
+            result = conn.execute(
+                sa.update(leaks)
+                .where(
+                    leaks.c.machine_id == machine_id,
+                    leaks.c.location == location,
+                    leaks.c.state != "repaired",
+                )
+                .values(state="repaired", repaired_at=time)
+            )
+        return int(result.rowcount)
+
+    # ----------------------------------------------------------- reads
+    def machines(self) -> list[tuple[int, str]]:
+        """Every machine: (id, name)."""
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(machines.c.id, machines.c.name).order_by(machines.c.name))
+            return [(int(r[0]), str(r[1])) for r in rows]
+
+    def cycle_count(self, machine_id: int, since: float | None = None) -> int:
+        """Cycles recorded for a machine (since ``since``)."""
+        query = (
+            sa.select(sa.func.count()).select_from(cycles).where(cycles.c.machine_id == machine_id)
+        )
+        if since is not None:
+            query = query.where(cycles.c.start >= since)
+        with self.engine.connect() as conn:
+            return int(conn.execute(query).scalar_one())
+
+    def cycle_span(self, machine_id: int, since: float | None = None) -> tuple[float, float] | None:
+        """First and last cycle start [s since 1970-01-01 UTC]."""
+        query = sa.select(sa.func.min(cycles.c.start), sa.func.max(cycles.c.start)).where(
+            cycles.c.machine_id == machine_id
+        )
+        if since is not None:
+            query = query.where(cycles.c.start >= since)
+        with self.engine.connect() as conn:
+            row = conn.execute(query).first()
+        if row is None or row[0] is None:
+            return None
+        return float(row[0]), float(row[1])
+
+    def cycle_starts(self, machine_id: int) -> list[float]:
+        """Start of every recorded cycle, in order [s since 1970-01-01 UTC]."""
+        with self.engine.connect() as conn:
+            rows = conn.execute(
+                sa.select(cycles.c.start_ms)
+                .where(cycles.c.machine_id == machine_id)
+                .order_by(cycles.c.start_ms)
+            )
+            return [r[0] / 1000.0 for r in rows]
+
+    def cycle_rows(self, machine_id: int, since: float | None = None) -> list[dict[str, Any]]:
+        """Every recorded cycle as a dict."""
+        query = sa.select(cycles).where(cycles.c.machine_id == machine_id)
+        if since is not None:
+            query = query.where(cycles.c.start >= since)
+        with self.engine.connect() as conn:
+            return [dict(r._mapping) for r in conn.execute(query.order_by(cycles.c.start_ms))]
+
+    def alarm_rows(self, machine_id: int, since: float | None = None) -> list[dict[str, Any]]:
+        """Alarms of a machine, oldest first."""
+        query = sa.select(alarms).where(alarms.c.machine_id == machine_id)
+        if since is not None:
+            query = query.where(alarms.c.time >= since)
+        with self.engine.connect() as conn:
+            rows = conn.execute(query.order_by(alarms.c.time, alarms.c.id))
+            return [{"time": r.time, "kind": r.kind, **json.loads(r.data)} for r in rows]
+
+    def diagnosis_count(self, machine_id: int) -> int:
+        """Location and sizing runs recorded for a machine."""
+        with self.engine.connect() as conn:
+            return int(
+                conn.execute(
+                    sa.select(sa.func.count())
+                    .select_from(diagnoses)
+                    .where(diagnoses.c.machine_id == machine_id)
+                ).scalar_one()
+            )
+
+    def leak_rows(self, machine_id: int, active_only: bool = False) -> list[LeakRow]:
+        """Tracked leaks of a machine, oldest first."""
+        query = sa.select(leaks).where(leaks.c.machine_id == machine_id)
+        if active_only:
+            query = query.where(leaks.c.state != "repaired")
+        with self.engine.connect() as conn:
+            rows = conn.execute(query.order_by(leaks.c.first_seen, leaks.c.id))
+            return [
+                LeakRow(
+                    int(r.id),
+                    str(r.location),
+                    str(r.state),
+                    float(r.first_seen),
+                    float(r.last_seen),
+                    None if r.repaired_at is None else float(r.repaired_at),
+                    r.flow_slpm,
+                    r.annual_cost,
+                    r.confidence,
+                    float(r.cost_to_date),
+                )
+                for r in rows
+            ]
+
+    def leak_sizes(self, leak_id: int) -> list[tuple[float, float | None, float | None]]:
+        """Size estimates of a leak over time: (time, flow [SLPM], annual cost [$])."""
+        with self.engine.connect() as conn:
+            rows = conn.execute(
+                sa.select(leak_sizes.c.time, leak_sizes.c.flow_slpm, leak_sizes.c.annual_cost)
+                .where(leak_sizes.c.leak_id == leak_id)
+                .order_by(leak_sizes.c.time)
+            )
+            return [(float(r[0]), r[1], r[2]) for r in rows]
+
+    def integrity_ok(self) -> bool:
+        """SQLite: ``PRAGMA integrity_check`` says ok; other databases: True."""
+        if self.engine.dialect.name != "sqlite":
+            return True
+        with self.engine.connect() as conn:
+            return str(conn.exec_driver_sql("PRAGMA integrity_check").scalar()) == "ok"
+
+
+def _insert(conn: Connection, table: sa.Table) -> Any:
+    name = conn.dialect.name
+    if name == "sqlite":
+        from sqlalchemy.dialects.sqlite import insert as sqlite_insert
+
+        return sqlite_insert(table)
+    if name == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert as pg_insert
+
+        return pg_insert(table)
+    raise InputError(describe("history database", name, ["sqlite", "postgresql"]))
+
+
+def _engine(url: str) -> Engine:
+    try:
+        parsed = sa.engine.make_url(url)
+    except sa.exc.ArgumentError as exc:
+        raise InputError(
+            describe("--history", url, "a SQLAlchemy URL such as sqlite:///history.db")
+        ) from exc
+    backend = parsed.get_backend_name()
+    if backend not in ("sqlite", "postgresql"):
+        raise InputError(describe("--history database", backend, ["sqlite", "postgresql"]))
+    if backend == "postgresql" and parsed.drivername == "postgresql":
+        parsed = parsed.set(drivername="postgresql+psycopg")
+    if backend == "sqlite":
+        engine = sa.create_engine(parsed, connect_args={"timeout": 30})
+
+        @sa.event.listens_for(engine, "connect")
+        def _pragmas(dbapi_conn: Any, _record: Any) -> None:
+            cursor = dbapi_conn.cursor()
+            cursor.execute("PRAGMA journal_mode=WAL")
+            cursor.execute("PRAGMA synchronous=NORMAL")
+            cursor.execute("PRAGMA foreign_keys=ON")
+            cursor.close()
+
+        return engine
+    try:
+        return sa.create_engine(parsed, pool_pre_ping=True)
+    except ModuleNotFoundError as exc:
+        raise InputError(
+            describe("PostgreSQL driver", "missing", "pip install 'pneufdd[postgresql]'")
+        ) from exc
+
+
+def open_history(url: str | None = None) -> HistoryDatabase:
+    """Open (create, migrate) the history at ``url`` (default :data:`DEFAULT_HISTORY_URL`)."""
+    return HistoryDatabase(url or DEFAULT_HISTORY_URL)

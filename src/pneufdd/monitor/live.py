@@ -1,0 +1,404 @@
+"""Watch a running machine: stream -> cycles -> scores -> CUSUM -> diagnosis -> history.
+
+:class:`MachineMonitor` takes completed cycles (:class:`~pneufdd.monitor.cycles.CompletedCycle`)
+one at a time. Each is scored with the reference's per-cycle statistic (the one
+``pneufdd diagnose`` uses), fed to the CUSUM of :mod:`pneufdd.monitor.sequential`,
+and recorded with the detector state in one database transaction. When a leak is
+declared, the cycles since the change point are located, sized and costed by the
+same engine as ``pneufdd diagnose`` (:func:`pneufdd.diagnosis.engine.diagnose`); the
+estimate is repeated after 5, 10 and 20 cycles and every 20 cycles after, on the
+newest :data:`WINDOW` cycles. Leaks are tracked by location through their life
+(``new`` -> ``growing``/``stable`` -> ``repaired``).
+
+Only a bounded window of per-cycle summaries is kept in memory (:data:`WINDOW`
+cycles); everything else is in the database. After a restart the detector resumes
+from the state stored with the newest recorded cycle, and cycles already recorded
+are skipped, so a replay fed twice, or resumed after a crash, records each cycle
+once.
+"""
+
+from __future__ import annotations
+
+import math
+import time as wallclock
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.errors import InputError, describe
+from pneufdd.monitor.alarms import Alarm
+from pneufdd.monitor.cycles import CompletedCycle, CycleStreamer, concatenate_rows, needed_channels
+from pneufdd.monitor.database import HistoryDatabase
+from pneufdd.monitor.samples import SampleAssembler, SampleBatch
+from pneufdd.monitor.sequential import CusumDetector, CusumState
+
+__all__ = ["WINDOW", "CycleOutcome", "MachineMonitor", "MonitorStats", "run_stream"]
+
+WINDOW = 20
+"""Cycles of summaries kept in memory for locating and sizing [-]."""
+REESTIMATE_AT = (5, 10, 20)
+"""Cycles after the change point at which a declared leak is re-estimated; then every 20."""
+GROWTH_RATIO = 1.2
+"""A leak whose estimate rises by this factor over its previous one is growing [-]."""
+
+
+@dataclass(frozen=True)
+class CycleOutcome:
+    """What one cycle did: its score, the CUSUM, and any alarm."""
+
+    start: float
+    score: float
+    cusum: float
+    recorded: bool
+    alarms: tuple[Alarm, ...] = ()
+
+
+@dataclass
+class _Tracked:
+    id: int
+    location: str
+    state: str
+    flow_slpm: float
+    annual_cost: float
+
+
+@dataclass
+class MonitorStats:
+    """Counters of a monitoring session."""
+
+    cycles: int = 0
+    recorded: int = 0
+    skipped: int = 0
+    alarms: int = 0
+    diagnoses: int = 0
+    seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+
+class MachineMonitor:
+    """Sequential leak detection and fault history for one machine.
+
+    Parameters
+    ----------
+    model : ReferenceModel
+        The machine's leak-free reference.
+    history : HistoryDatabase
+        Where cycles, alarms, diagnoses and leaks are recorded.
+    machine : str, optional
+        Name in the history (default: the reference's machine).
+    arl0 : float
+        In-control average run length of the CUSUM [cycles].
+    cost : CostSettings, optional
+        Economic inputs of eq. 1.1.
+    alarm : callable, optional
+        Called with every :class:`Alarm` after it is committed.
+    """
+
+    def __init__(
+        self,
+        model: ReferenceModel,
+        history: HistoryDatabase,
+        machine: str | None = None,
+        arl0: float = 1.0e6,
+        cost: CostSettings | None = None,
+        alarm: Callable[[Alarm], None] | None = None,
+    ) -> None:
+        self.model = model
+        self.history = history
+        self.machine = machine or model.machine
+        self.detector = model.detector
+        self.cusum = CusumDetector.from_reference(self.detector, arl0=arl0)
+        self.cost = cost or CostSettings()
+        self.alarm = alarm
+        self.machine_id = history.machine_id(self.machine)
+        self.window: deque[CompletedCycle] = deque(maxlen=WINDOW)
+        self.stats = MonitorStats()
+        self.state = CusumState()
+        self.last_start = -math.inf
+        self.alarm_cycles = 0
+        self.episode_start: float | None = None
+        stored = history.load_state(self.machine_id)
+        if stored is not None:
+            self.last_start = stored[0]
+            self.state = CusumState.from_dict(stored[1]["cusum"])
+            self.alarm_cycles = int(stored[1].get("alarm_cycles", 0))
+            self.episode_start = stored[1].get("episode_start")
+        self.tracked: dict[str, _Tracked] = {
+            row.location: _Tracked(
+                row.id,
+                row.location,
+                row.state,
+                row.flow_slpm if row.flow_slpm is not None else math.nan,
+                row.annual_cost if row.annual_cost is not None else math.nan,
+            )
+            for row in history.leak_rows(self.machine_id, active_only=True)
+        }
+        q_in = "Q_In" in model.channels
+        p_in = "P_In" in model.channels
+        self._q = model.channels.index("Q_In") if q_in else None
+        self._p = model.channels.index("P_In") if p_in else None
+
+    # ------------------------------------------------------------ per cycle
+    def process(self, cycle: CompletedCycle) -> CycleOutcome:
+        """Score, decide, record (one transaction), then raise the alarms."""
+        self.stats.cycles += 1
+        if cycle.start <= self.last_start + 5e-4:
+            self.stats.skipped += 1
+            return CycleOutcome(cycle.start, math.nan, self.state.up, False)
+        table = cycle.table
+        score = float(self.detector.score_samples(table.features())[0])
+        decision = self.cusum.update(self.state, score, cycle.start)
+        self.window.append(cycle)
+        if self.state.in_alarm:
+            self.alarm_cycles += 1
+        pending: list[Alarm] = []
+        durations = table.step_end[0] - table.step_start[0]
+        supply_air = (
+            float(np.sum(table.summaries[0, :, self._q, 0] * durations))
+            if self._q is not None
+            else None
+        )
+        supply_p = (
+            float(np.mean(table.summaries[0, :, self._p, 0])) if self._p is not None else None
+        )
+        with self.history.begin() as conn:
+            recorded = self.history.add_cycle(
+                conn,
+                self.machine_id,
+                cycle.start,
+                cycle.duration_s,
+                score,
+                self.state.up,
+                supply_air,
+                supply_p,
+            )
+            if recorded:
+                if decision.event == "leak":
+                    self.alarm_cycles = 1
+                    pending += self._estimate(conn, cycle, declared=True)
+                elif decision.event == "repaired":
+                    pending.append(self._repaired(conn, cycle))
+                    self.alarm_cycles, self.episode_start = 0, None
+                elif self.state.in_alarm and _due(self.alarm_cycles):
+                    pending += self._estimate(conn, cycle, declared=False)
+                if self.tracked:
+                    rate = cycle.duration_s / (self.cost.hours * 3600.0)
+                    ids = [t.id for t in self.tracked.values()]
+                    amounts = [t.annual_cost * rate for t in self.tracked.values()]
+                    self.history.accrue_cost(conn, ids, amounts, cycle.start)
+                state = {
+                    "cusum": self.state.to_dict(),
+                    "alarm_cycles": self.alarm_cycles,
+                    "episode_start": self.episode_start,
+                }
+                self.history.save_state(conn, self.machine_id, cycle.start, state)
+        self.last_start = cycle.start
+        if recorded:
+            self.stats.recorded += 1
+        else:
+            self.stats.skipped += 1
+        for item in pending:
+            self.stats.alarms += 1
+            if self.alarm is not None:
+                self.alarm(item)
+        return CycleOutcome(cycle.start, score, self.state.up, recorded, tuple(pending))
+
+    def _since_change(self) -> list[CompletedCycle]:
+        """Cycles since the change point of the current episode, at most the newest 10."""
+        rows = list(self.window)
+        if self.episode_start is not None:
+            since = [c for c in rows if c.start >= self.episode_start - 5e-4]
+            rows = since if len(since) >= 2 else rows[-2:]
+        return rows[-(WINDOW // 2) :]
+
+    def _estimate(self, conn: Any, cycle: CompletedCycle, declared: bool) -> list[Alarm]:
+        if declared:
+            self.episode_start = self.state.change_start
+        rows = self._since_change()
+        table = concatenate_rows([c.table for c in rows])
+        result = diagnose(self.model, table, self.cost)
+        self.stats.diagnoses += 1
+        data = result.to_dict()
+        self.history.add_diagnosis(
+            conn, self.machine_id, cycle.start, rows[0].start, len(rows), data
+        )
+        new_locations = self._track(conn, result, cycle.start)
+        if not declared and not new_locations:
+            return []
+        return [self._alarm(conn, result, cycle, len(rows), "leak")]
+
+    def _track(self, conn: Any, result: Diagnosis, time: float) -> list[str]:
+        new = []
+        for leak in result.leaks:
+            location = str(leak.location)
+            known = self.tracked.get(location)
+            if known is None:
+                leak_id = self.history.new_leak(
+                    conn,
+                    self.machine_id,
+                    location,
+                    time,
+                    leak.flow_slpm,
+                    leak.annual_cost,
+                    leak.confidence,
+                )
+                self.tracked[location] = _Tracked(
+                    leak_id, location, "new", leak.flow_slpm, leak.annual_cost
+                )
+                new.append(location)
+                continue
+            ratio = leak.flow_slpm / known.flow_slpm if known.flow_slpm > 0 else math.inf
+            known.state = "growing" if ratio >= GROWTH_RATIO else "stable"
+            known.flow_slpm, known.annual_cost = leak.flow_slpm, leak.annual_cost
+            self.history.add_size(conn, known.id, time, leak.flow_slpm, leak.annual_cost)
+            self.history.update_leak(
+                conn,
+                known.id,
+                state=known.state,
+                flow_slpm=float(leak.flow_slpm),
+                annual_cost=float(leak.annual_cost),
+                confidence=float(leak.confidence),
+                last_seen=time,
+            )
+        return new
+
+    def _repaired(self, conn: Any, cycle: CompletedCycle) -> Alarm:
+        gone = list(self.tracked.values())
+        for leak in gone:
+            self.history.update_leak(conn, leak.id, state="repaired", repaired_at=cycle.start)
+        self.tracked.clear()
+        item = Alarm(
+            self.machine,
+            cycle.start,
+            "repaired",
+            tuple(t.location for t in gone),
+            0.0,
+            0.0,
+            math.nan,
+            None,
+            self.state.cycles,
+        )
+        self.history.add_alarm(conn, self.machine_id, cycle.start, "repaired", _alarm_data(item))
+        return item
+
+    def _alarm(
+        self, conn: Any, result: Diagnosis, cycle: CompletedCycle, n: int, kind: str
+    ) -> Alarm:
+        leaks = tuple(
+            {
+                "location": str(x.location),
+                "flow_slpm": _num(x.flow_slpm),
+                "annual_cost": _num(x.annual_cost),
+                "confidence": _num(x.confidence),
+            }
+            for x in result.leaks
+        )
+        item = Alarm(
+            self.machine,
+            cycle.start,
+            kind,
+            tuple(str(x.location) for x in result.leaks) or ("unknown",),
+            float(sum(x.flow_slpm for x in result.leaks)) if result.leaks else math.nan,
+            float(result.total_annual_cost) if result.leaks else math.nan,
+            float(min(x.confidence for x in result.leaks)) if result.leaks else math.nan,
+            self.state.change_start,
+            n,
+            leaks,
+        )
+        self.history.add_alarm(conn, self.machine_id, cycle.start, kind, _alarm_data(item))
+        return item
+
+
+def _num(x: float) -> float | None:
+    return None if not math.isfinite(x) else float(x)
+
+
+def _alarm_data(item: Alarm) -> dict[str, Any]:
+    data = item.to_dict()
+    data.pop("kind")
+    data.pop("machine")
+    return data
+
+
+def _due(cycles_in_alarm: int) -> bool:
+    return cycles_in_alarm in REESTIMATE_AT or (
+        cycles_in_alarm > REESTIMATE_AT[-1] and cycles_in_alarm % WINDOW == 0
+    )
+
+
+def run_stream(
+    monitor: MachineMonitor,
+    batches: Iterable[SampleBatch | None],
+    rates_hz: dict[str, float],
+    lateness_s: float = 1.0,
+    on_cycle: Callable[[CycleOutcome], None] | None = None,
+    max_cycles: int | None = None,
+    flush: bool = True,
+) -> MonitorStats:
+    """Feed a source's batches through segmentation and the monitor until it ends.
+
+    ``None`` items are heartbeats (no data; the stream is alive). ``rates_hz`` gives
+    the grid rate of each channel; channels the reference does not need are ignored.
+    ``flush``: at the end, close the last cycle as a file's last cycle is closed.
+    """
+    analog, digital = needed_channels(monitor.model)
+    missing = [c for c in (*analog, *digital) if c not in rates_hz]
+    if missing:
+        raise InputError(
+            describe(
+                "channels of the source",
+                sorted(rates_hz),
+                f"also {missing} (the reference needs them)",
+            )
+        )
+    rates = {c: rates_hz[c] for c in (*analog, *digital)}
+    assembler = SampleAssembler(rates, lateness_s)
+    streamer: CycleStreamer | None = None
+    began = wallclock.perf_counter()
+    done = 0
+
+    def handle(found: list[CompletedCycle]) -> bool:
+        nonlocal done
+        for cycle in found:
+            outcome = monitor.process(cycle)
+            done += 1
+            if on_cycle is not None:
+                on_cycle(outcome)
+            if max_cycles is not None and done >= max_cycles:
+                return True
+        return False
+
+    iterator: Iterator[SampleBatch | None] = iter(batches)
+    stop = False
+    for batch in iterator:
+        if batch is not None:
+            assembler.add(batch)
+            continue
+        block = assembler.release()
+        if block is None:
+            continue
+        if streamer is None:
+            streamer = CycleStreamer(monitor.model, rates, assembler.origin or 0.0)
+        if handle(streamer.add(block)):
+            stop = True
+            break
+    if not stop and flush:
+        block = assembler.release(final=True)
+        if block is not None:
+            if streamer is None:
+                streamer = CycleStreamer(monitor.model, rates, assembler.origin or 0.0)
+            handle(streamer.flush(block))
+    if assembler.late_samples:
+        monitor.stats.notes.append(f"{assembler.late_samples} late samples dropped")
+    if streamer is not None and streamer.dropped_s > 0:
+        monitor.stats.notes.append(
+            f"{streamer.dropped_s:.1f} s of data held no complete cycle and were dropped"
+        )
+    monitor.stats.seconds += wallclock.perf_counter() - began
+    return monitor.stats

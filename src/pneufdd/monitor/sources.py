@@ -1,0 +1,460 @@
+"""Where samples come from: a replayed recording, an MQTT broker, an OPC UA server.
+
+Every source is an iterable of :class:`~pneufdd.monitor.samples.SampleBatch` items and
+``None`` markers (a marker: the batches so far may be released; the stream is
+alive), with ``rates_hz`` (grid rate of each channel) and ``lateness_s``.
+
+``replay:run.parquet[?speed=10]``
+    A recording played at ``speed`` times real time (default 1; ``speed=max`` as
+    fast as it can be read) in blocks of ``chunk`` seconds (default 1). Times are the
+    recording's ``start_time`` plus the sample time.
+``mqtt://host:port/topic``
+    JSON payloads (documented in ``docs/monitor.md``)::
+
+        {"channels": {"P_In": {"t0": 1767225600.0, "rate_hz": 1000, "values": [...]},
+                      "U_DNC_A": {"times": [1767225600.01, ...], "values": [1, ...]}}}
+
+    times in seconds since 1970-01-01 UTC, values in SI units (digital 0/1).
+    ``{"end": true}`` ends the stream (for ``--once``). The client (paho-mqtt)
+    reconnects by itself and says so.
+``opcua://host:port/path``
+    An OPC UA client (asyncua) subscribing to the tags of the tag map; the time of a
+    sample is the server's source timestamp. After a lost connection it reconnects
+    every second and says so. An optional ``end`` tag in the tag map ends the stream
+    when it becomes true.
+
+The tag map (``--tags tags.toml``) names each channel's tag and grid rate::
+
+    lateness_s = 1.0          # optional
+    end = "ns=2;s=ReplayDone" # optional, OPC UA only
+    [channels.P_In]
+    node = "ns=2;s=P_In"      # OPC UA node id (MQTT: ignored)
+    rate_hz = 20              # grid rate [Hz]
+
+Without a tag map, OPC UA tags are ``ns=2;s=<channel>`` and grid rates are 1 kHz for
+analog and 100 Hz for PLC channels (the rates of the twin's recordings).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import math
+import queue
+import threading
+import time as wallclock
+import tomllib
+import urllib.parse
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC as _UTC
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pneufdd.errors import InputError, describe
+from pneufdd.monitor.samples import SampleBatch
+from pneufdd.recording.model import Recording
+
+__all__ = [
+    "DEFAULT_ANALOG_HZ",
+    "DEFAULT_DIGITAL_HZ",
+    "MqttSource",
+    "OpcUaSource",
+    "ReplaySource",
+    "TagMap",
+    "open_source",
+    "parse_payload",
+]
+
+DEFAULT_ANALOG_HZ = 1000.0
+DEFAULT_DIGITAL_HZ = 100.0
+Log = Callable[[str], None]
+
+
+def _quiet(_: str) -> None:
+    return None
+
+
+@dataclass(frozen=True)
+class TagMap:
+    """Channel -> tag (node id) and grid rate; optional end tag and lateness."""
+
+    nodes: dict[str, str]
+    rates_hz: dict[str, float]
+    end: str | None = None
+    lateness_s: float = 1.0
+
+    @classmethod
+    def default(cls, analog: Sequence[str], digital: Sequence[str]) -> TagMap:
+        """``ns=2;s=<channel>`` tags at the twin's rates."""
+        names = [*analog, *digital]
+        rates = {c: DEFAULT_ANALOG_HZ for c in analog} | {c: DEFAULT_DIGITAL_HZ for c in digital}
+        return cls({c: f"ns=2;s={c}" for c in names}, rates)
+
+    @classmethod
+    def read(cls, path: Path, analog: Sequence[str], digital: Sequence[str]) -> TagMap:
+        """Read a tag map; channels it leaves out get the defaults."""
+        try:
+            raw = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError) as exc:
+            raise InputError(describe("--tags", str(path), "a readable TOML tag map")) from exc
+        base = cls.default(analog, digital)
+        nodes, rates = dict(base.nodes), dict(base.rates_hz)
+        channels = raw.get("channels", {})
+        if not isinstance(channels, dict):
+            raise InputError(describe(f"[channels] of {path}", channels, "a table per channel"))
+        for name, entry in channels.items():
+            if not isinstance(entry, dict):
+                raise InputError(describe(f"channels.{name} of {path}", entry, "a table"))
+            if "node" in entry:
+                nodes[name] = str(entry["node"])
+            if "rate_hz" in entry:
+                rate = float(entry["rate_hz"])
+                if not (math.isfinite(rate) and rate > 0):
+                    raise InputError(describe(f"channels.{name}.rate_hz of {path}", rate, "> 0"))
+                rates[name] = rate
+        lateness = float(raw.get("lateness_s", 1.0))
+        end = raw.get("end")
+        return cls(nodes, rates, None if end is None else str(end), lateness)
+
+
+# --------------------------------------------------------------------- replay
+@dataclass
+class ReplaySource:
+    """Play a recording as if it arrived live.
+
+    Parameters
+    ----------
+    recording : Recording
+        The recording.
+    speed : float
+        Times real time; ``math.inf`` as fast as possible.
+    chunk_s : float
+        Seconds of data per block [s].
+    """
+
+    recording: Recording
+    speed: float = 1.0
+    chunk_s: float = 1.0
+    log: Log = _quiet
+    rates_hz: dict[str, float] = field(init=False)
+    lateness_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.speed > 0:
+            raise InputError(describe("replay speed", self.speed, "> 0 or 'max'"))
+        if not self.chunk_s > 0:
+            raise InputError(describe("replay chunk [s]", self.chunk_s, "> 0"))
+        self.rates_hz = {c: self.recording.rate(c) for c in self.recording.channels}
+
+    def __iter__(self) -> Iterator[SampleBatch | None]:
+        rec = self.recording
+        origin = rec.start_time.timestamp()
+        infos = [rec.info(c) for c in rec.channels]
+        n_chunks = math.ceil(rec.duration / self.chunk_s)
+        began = wallclock.monotonic()
+        for k in range(n_chunks):
+            lo, hi = k * self.chunk_s, (k + 1) * self.chunk_s
+            if math.isfinite(self.speed):
+                wait = began + hi / self.speed - wallclock.monotonic()
+                if wait > 0:
+                    wallclock.sleep(wait)
+            for info in infos:
+                a = max(math.ceil((lo - info.t0) * info.rate_hz - 1e-9), 0)
+                b = max(math.ceil((hi - info.t0) * info.rate_hz - 1e-9), 0)
+                if b > a:
+                    yield SampleBatch(
+                        info.name,
+                        np.asarray(info.values[a:b], dtype=np.float64),
+                        t0=origin + info.t0 + a / info.rate_hz,
+                        rate_hz=info.rate_hz,
+                    )
+            yield None
+
+
+# ----------------------------------------------------------------------- MQTT
+def parse_payload(payload: bytes | str) -> tuple[list[SampleBatch], bool]:
+    """Batches of one MQTT payload, and whether it ends the stream.
+
+    Examples
+    --------
+    >>> batches, end = parse_payload('{"channels": {"P_In": {"t0": 10, "rate_hz": 2, '
+    ...                              '"values": [6e5, 6.1e5]}}}')
+    >>> batches[0].sample_times().tolist(), end
+    ([10.0, 10.5], False)
+    """
+    try:
+        data = json.loads(payload)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(describe("MQTT payload", str(payload)[:60], "JSON")) from exc
+    if not isinstance(data, dict):
+        raise InputError(describe("MQTT payload", type(data).__name__, "a JSON object"))
+    out = []
+    channels = data.get("channels", {})
+    if not isinstance(channels, dict):
+        raise InputError(describe("MQTT payload 'channels'", channels, "an object"))
+    for name, entry in channels.items():
+        if not isinstance(entry, dict) or "values" not in entry:
+            raise InputError(describe(f"MQTT payload channel {name!r}", entry, "{values, ...}"))
+        values = np.asarray(entry["values"], dtype=np.float64)
+        if "times" in entry:
+            times = np.asarray(entry["times"], dtype=np.float64)
+            out.append(SampleBatch(str(name), values, times=times))
+        elif "t0" in entry and "rate_hz" in entry:
+            out.append(
+                SampleBatch(
+                    str(name), values, t0=float(entry["t0"]), rate_hz=float(entry["rate_hz"])
+                )
+            )
+        else:
+            raise InputError(
+                describe(
+                    f"MQTT payload channel {name!r}", sorted(entry), "times, or t0 and rate_hz"
+                )
+            )
+    return out, bool(data.get("end", False))
+
+
+class MqttSource:
+    """Subscribe to an MQTT topic (paho-mqtt) and yield its batches."""
+
+    def __init__(
+        self,
+        host: str,
+        port: int,
+        topic: str,
+        tags: TagMap,
+        log: Log = _quiet,
+        idle_s: float = 0.5,
+    ) -> None:
+        self.host, self.port, self.topic = host, port, topic
+        self.rates_hz = dict(tags.rates_hz)
+        self.lateness_s = tags.lateness_s
+        self.log = log
+        self.idle_s = idle_s
+        self.bad_payloads = 0
+        self._queue: queue.Queue[tuple[list[SampleBatch], bool]] = queue.Queue()
+
+    def __iter__(self) -> Iterator[SampleBatch | None]:
+        import paho.mqtt.client as mqtt
+        from paho.mqtt.enums import CallbackAPIVersion
+
+        client = mqtt.Client(CallbackAPIVersion.VERSION2)
+        client.reconnect_delay_set(min_delay=1, max_delay=5)
+        ever = threading.Event()
+
+        def on_connect(c: Any, _u: Any, _f: Any, reason: Any, _p: Any = None) -> None:
+            if reason.is_failure:
+                self.log(f"MQTT connection to {self.host}:{self.port} refused: {reason}")
+                return
+            self.log(
+                ("reconnected to" if ever.is_set() else "connected to")
+                + f" MQTT {self.host}:{self.port}, topic {self.topic}"
+            )
+            ever.set()
+            c.subscribe(self.topic, qos=1)
+
+        def on_subscribe(_c: Any, _u: Any, _mid: Any, _codes: Any, _p: Any = None) -> None:
+            self.log(f"subscribed to MQTT topic {self.topic}")
+
+        def on_disconnect(_c: Any, _u: Any, _f: Any, reason: Any, _p: Any = None) -> None:
+            self.log(f"MQTT connection lost ({reason}); reconnecting")
+
+        def on_message(_c: Any, _u: Any, message: Any) -> None:
+            try:
+                self._queue.put(parse_payload(message.payload))
+            except InputError as exc:
+                self.bad_payloads += 1
+                self.log(f"ignored a bad MQTT payload: {exc}")
+
+        client.on_connect = on_connect
+        client.on_disconnect = on_disconnect
+        client.on_subscribe = on_subscribe
+        client.on_message = on_message
+        client.connect_async(self.host, self.port, keepalive=10)
+        client.loop_start()
+        try:
+            while True:
+                try:
+                    batches, end = self._queue.get(timeout=self.idle_s)
+                except queue.Empty:
+                    yield None
+                    continue
+                yield from batches
+                yield None
+                if end:
+                    return
+        finally:
+            client.loop_stop()
+            client.disconnect()
+
+
+# --------------------------------------------------------------------- OPC UA
+class OpcUaSource:
+    """Subscribe to PLC tags on an OPC UA server (asyncua) and yield their changes."""
+
+    def __init__(
+        self,
+        url: str,
+        tags: TagMap,
+        channels: Sequence[str],
+        log: Log = _quiet,
+        publish_ms: float = 50.0,
+    ) -> None:
+        self.url = url
+        self.tags = tags
+        self.channels = tuple(channels)
+        self.rates_hz = {c: tags.rates_hz[c] for c in self.channels}
+        self.lateness_s = tags.lateness_s
+        self.log = log
+        self.publish_ms = publish_ms
+        self._queue: queue.Queue[SampleBatch | BaseException | None] = queue.Queue()
+        self._stop = threading.Event()
+
+    def __iter__(self) -> Iterator[SampleBatch | None]:
+        thread = threading.Thread(target=self._thread, daemon=True, name="pneufdd-opcua")
+        thread.start()
+        try:
+            while True:
+                try:
+                    item = self._queue.get(timeout=0.5)
+                except queue.Empty:
+                    yield None
+                    continue
+                if isinstance(item, StopIteration):
+                    yield None
+                    return
+                if isinstance(item, BaseException):
+                    raise item
+                yield item
+                if item is None:
+                    continue
+        finally:
+            self._stop.set()
+            thread.join(timeout=5.0)
+
+    def _thread(self) -> None:
+        try:
+            asyncio.run(self._run())
+        except BaseException as exc:  # pragma: no cover - reported to the consumer
+            self._queue.put(exc)
+
+    async def _run(self) -> None:
+        from asyncua.client.client import Client
+        from asyncua.ua import Double
+        from asyncua.ua.uaerrors import UaError
+
+        source = self
+        ended = asyncio.Event()
+        nodes_by_id: dict[str, str] = {}
+
+        class Handler:
+            def datachange_notification(self, node: Any, val: Any, data: Any) -> None:
+                name = nodes_by_id.get(node.nodeid.to_string())
+                if name is None:
+                    return
+                value = data.monitored_item.Value
+                stamp = value.SourceTimestamp or value.ServerTimestamp
+                if name == "__end__":
+                    if bool(val):
+                        ended.set()
+                    return
+                if stamp is None or val is None:
+                    return
+                t = stamp.timestamp() if stamp.tzinfo else stamp.replace(tzinfo=_UTC).timestamp()
+                source._queue.put(SampleBatch(name, np.array([float(val)]), times=np.array([t])))
+
+        attempt = 0
+        while not self._stop.is_set():
+            client = Client(self.url, timeout=4)
+            try:
+                await client.connect()
+            except (TimeoutError, OSError, UaError) as exc:
+                attempt += 1
+                if attempt == 1 or attempt % 10 == 0:
+                    self.log(f"OPC UA server {self.url} unreachable ({exc}); retrying")
+                await asyncio.sleep(1.0)
+                continue
+            self.log(("reconnected to" if attempt else "connected to") + f" OPC UA {self.url}")
+            attempt = 1
+            try:
+                nodes = []
+                for name in self.channels:
+                    node = client.get_node(self.tags.nodes[name])
+                    nodes_by_id[node.nodeid.to_string()] = name
+                    nodes.append(node)
+                if self.tags.end:
+                    node = client.get_node(self.tags.end)
+                    nodes_by_id[node.nodeid.to_string()] = "__end__"
+                    nodes.append(node)
+                sub = await client.create_subscription(self.publish_ms, Handler())
+                await sub.subscribe_data_change(
+                    nodes, queuesize=10_000, sampling_interval=Double(0.0)
+                )
+                while not self._stop.is_set() and not ended.is_set():
+                    await asyncio.sleep(0.2)
+                    self._queue.put(None)
+                    await client.check_connection()
+                if ended.is_set():
+                    await asyncio.sleep(max(self.publish_ms / 1000.0, 0.1) * 3)
+                    self._queue.put(StopIteration())
+                    await client.disconnect()
+                    return
+                await client.disconnect()
+                return
+            except (TimeoutError, OSError, ConnectionError, UaError) as exc:
+                self.log(f"OPC UA connection to {self.url} lost ({exc}); reconnecting")
+                with contextlib.suppress(Exception):  # already broken
+                    await client.disconnect()
+                await asyncio.sleep(1.0)
+
+
+# --------------------------------------------------------------------- factory
+def _replay_options(query: str) -> tuple[float, float]:
+    params = urllib.parse.parse_qs(query)
+    speed_text = params.get("speed", ["1"])[0]
+    speed = math.inf if speed_text == "max" else float(speed_text)
+    chunk = float(params.get("chunk", ["1"])[0])
+    return speed, chunk
+
+
+def open_source(
+    text: str,
+    analog: Sequence[str],
+    digital: Sequence[str],
+    tags: Path | None = None,
+    log: Log = _quiet,
+) -> ReplaySource | MqttSource | OpcUaSource:
+    """The source named by ``--source`` (see the module docstring)."""
+    tag_map = (
+        TagMap.read(tags, analog, digital) if tags is not None else TagMap.default(analog, digital)
+    )
+    if text.startswith("replay:"):
+        path_text, _, query = text[len("replay:") :].partition("?")
+        try:
+            speed, chunk = _replay_options(query)
+        except ValueError as exc:
+            raise InputError(
+                describe("--source replay options", query, "speed=<number>|max, chunk=<s>")
+            ) from exc
+        path = Path(path_text)
+        if not path.exists():
+            raise InputError(describe("--source replay file", path_text, "an existing recording"))
+        return ReplaySource(Recording.read(path), speed, chunk, log)
+    parsed = urllib.parse.urlparse(text)
+    if parsed.scheme == "mqtt":
+        topic = parsed.path.lstrip("/")
+        if not parsed.hostname or not topic:
+            raise InputError(describe("--source", text, "mqtt://host:port/topic"))
+        return MqttSource(parsed.hostname, parsed.port or 1883, topic, tag_map, log)
+    if parsed.scheme == "opcua":
+        url = "opc.tcp://" + text[len("opcua://") :]
+        return OpcUaSource(url, tag_map, [*analog, *digital], log)
+    raise InputError(
+        describe(
+            "--source", text, "replay:FILE[?speed=N], mqtt://host:port/topic, opcua://host:port"
+        )
+    )

@@ -1,0 +1,49 @@
+"""Shared data of the monitor tests: a fast festo-dsd reference and runs (cached per process).
+
+Seeds: 41_000 + k. The reference uses the supply sensors (P_In, Q_In) and a short
+signature ladder so that it builds in seconds; the runs are a few cycles.
+"""
+
+from __future__ import annotations
+
+import functools
+from datetime import UTC, datetime
+
+from pneufdd.diagnosis.pipeline import build_reference_from_recordings
+from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.recording import Recording
+from pneufdd.sim import simulate
+from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
+
+SEED = 41_000
+START = datetime(2026, 3, 1, 6, 0, tzinfo=UTC)
+
+
+@functools.cache
+def reference(channels: tuple[str, ...] = ("P_In", "Q_In")) -> ReferenceModel:
+    refs = [simulate("festo-dsd", cycles=8, seed=SEED + i) for i in range(2)]
+    return build_reference_from_recordings(
+        refs,
+        list(channels),
+        signature_sizes=(30.0, 120.0),
+        signature_cycles=1,
+        uncertainty_plants=0,
+        workers=1,
+    )
+
+
+def started(rec: Recording, start: datetime = START) -> Recording:
+    """The recording as if it started at ``start`` (wall clock)."""
+    return Recording([rec.info(c) for c in rec.channels], start_time=start, metadata=rec.metadata)
+
+
+@functools.cache
+def leak_run(cycles: int = 7, appear_s: float = 40.0, seed: int = SEED + 10) -> Recording:
+    """Supply leak of 4 turns appearing at ``appear_s`` (first cycle starting then)."""
+    schedule = LeakSchedule([ScheduledLeak("supply", 4.0, start_s=appear_s)])
+    return started(simulate("festo-dsd", cycles=cycles, seed=seed, schedule=schedule))
+
+
+@functools.cache
+def free_run(cycles: int = 5, seed: int = SEED + 11) -> Recording:
+    return started(simulate("festo-dsd", cycles=cycles, seed=seed))

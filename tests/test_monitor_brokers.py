@@ -1,0 +1,319 @@
+"""The monitor as a client of real servers started here: an MQTT broker (amqtt, in
+process) and an OPC UA server (asyncua, in a thread) publishing a simulated festo-dsd
+recording with a supply leak that appears mid-run (shortened: a few cycles, faster
+than real time). The monitor's alarms and history are asserted.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import gc
+import json
+import socket
+import threading
+import time
+from datetime import UTC, datetime
+
+import numpy as np
+import pytest
+
+from monitor_data import leak_run, reference
+from pneufdd.monitor.alarms import AlarmSinks
+from pneufdd.monitor.cycles import needed_channels
+from pneufdd.monitor.database import HistoryDatabase
+from pneufdd.monitor.live import MachineMonitor, run_stream
+from pneufdd.monitor.sources import MqttSource, OpcUaSource, TagMap
+from pneufdd.recording.model import ANALOG, Channel, Recording
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class _Loop:
+    """An asyncio loop in a thread, for servers."""
+
+    def __init__(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
+        self.thread.start()
+
+    def run(self, coro, timeout=60.0):
+        return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout)
+
+    def close(self) -> None:
+        """Close what the servers left open on this loop, then the loop.
+
+        amqtt's broker keeps its sessions' streams after ``shutdown``; left to the
+        garbage collector they would warn (ResourceWarning) in whichever test runs next.
+        """
+        loop = self.loop
+
+        async def tidy() -> None:
+            gc.collect()
+            for obj in gc.get_objects():
+                if getattr(obj, "_loop", None) is loop and isinstance(
+                    obj, asyncio.BaseTransport | asyncio.AbstractServer
+                ):
+                    obj.close()
+            await asyncio.sleep(0.2)
+
+        with contextlib.suppress(Exception):
+            self.run(tidy(), timeout=30)
+        loop.call_soon_threadsafe(loop.stop)
+        self.thread.join(5)
+        loop.close()
+        gc.collect()
+
+
+def _wait_for(log: list[str], text: str, count: int = 1, timeout: float = 180.0) -> None:
+    end = time.monotonic() + timeout
+    while sum(text in m for m in log) < count:
+        assert time.monotonic() < end, f"never saw {text!r} in {log}"
+        time.sleep(0.05)
+
+
+def _check_history(db: HistoryDatabase, rec: Recording, sinks: AlarmSinks) -> None:
+    machine = db.machine_id("festo-dsd")
+    starts = rec.metadata["cycle_start_s"]
+    recorded = db.cycle_starts(machine)
+    t0 = rec.start_time.timestamp()
+    # every cycle but possibly the last (closed only at the stream's end) is recorded once,
+    # at the PLC's time (within a grid sample)
+    assert len(recorded) >= len(starts) - 1
+    np.testing.assert_allclose(recorded, (t0 + np.array(starts))[: len(recorded)], atol=0.06)
+    leak_alarms = [a for a in sinks.sent if a.kind == "leak"]
+    assert len(leak_alarms) == 1
+    alarm = leak_alarms[0]
+    assert alarm.machine == "festo-dsd"
+    assert "supply" in alarm.locations
+    assert alarm.flow_slpm > 30.0
+    assert alarm.annual_cost > 0
+    assert 0 < alarm.confidence <= 1
+    first_leaky = next(i for i, t in enumerate(starts) if t >= 40.0)
+    assert t0 + starts[first_leaky] <= alarm.time <= t0 + starts[first_leaky + 2] + 0.1
+    assert db.alarm_rows(machine)[0]["locations"] == list(alarm.locations)
+    assert db.integrity_ok()
+
+
+# ----------------------------------------------------------------------------- MQTT
+def _payloads(rec: Recording, channels: tuple[str, ...], block_s: float = 2.0) -> list[bytes]:
+    t0 = rec.start_time.timestamp()
+    out = []
+    for k in range(int(np.ceil(rec.duration / block_s))):
+        body = {}
+        for name in channels:
+            info = rec.info(name)
+            a, b = round(k * block_s * info.rate_hz), round((k + 1) * block_s * info.rate_hz)
+            values = np.asarray(info.values[a:b], dtype=np.float64)
+            if values.size:
+                body[name] = {
+                    "t0": t0 + info.t0 + a / info.rate_hz,
+                    "rate_hz": info.rate_hz,
+                    "values": values.tolist(),
+                }
+        out.append(json.dumps({"channels": body}).encode())
+    return out
+
+
+def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
+    from amqtt.broker import Broker
+    from paho.mqtt import publish
+
+    model = reference()
+    rec = leak_run()
+    analog, digital = needed_channels(model)
+    port = _free_port()
+    config = {
+        "listeners": {"default": {"type": "tcp", "bind": f"127.0.0.1:{port}"}},
+        "plugins": {"amqtt.plugins.authentication.AnonymousAuthPlugin": {"allow_anonymous": True}},
+    }
+    loop = _Loop()
+
+    async def start() -> Broker:
+        broker = Broker(config)
+        await broker.start()
+        return broker
+
+    broker = loop.run(start())
+    log: list[str] = []
+    db = HistoryDatabase(f"sqlite:///{tmp_path / 'mqtt.db'}")
+    sinks = AlarmSinks()
+    monitor = MachineMonitor(model, db, alarm=sinks)
+    tags = TagMap.default(analog, digital)
+    source = MqttSource("127.0.0.1", port, "plant/festo-dsd/samples", tags, log=log.append)
+    result: dict[str, object] = {}
+
+    def consume() -> None:
+        try:
+            result["stats"] = run_stream(monitor, source, source.rates_hz, source.lateness_s)
+        except BaseException as exc:  # pragma: no cover - reported below
+            result["error"] = exc
+
+    thread = threading.Thread(target=consume, daemon=True)
+    thread.start()
+    try:
+        _wait_for(log, "subscribed to MQTT topic")
+        payloads = _payloads(rec, (*analog, *digital))
+        half = len(payloads) // 2
+        topic = "plant/festo-dsd/samples"
+        msgs = [{"topic": topic, "payload": p, "qos": 1} for p in payloads[:half]]
+        publish.multiple(msgs, hostname="127.0.0.1", port=port)
+        time.sleep(0.5)
+        loop.run(broker.shutdown())  # the broker goes away ...
+        _wait_for(log, "connection lost")
+        broker = loop.run(start())  # ... and comes back
+        _wait_for(log, "reconnected to MQTT")
+        _wait_for(log, "subscribed to MQTT topic", count=2)
+        msgs = [{"topic": topic, "payload": p, "qos": 1} for p in payloads[half:]]
+        msgs.append({"topic": topic, "payload": json.dumps({"end": True}), "qos": 1})
+        publish.multiple(msgs, hostname="127.0.0.1", port=port)
+        thread.join(600)
+        assert not thread.is_alive()
+        assert "error" not in result, result.get("error")
+        _check_history(db, rec, sinks)
+        assert len(db.cycle_starts(db.machine_id("festo-dsd"))) == len(
+            rec.metadata["cycle_start_s"]
+        )
+    finally:
+        db.close()
+        loop.run(broker.shutdown())
+        loop.close()
+
+
+# ---------------------------------------------------------------------------- OPC UA
+ANALOG_HZ = 20.0
+SPEED = 8.0
+
+
+def _as_plc_tags(rec: Recording) -> Recording:
+    """Analog channels as a PLC would publish them: 20 Hz block means."""
+    channels = []
+    for name in rec.channels:
+        info = rec.info(name)
+        if info.kind != ANALOG:
+            channels.append(info)
+            continue
+        n = round(info.rate_hz / ANALOG_HZ)
+        values = np.asarray(info.values, dtype=np.float64)
+        blocks = values[: values.size // n * n].reshape(-1, n).mean(axis=1)
+        channels.append(Channel(name, blocks, ANALOG_HZ, info.unit, ANALOG, info.t0))
+    return Recording(channels, start_time=rec.start_time, metadata=rec.metadata)
+
+
+@pytest.fixture(scope="module")
+def tag_reference():
+    from pneufdd.diagnosis.pipeline import build_reference_from_recordings
+    from pneufdd.sim import simulate
+
+    refs = [_as_plc_tags(simulate("festo-dsd", cycles=8, seed=41_000 + i)) for i in range(2)]
+    return build_reference_from_recordings(
+        refs,
+        ["P_In", "Q_In"],
+        signature_sizes=(30.0, 120.0),
+        signature_cycles=1,
+        uncertainty_plants=0,
+        workers=1,
+    )
+
+
+async def _serve(rec: Recording, port: int, ready: asyncio.Event, go: asyncio.Event) -> None:
+    from asyncua import Server, ua
+
+    server = Server()
+    await server.init()
+    server.set_endpoint(f"opc.tcp://127.0.0.1:{port}/pneufdd/")
+    idx = await server.register_namespace("urn:pneufdd:test-plc")
+    plc = await server.nodes.objects.add_object(idx, "festo-dsd")
+    t0 = rec.start_time.timestamp()
+
+    def stamp(t: float) -> datetime:
+        return datetime.fromtimestamp(t0 + t, UTC)
+
+    def value(v: float, t: float, bool_: bool = False) -> object:
+        kind = ua.VariantType.Boolean if bool_ else ua.VariantType.Double
+        return ua.DataValue(
+            Value=ua.Variant(bool(v) if bool_ else float(v), kind), SourceTimestamp=stamp(t)
+        )
+
+    nodes = {}
+    async with server:
+        for name in rec.channels:
+            node = await plc.add_variable(ua.NodeId(name, idx), name, 0.0)
+            await node.write_value(value(rec.info(name).values[0], 0.0))
+            nodes[name] = node
+        done = await plc.add_variable(ua.NodeId("ReplayDone", idx), "ReplayDone", False)
+        await done.write_value(value(0, 0.0, bool_=True))
+        ready.set()
+        await go.wait()
+        # every analog sample, every digital change, in time order at SPEED x real time
+        events = []
+        for name in rec.channels:
+            info = rec.info(name)
+            v = np.asarray(info.values, dtype=np.float64)
+            k = np.arange(1, v.size) if info.kind == ANALOG else np.flatnonzero(np.diff(v)) + 1
+            events += [(info.t0 + i / info.rate_hz, name, v[i]) for i in k]
+        events.sort()
+        began = time.monotonic()
+        for t, name, v in events:
+            wait = began + t / SPEED - time.monotonic()
+            if wait > 0:
+                await asyncio.sleep(wait)
+            await nodes[name].write_value(value(v, t))
+        await asyncio.sleep(0.5)
+        await done.write_value(value(1, rec.duration, bool_=True))
+        await asyncio.sleep(2.0)
+
+
+def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path, tag_reference):
+    model = tag_reference
+    rec = _as_plc_tags(leak_run())
+    analog, digital = needed_channels(model)
+    port = _free_port()
+    toml = ["lateness_s = 1.0", 'end = "ns=2;s=ReplayDone"']
+    for name in (*analog, *digital):
+        rate = ANALOG_HZ if name in analog else 100.0
+        toml += [f"[channels.{name}]", f'node = "ns=2;s={name}"', f"rate_hz = {rate}"]
+    tags_path = tmp_path / "tags.toml"
+    tags_path.write_text("\n".join(toml) + "\n")
+    tags = TagMap.read(tags_path, analog, digital)
+    loop = _Loop()
+    ready, go = asyncio.Event(), asyncio.Event()
+    serving = asyncio.run_coroutine_threadsafe(_serve(rec, port, ready, go), loop.loop)
+    log: list[str] = []
+    db = HistoryDatabase(f"sqlite:///{tmp_path / 'opcua.db'}")
+    sinks = AlarmSinks()
+    try:
+        deadline = time.monotonic() + 180
+        while not ready.is_set():
+            assert time.monotonic() < deadline
+            assert not serving.done()
+            time.sleep(0.05)
+        monitor = MachineMonitor(model, db, alarm=sinks)
+        source = OpcUaSource(
+            f"opc.tcp://127.0.0.1:{port}/pneufdd/", tags, [*analog, *digital], log=log.append
+        )
+        result: dict[str, object] = {}
+
+        def consume() -> None:
+            try:
+                result["stats"] = run_stream(monitor, source, source.rates_hz, source.lateness_s)
+            except BaseException as exc:  # pragma: no cover - reported below
+                result["error"] = exc
+
+        thread = threading.Thread(target=consume, daemon=True)
+        thread.start()
+        _wait_for(log, "connected to OPC UA")
+        time.sleep(1.0)  # the subscription delivers the initial values
+        loop.loop.call_soon_threadsafe(go.set)
+        thread.join(rec.duration / SPEED + 600)
+        assert not thread.is_alive()
+        assert "error" not in result, result.get("error")
+        _check_history(db, rec, sinks)
+        serving.result(30)
+    finally:
+        db.close()
+        loop.close()
