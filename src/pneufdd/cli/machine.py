@@ -11,7 +11,7 @@ from rich.console import Console
 from pneufdd import __version__
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption
-from pneufdd.errors import FileExistsInputError, InputError, describe
+from pneufdd.errors import InputError, describe
 
 __all__ = ["register"]
 
@@ -88,16 +88,21 @@ def draft(
     Rules and defaults: docs/calibration.md.
     """
     from pneufdd.calibration.draft import draft_machine
+    from pneufdd.cli.outputs import write_text_atomic
     from pneufdd.cli.recordings import read_recordings
     from pneufdd.sim import load_machine
 
-    if out.exists() and not overwrite:
-        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
+    inputs: dict[str, Path | None] = {f"RECORDINGS[{k}]": p for k, p in enumerate(recordings)}
+    check_outputs({"--out": out}, {**inputs, "--map": tag_map}, overwrite)
+    if not name.strip() or any(c in name for c in '"\\\n\r\t[]'):
+        raise InputError(
+            describe("--name", name, "a machine name without quotes, brackets or line breaks")
+        )
     drafted = draft_machine(read_recordings(recordings, tag_map), name=name)
     machine = load_machine(drafted.data)  # the draft is a valid description
     sources = ", ".join(p.name for p in recordings)
     text = drafted.to_toml(f"drafted from {sources} by pneufdd {__version__}")
-    out.write_text(text, encoding="utf-8")
+    write_text_atomic(out, text)
     assumed = sum(line.rstrip().endswith("# assumed") for line in text.splitlines())
     Console(stderr=True).print(
         f"wrote {out}: {len(machine.actuators)} actuators, {len(machine.steps)} steps, "
@@ -122,7 +127,7 @@ def calibrate(
     ] = None,
     tag_map: MapOption = None,
     max_evaluations: Annotated[
-        int, typer.Option(min=2, help="Most least-squares iterations per fit.")
+        int, typer.Option(min=2, max=100_000, help="Most least-squares iterations per fit.")
     ] = 40,
     overwrite: Annotated[bool, typer.Option(help="Replace existing outputs.")] = False,
 ) -> None:
@@ -140,11 +145,9 @@ def calibrate(
     from pneufdd.sim import load_machine
     from pneufdd.sim.variation import machine_to_toml
 
-    for path in (out, report):
-        if path is not None and path.exists() and not overwrite:
-            raise FileExistsInputError(
-                describe("output", str(path), "a new file (or pass --overwrite)")
-            )
+    inputs: dict[str, Path | None] = {f"RECORDINGS[{k}]": p for k, p in enumerate(recordings)}
+    inputs["DESCRIPTION"] = Path(description)
+    check_outputs({"--out": out, "--report": report}, {**inputs, "--map": tag_map}, overwrite)
     start = load_machine(description)
     recs = read_recordings(recordings, tag_map)
     console = Console(stderr=True)
