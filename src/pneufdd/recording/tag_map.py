@@ -245,6 +245,10 @@ def load_tag_map(path: str | Path) -> TagMap:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"{file_label(path)} is not valid TOML ({exc})") from exc
+    except RecursionError as exc:
+        raise FileFormatError(
+            f"{file_label(path)} is nested too deep to read; expected a flat tag map"
+        ) from exc
     return parse_tag_map(data, path.name)
 
 
