@@ -1719,7 +1719,12 @@ def check(
     for name, digest in before.items():
         if _digest(case.folder / name) != digest:
             problems.append(f"input {name} changed")
-    leftovers = [n for n in set(os.listdir(case.folder)) - listing_before if n.endswith(".tmp")]
+    # a temporary file of this case's outputs (cases sharing a folder run in parallel)
+    leftovers = [
+        n
+        for n in set(os.listdir(case.folder)) - listing_before
+        if n.endswith(".tmp") and any(n.startswith(f".{Path(o).name}.") for o in case.outputs)
+    ]
     if leftovers:
         problems.append(f"temporary files left: {leftovers}")
     for name in case.outputs:

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from pneufdd.recording.model import Recording
+if TYPE_CHECKING:
+    from pneufdd.recording.model import Recording
 
 __all__ = ["MapOption", "read_recording", "read_recordings"]
 
@@ -24,6 +25,8 @@ MapOption = Annotated[
 
 def read_recordings(paths: Sequence[Path], tag_map: Path | None) -> list[Recording]:
     """Read ``paths`` as pneufdd recordings, through the tag map when one is given."""
+    from pneufdd.recording.model import Recording
+
     if tag_map is None:
         return [Recording.read(p) for p in paths]
     from pneufdd.recording.tag_map import load_tag_map, read_mapped
