@@ -1574,6 +1574,12 @@ def build_vector_map(base: dict[str, Path], root: Path, full: bool) -> list[Case
         ("plant_scale_nan", ["--out", "o", "--plant-scale", "nan"], ("--plant-scale",)),
         ("plant_scale_huge", ["--out", "o", "--plant-scale", "1e9"], ("--plant-scale",)),
         ("seed_negative", ["--out", "o", "--seed", "-1"], ("--seed",)),
+        # simulates (seconds): the press ram's air per stroke no sensor gives
+        *(
+            [("air_not_measured", ["--out", "o", "--cycles", "2", "--sizes", "2"], ("PRESS",))]
+            if full
+            else []
+        ),
     ):
         cases.append(
             Case(
