@@ -1194,6 +1194,407 @@ def build_machine_vary(base: dict[str, Path], root: Path, full: bool) -> list[Ca
     return cases
 
 
+# ----------------------------------------------- commands of issues 10 and 12
+
+
+def _plc_export(root: Path) -> tuple[Path, Path]:
+    """A small PLC-tagged CSV export of the machine and the tag map that imports it (cached)."""
+    from pneufdd.recording.plc_export import write_plc_csv
+
+    store = root / "_plc"
+    csv, tags = store / "plc.csv", store / "tags.toml"
+    if not csv.exists():
+        store.mkdir(parents=True, exist_ok=True)
+        write_plc_csv(_simulate(3, SEED + 3), csv, tags)
+    return csv, tags
+
+
+def tag_map_mutations(text: str) -> Iterator[tuple[str, bytes, tuple[str, ...]]]:
+    """Malformed tag maps: the TOML mutations, then map-specific nonsense."""
+    # a comment, so that the Latin-1 mutation has a non-ASCII character to encode
+    for name, content, words in toml_mutations("# tag map\n" + text):
+        if not name.startswith("value_"):
+            yield name, content, words
+    lines = text.splitlines()
+    valve = next(line for line in lines if '"U_' in line)
+    pressure = next(line for line in lines if '"P_In"' in line)
+    flow = next(line for line in lines if '"Q_In"' in line)
+    time_line = next(line for line in lines if '"time"' in line)
+    valve_role = valve.split('role = "')[1].split('"')[0]
+
+    def swap(old: str, new: str) -> bytes:
+        return text.replace(old, new, 1).encode()
+
+    yield "unknown_role", swap(f'"{valve_role}"', '"VALVE_7"'), ("VALVE_7", "role")
+    yield "duplicated_role", swap(f'"{valve_role}"', '"P_In"'), ("P_In",)
+    yield (
+        "unknown_unit",
+        swap(pressure, pressure.split("unit")[0] + 'unit = "hectobar" }'),
+        ("hectobar",),
+    )
+    flow_no_basis = flow.split("basis")[0].rstrip(", ") + " }"
+    yield "lpm_without_basis", swap(flow, flow_no_basis), ("basis",)
+    yield "basis_bogus", swap(flow, flow.replace("basis = ", 'basis = "MARS", x = ', 1)), ("x",)
+    yield "missing_time_column", swap(time_line + "\n", ""), ("time",)
+    yield "digital_with_unit", swap(valve, valve.replace(" }", ', unit = "bar" }')), ("unit",)
+    yield "unknown_top_key", (text + "\n[colums]\nx = 1\n").encode(), ("colums",)
+    yield "columns_is_string", b'columns = "all"\n', ("columns",)
+    yield "rate_hz_zero", ("rate_hz = 0\n" + text).encode(), ("rate_hz",)
+    yield "rate_hz_huge", ("rate_hz = 1e308\n" + text).encode(), ("rate_hz",)
+    yield "no_valves", "\n".join(x for x in lines if '"U_' not in x).encode(), ("valve",)
+    yield (
+        "role_not_mapped_in_file",
+        (text + '\n"NOPE" = { role = "S_EXTRA_A" }\n').encode(),
+        ("NOPE",),
+    )
+
+
+QUICK_TAG_MAP = frozenset({"utf16", "unknown_role", "duplicated_role", "lpm_without_basis"})
+QUICK_NEW_RECORDINGS = frozenset({"empty", "cut_50pct", "bitflip_0", "parquet_rate_zero"})
+
+
+def _map_cases(
+    command: str, argv: Callable[[str, str], list[str]], root: Path, full: bool, out: str
+) -> list[Case]:
+    """``command`` reading the PLC export through each damaged tag map."""
+    csv, tags = _plc_export(root)
+    text = tags.read_text("utf-8")
+    cases = []
+    for name, content, words in tag_map_mutations(text):
+        if not full and name not in QUICK_TAG_MAP:
+            continue
+        folder = _case_dir(root, f"{command.replace(' ', '-')}-map-{name}")
+        data = _put(folder, "plc.csv", csv)
+        mapping = _put(folder, "tags.toml", content)
+        cases.append(
+            Case(
+                f"{command}/map_{name}",
+                command,
+                argv(data, mapping),
+                folder,
+                [data, mapping],
+                [out],
+                frozenset({EXIT_INPUT}),
+                ("tags.toml", *words),
+            )
+        )
+    return cases
+
+
+def _recording_cases(
+    command: str,
+    argv: Callable[[str], list[str]],
+    base: dict[str, Path],
+    root: Path,
+    full: bool,
+    outputs: list[str],
+    data_mutations: bool = True,
+) -> list[Case]:
+    """``command`` on each damaged recording (structural damage must be refused)."""
+    cases = []
+    for name, path, words, structural in _bad_recordings(base, root, full):
+        if not full and name not in QUICK_NEW_RECORDINGS:
+            continue
+        if not structural and not data_mutations:
+            continue
+        folder = _case_dir(root, f"{command.replace(' ', '-')}-{name}")
+        run = _put(folder, _run_name(path), path)
+        expect = {EXIT_INPUT} if structural else {EXIT_INPUT, EXIT_OK}
+        cases.append(
+            Case(
+                f"{command}/{name}",
+                command,
+                argv(run),
+                folder,
+                [run],
+                outputs,
+                frozenset(expect),
+                (run, *words),
+            )
+        )
+    return cases
+
+
+def build_import(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = _map_cases(
+        "import",
+        lambda data, mapping: ["import", data, "--map", mapping, "--out", "o.parquet"],
+        root,
+        full,
+        "o.parquet",
+    )
+    csv, tags = _plc_export(root)
+    store = root / "_plc_damaged"
+    store.mkdir(parents=True, exist_ok=True)
+    data = csv.read_bytes()
+    damaged = list(truncations(data))
+    lines = csv.read_text("utf-8").splitlines()
+    damaged += [
+        (
+            "csv_text_in_number",
+            "\n".join([*lines[:5], lines[5].replace(",", ",abc", 1), *lines[6:]]).encode(),
+        ),
+        ("csv_header_only", (lines[0] + "\n").encode()),
+        ("csv_time_backwards", "\n".join([lines[0], *lines[1:][::-1]]).encode()),
+        ("csv_binary", bytes(range(256)) * 8),
+    ]
+    if not full:
+        damaged = [d for d in damaged if d[0] in {"empty", "cut_50pct", "csv_text_in_number"}]
+    for name, content in damaged:
+        # without its last newline the export is still a whole CSV file
+        whole = name == "minus_1_byte" and data.endswith(b"\n")
+        folder = _case_dir(root, f"import-csv-{name}")
+        run = _put(folder, "plc.csv", content)
+        mapping = _put(folder, "tags.toml", tags)
+        cases.append(
+            Case(
+                f"import/csv_{name}",
+                "import",
+                ["import", run, "--map", mapping, "--out", "o.parquet"],
+                folder,
+                [run, mapping],
+                ["o.parquet"],
+                frozenset({EXIT_INPUT, EXIT_OK} if whole else {EXIT_INPUT}),
+                ("plc.csv", "tags.toml"),
+            )
+        )
+    folder = _case_dir(root, "import-options")
+    run = _put(folder, "plc.csv", csv)
+    mapping = _put(folder, "tags.toml", tags)
+    (folder / "d").mkdir(exist_ok=True)
+    for label, extra, words in (
+        ("out_is_data", [run, "--map", mapping, "--out", run], ("--out",)),
+        ("out_is_data_overwrite", [run, "--map", mapping, "--out", run, "--overwrite"], ("--out",)),
+        (
+            "out_is_map_overwrite",
+            [run, "--map", mapping, "--out", mapping, "--overwrite"],
+            ("--out",),
+        ),
+        ("out_is_folder", [run, "--map", mapping, "--out", "d"], ("--out",)),
+        ("map_is_folder", [run, "--map", "d", "--out", "a.parquet"], ("d",)),
+        ("map_missing", [run, "--map", "none.toml", "--out", "a.parquet"], ("none.toml",)),
+        ("data_missing", ["none.csv", "--map", mapping, "--out", "a.parquet"], ("none.csv",)),
+        ("data_is_folder", ["d", "--map", mapping, "--out", "a.parquet"], ("d",)),
+        ("data_bad_suffix", [mapping, "--map", mapping, "--out", "a.parquet"], ("suffix",)),
+    ):
+        cases.append(
+            Case(
+                f"import/{label}",
+                "import",
+                ["import", *extra],
+                folder,
+                [run, mapping],
+                ["a.parquet"],
+                mentions=words,
+            )
+        )
+    return cases
+
+
+def build_machine_draft(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    cases = _recording_cases(
+        "machine draft",
+        lambda run: ["machine", "draft", run, "--out", "d.toml"],
+        base,
+        root,
+        full,
+        ["d.toml"],
+    )
+    cases += _map_cases(
+        "machine draft",
+        lambda data, mapping: ["machine", "draft", data, "--map", mapping, "--out", "d.toml"],
+        root,
+        full,
+        "d.toml",
+    )
+    folder = _case_dir(root, "draft-options")
+    run = _put(folder, "run.parquet", base["run"])
+    (folder / "d").mkdir(exist_ok=True)
+    for label, extra, words in (
+        ("out_is_input", [run, "--out", run], ("--out",)),
+        ("out_is_input_overwrite", [run, "--out", run, "--overwrite"], ("--out",)),
+        ("out_is_folder", [run, "--out", "d"], ("--out",)),
+        ("out_in_a_file", [run, "--out", f"{run}/x.toml"], ("--out",)),
+        ("recording_missing", ["none.parquet", "--out", "a.toml"], ("none.parquet",)),
+        ("recording_is_folder", ["d", "--out", "a.toml"], ("d",)),
+        ("name_empty", [run, "--out", "a.toml", "--name", ""], ("--name", "name")),
+        ("name_quote", [run, "--out", "a.toml", "--name", 'a"b\n[x]'], ("--name", "name")),
+    ):
+        cases.append(
+            Case(
+                f"machine draft/{label}",
+                "machine draft",
+                ["machine", "draft", *extra],
+                folder,
+                [run],
+                ["a.toml"],
+                mentions=words,
+            )
+        )
+    return cases
+
+
+def build_machine_calibrate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    # only damage refused before the twin runs: a calibration takes minutes
+    cases = _recording_cases(
+        "machine calibrate",
+        lambda run: ["machine", "calibrate", MACHINE, run, "--out", "c.toml"],
+        base,
+        root,
+        full,
+        ["c.toml"],
+        data_mutations=False,
+    )
+    text = base["toml"].read_text("utf-8")
+    for name, content, words in toml_mutations(text):
+        if not full and name not in {"latin1", "value_01_bore_mm"}:
+            continue
+        folder = _case_dir(root, f"calibrate-toml-{name}")
+        toml = _put(folder, "m.toml", content)
+        run = _put(folder, "run.parquet", base["run"])
+        cases.append(
+            Case(
+                f"machine calibrate/toml_{name}",
+                "machine calibrate",
+                ["machine", "calibrate", toml, run, "--out", "c.toml"],
+                folder,
+                [toml, run],
+                ["c.toml"],
+                frozenset({EXIT_INPUT}),
+                ("m.toml", *words),
+            )
+        )
+    cases += _map_cases(
+        "machine calibrate",
+        lambda data, mapping: [
+            "machine",
+            "calibrate",
+            MACHINE,
+            data,
+            "--map",
+            mapping,
+            "--out",
+            "c.toml",
+        ],
+        root,
+        full,
+        "c.toml",
+    )
+    folder = _case_dir(root, "calibrate-options")
+    run = _put(folder, "run.parquet", base["run"])
+    toml = _put(folder, "m.toml", base["toml"])
+    (folder / "d").mkdir(exist_ok=True)
+    for label, extra, words in (
+        ("out_is_recording_overwrite", [MACHINE, run, "--out", run, "--overwrite"], ("--out",)),
+        ("out_is_machine_overwrite", [toml, run, "--out", toml, "--overwrite"], ("--out",)),
+        ("report_is_recording", [MACHINE, run, "--out", "a.toml", "--report", run], ("--report",)),
+        ("report_is_out", [MACHINE, run, "--out", "a.toml", "--report", "a.toml"], ("--report",)),
+        ("out_is_folder", [MACHINE, run, "--out", "d"], ("--out",)),
+        ("report_is_folder", [MACHINE, run, "--out", "a.toml", "--report", "d"], ("--report",)),
+        ("unknown_machine", ["nope", run, "--out", "a.toml"], ("nope",)),
+        ("recording_missing", [MACHINE, "none.parquet", "--out", "a.toml"], ("none.parquet",)),
+        (
+            "max_evaluations_1",
+            [MACHINE, run, "--out", "a.toml", "--max-evaluations", "1"],
+            ("--max-evaluations",),
+        ),
+        (
+            "max_evaluations_20_digits",
+            [MACHINE, run, "--out", "a.toml", "--max-evaluations", "99999999999999999999999"],
+            ("--max-evaluations",),
+        ),
+    ):
+        cases.append(
+            Case(
+                f"machine calibrate/{label}",
+                "machine calibrate",
+                ["machine", "calibrate", *extra],
+                folder,
+                [run, toml],
+                ["a.toml"],
+                mentions=words,
+            )
+        )
+    return cases
+
+
+def build_evaluate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "evaluate")
+    (folder / "empty").mkdir(exist_ok=True)
+    (folder / "bad").mkdir(exist_ok=True)
+    (folder / "bad" / "manifest.json").write_text("{not json")
+    (folder / "list").mkdir(exist_ok=True)
+    (folder / "list" / "manifest.json").write_text("[1, 2]")
+    (folder / "nomachines").mkdir(exist_ok=True)
+    (folder / "nomachines" / "manifest.json").write_text('{"design": {}, "machines": 3}')
+    run = _put(folder, "run.parquet", base["run"])
+    cases = []
+    for label, extra, words in (
+        ("missing_folder", ["nowhere"], ("nowhere",)),
+        ("empty_folder", ["empty"], ("empty", "manifest")),
+        ("campaign_is_file", [run], ("run.parquet",)),
+        ("manifest_not_json", ["bad"], ("manifest",)),
+        ("manifest_is_list", ["list"], ("manifest",)),
+        ("manifest_machines_int", ["nomachines"], ("manifest", "machines")),
+        ("out_is_file", ["empty", "--out", run], ("--out", "run.parquet")),
+        ("workers_0", ["empty", "--workers", "0"], ("--workers",)),
+        ("workers_20_digits", ["empty", "--workers", "99999999999999999999"], ("--workers",)),
+    ):
+        cases.append(
+            Case(
+                f"evaluate/{label}",
+                "evaluate",
+                ["evaluate", *extra],
+                folder,
+                [run, "bad/manifest.json", "list/manifest.json", "nomachines/manifest.json"],
+                ["empty/evaluation/evaluation.csv"],
+                mentions=words,
+            )
+        )
+    return cases
+
+
+def build_vector_map(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "vector-map")
+    run = _put(folder, "run.parquet", base["run"])
+    toml = _put(folder, "m.toml", b"[machine\n")
+    cases = []
+    for label, extra, words in (
+        ("out_is_file", ["--out", run], ("--out", "run.parquet")),
+        ("unknown_machine", ["--out", "o", "--machine", "nope"], ("nope",)),
+        ("machine_damaged", ["--out", "o", "--machine", toml], ("m.toml",)),
+        ("unknown_actuator", ["--out", "o", "--actuator", "NOPE"], ("NOPE",)),
+        ("sizes_words", ["--out", "o", "--sizes", "a,b"], ("--sizes", "a")),
+        ("sizes_empty", ["--out", "o", "--sizes", ","], ("--sizes",)),
+        ("sizes_nan", ["--out", "o", "--sizes", "nan"], ("--sizes", "nan")),
+        ("sizes_huge", ["--out", "o", "--sizes", "1e308"], ("--sizes", "1e308")),
+        ("sizes_negative", ["--out", "o", "--sizes", "-2,4"], ("--sizes", "-2")),
+        ("cycles_1", ["--out", "o", "--cycles", "1"], ("--cycles",)),
+        ("cycles_20_digits", ["--out", "o", "--cycles", "99999999999999999999"], ("--cycles",)),
+        ("plant_scale_nan", ["--out", "o", "--plant-scale", "nan"], ("--plant-scale",)),
+        ("plant_scale_huge", ["--out", "o", "--plant-scale", "1e9"], ("--plant-scale",)),
+        ("seed_negative", ["--out", "o", "--seed", "-1"], ("--seed",)),
+        # simulates (seconds): the press ram's air per stroke no sensor gives
+        *(
+            [("air_not_measured", ["--out", "o", "--cycles", "2", "--sizes", "2"], ("PRESS",))]
+            if full
+            else []
+        ),
+    ):
+        cases.append(
+            Case(
+                f"vector-map/{label}",
+                "vector-map",
+                ["vector-map", "--machine", MACHINE, "--actuator", "PRESS", *extra],
+                folder,
+                [run, toml],
+                ["o/vector_sum.txt"],
+                mentions=words,
+            )
+        )
+    return cases
+
+
 BUILDERS: dict[str, Builder] = {
     "steps": build_steps,
     "features": build_features,
@@ -1202,6 +1603,11 @@ BUILDERS: dict[str, Builder] = {
     "simulate": build_simulate,
     "machines": build_machines,
     "machine vary": build_machine_vary,
+    "import": build_import,
+    "machine draft": build_machine_draft,
+    "machine calibrate": build_machine_calibrate,
+    "evaluate": build_evaluate,
+    "vector-map": build_vector_map,
 }
 """Case builders by command path; a command added to the CLI adds one here."""
 

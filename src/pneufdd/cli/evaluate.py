@@ -32,26 +32,41 @@ def evaluate(
     """
     from rich.console import Console
 
+    from pneufdd.cli.outputs import atomic_target, check_outputs, write_text_atomic
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.errors import InputError, describe
     from pneufdd.evaluation.compare import compare, confusion_figures
-    from pneufdd.evaluation.labelled import labelled_frames, write_labelled
+    from pneufdd.evaluation.labelled import labelled_frames, read_manifest, write_labelled
 
     console = Console()
+    if not campaign_dir.is_dir():
+        raise InputError(
+            describe("CAMPAIGN_DIR", str(campaign_dir), "a campaign folder (pneufdd campaign)")
+        )
+    if workers > 1024:
+        raise InputError(describe("--workers", workers, "1 to 1024"))
     folder = out or campaign_dir / "evaluation"
+    if folder.exists() and not folder.is_dir():
+        raise InputError(describe("--out", str(folder), "a folder (this is a file)"))
     table = folder / "evaluation.csv"
+    names = ("evaluation.csv", "evaluation_times.csv", "evaluation.md")
+    check_outputs({f"--out {n}": folder / n for n in names}, {}, overwrite=True)
     if table.exists() and not overwrite:
         raise InputError(
             describe(f"output {str(table)!r}", "exists", "a new folder or --overwrite")
         )
+    read_manifest(campaign_dir)  # a damaged manifest is refused before any work
     with progress_bars() as progress:
         paths = write_labelled(campaign_dir, workers, progress)
     result = compare(campaign_dir, labelled_frames(paths), log=console.print)
     folder.mkdir(parents=True, exist_ok=True)
-    result.table.to_csv(table, index=False)
-    result.times.to_csv(folder / "evaluation_times.csv", index=False)
-    (folder / "evaluation.md").write_text(
-        "# Leak diagnosis methods compared on simulated plants\n" + result.markdown(), "utf-8"
+    with atomic_target(table) as tmp:
+        result.table.to_csv(tmp, index=False)
+    with atomic_target(folder / "evaluation_times.csv") as tmp:
+        result.times.to_csv(tmp, index=False)
+    write_text_atomic(
+        folder / "evaluation.md",
+        "# Leak diagnosis methods compared on simulated plants\n" + result.markdown(),
     )
     figures = confusion_figures(result, folder)
     console.print(result.markdown(), highlight=False, markup=False)
@@ -73,16 +88,28 @@ def vector_map(
 
     Also learns the sign table of the Table 4.4 features and sets it beside Table 4.5.
     """
+    import math
+
     from rich.console import Console
 
+    from pneufdd.cli.outputs import write_text_atomic
+    from pneufdd.cli.simulate import MAX_CYCLES
     from pneufdd.errors import InputError, describe
     from pneufdd.evaluation.vector_sum import check_lines, vector_sum_check
     from pneufdd.features import TABLE_4_5
     from pneufdd.report.classifier_figures import sign_table_figure, vector_map_figure
 
+    if out.exists() and not out.is_dir():
+        raise InputError(describe("--out", str(out), "a folder (this is a file)"))
     if (out / "vector_sum.txt").exists():
         raise InputError(describe(f"output folder {str(out)!r}", "holds a result", "a new folder"))
+    if not math.isfinite(plant_scale):
+        raise InputError(describe("--plant-scale", plant_scale, "a number from 0 to 5"))
+    if cycles > MAX_CYCLES:
+        raise InputError(describe("--cycles", cycles, f"2 to {MAX_CYCLES:,}"))
     chosen = tuple(s.strip() for s in sizes.split(",") if s.strip())
+    if not chosen:
+        raise InputError(describe("--sizes", sizes, "leak sizes, comma separated (e.g. 2,4,6)"))
     result = vector_sum_check(machine, actuator, plant_scale, chosen, cycles, seed)
     out.mkdir(parents=True, exist_ok=True)
     singles = [c for c in result.vmap.classes_ if c != "none"]
@@ -95,7 +122,7 @@ def vector_map(
         out / "sign_table.png", dpi=110
     )
     lines = check_lines(result, TABLE_4_5)
-    (out / "vector_sum.txt").write_text("\n".join(lines) + "\n", "utf-8")
+    write_text_atomic(out / "vector_sum.txt", "\n".join(lines) + "\n")
     console = Console()
     for line in lines:
         console.print(line, highlight=False, markup=False)

@@ -8,8 +8,6 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pneufdd.errors import FileExistsInputError, describe
-
 __all__ = ["register"]
 
 
@@ -23,10 +21,10 @@ def import_data(
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
 ) -> None:
     """Read DATA through the tag map and write it as a pneufdd recording (SI units)."""
+    from pneufdd.cli.outputs import check_outputs
     from pneufdd.recording.tag_map import load_tag_map, read_mapped
 
-    if out.exists() and not overwrite:
-        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
+    check_outputs({"--out": out}, {"DATA": data, "--map": tag_map}, overwrite)
     recording = read_mapped(data, load_tag_map(tag_map))
     recording.write(out, overwrite=overwrite)
     rates = sorted({recording.rate(c) for c in recording.channels})

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -11,7 +11,10 @@ from rich.console import Console
 from pneufdd import __version__
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption
-from pneufdd.errors import FileExistsInputError, InputError, describe
+from pneufdd.errors import InputError, describe, naming
+
+if TYPE_CHECKING:
+    from pneufdd.recording.model import Recording
 
 __all__ = ["register"]
 
@@ -69,6 +72,28 @@ def vary(
     )
 
 
+def _checked(recordings: list[Path], tag_map: Path | None) -> list[Recording]:
+    """The recordings, each refused (naming its file) if a channel is implausible or empty."""
+    import numpy as np
+
+    from pneufdd.cli.recordings import read_recordings
+    from pneufdd.errors import ChannelError, naming
+    from pneufdd.signals.quality import check_channels
+
+    recs = read_recordings(recordings, tag_map)
+    for rec, path in zip(recs, recordings, strict=True):
+        try:
+            check_channels(rec, rec.analog_channels, str(path))
+            for channel in rec.analog_channels:
+                if not np.isfinite(rec.info(channel).values).any():
+                    raise ChannelError(
+                        describe(f"channel {channel!r}", "no finite sample", "measured values")
+                    )
+        except InputError as exc:
+            raise naming(exc, str(path)) from exc
+    return recs
+
+
 @machine_app.command("draft")
 def draft(
     recordings: Annotated[
@@ -88,16 +113,24 @@ def draft(
     Rules and defaults: docs/calibration.md.
     """
     from pneufdd.calibration.draft import draft_machine
-    from pneufdd.cli.recordings import read_recordings
+    from pneufdd.cli.outputs import write_text_atomic
     from pneufdd.sim import load_machine
 
-    if out.exists() and not overwrite:
-        raise FileExistsInputError(describe("--out", str(out), "a new file (or pass --overwrite)"))
-    drafted = draft_machine(read_recordings(recordings, tag_map), name=name)
+    inputs: dict[str, Path | None] = {f"RECORDINGS[{k}]": p for k, p in enumerate(recordings)}
+    check_outputs({"--out": out}, {**inputs, "--map": tag_map}, overwrite)
+    if not name.strip() or any(c in name for c in '"\\\n\r\t[]'):
+        raise InputError(
+            describe("--name", name, "a machine name without quotes, brackets or line breaks")
+        )
+    recs = _checked(recordings, tag_map)
+    try:
+        drafted = draft_machine(recs, name=name)
+    except InputError as exc:
+        raise naming(exc, ", ".join(str(p) for p in recordings)) from exc
     machine = load_machine(drafted.data)  # the draft is a valid description
     sources = ", ".join(p.name for p in recordings)
     text = drafted.to_toml(f"drafted from {sources} by pneufdd {__version__}")
-    out.write_text(text, encoding="utf-8")
+    write_text_atomic(out, text)
     assumed = sum(line.rstrip().endswith("# assumed") for line in text.splitlines())
     Console(stderr=True).print(
         f"wrote {out}: {len(machine.actuators)} actuators, {len(machine.steps)} steps, "
@@ -122,7 +155,7 @@ def calibrate(
     ] = None,
     tag_map: MapOption = None,
     max_evaluations: Annotated[
-        int, typer.Option(min=2, help="Most least-squares iterations per fit.")
+        int, typer.Option(min=2, max=100_000, help="Most least-squares iterations per fit.")
     ] = 40,
     overwrite: Annotated[bool, typer.Option(help="Replace existing outputs.")] = False,
 ) -> None:
@@ -134,19 +167,16 @@ def calibrate(
     """
     from pneufdd.calibration.calibrate import calibrate_machine
     from pneufdd.cli.progress_bar import progress_bars
-    from pneufdd.cli.recordings import read_recordings
     from pneufdd.report.calibration import render_calibration_report
     from pneufdd.report.html import write_text_atomic
     from pneufdd.sim import load_machine
     from pneufdd.sim.variation import machine_to_toml
 
-    for path in (out, report):
-        if path is not None and path.exists() and not overwrite:
-            raise FileExistsInputError(
-                describe("output", str(path), "a new file (or pass --overwrite)")
-            )
+    inputs: dict[str, Path | None] = {f"RECORDINGS[{k}]": p for k, p in enumerate(recordings)}
+    inputs["DESCRIPTION"] = Path(description)
+    check_outputs({"--out": out, "--report": report}, {**inputs, "--map": tag_map}, overwrite)
     start = load_machine(description)
-    recs = read_recordings(recordings, tag_map)
+    recs = _checked(recordings, tag_map)
     console = Console(stderr=True)
     with progress_bars(console) as progress:
         result = calibrate_machine(start, recs, max_evaluations=max_evaluations, progress=progress)

@@ -74,7 +74,22 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
     path = Path(folder) / "manifest.json"
     if not path.is_file():
         raise InputError(describe("campaign manifest", str(path), "an existing manifest.json"))
-    out: dict[str, Any] = json.loads(path.read_text("utf-8"))
+    try:
+        out = json.loads(path.read_text("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise InputError(f"campaign manifest {str(path)!r} is not valid JSON ({exc})") from exc
+    if (
+        not isinstance(out, dict)
+        or not isinstance(out.get("machines"), list)
+        or not isinstance(out.get("design"), dict)
+    ):
+        raise InputError(
+            describe(
+                f"campaign manifest {str(path)!r}",
+                type(out).__name__ if not isinstance(out, dict) else sorted(out),
+                'an object with "design" (an object) and "machines" (a list)',
+            )
+        )
     return out
 
 

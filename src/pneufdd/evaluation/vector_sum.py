@@ -22,6 +22,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from pneufdd.classifiers import SignTableClassifier, VectorizedMap
+from pneufdd.errors import InputError, describe
 from pneufdd.features import feature_matrix
 from pneufdd.features.table44 import TABLE_44_NAMES
 from pneufdd.signals.segmentation import sequence_from_machine
@@ -108,7 +109,17 @@ def vector_sum_check(
     data = pd.concat(frames, ignore_index=True)
     axes = (f"{actuator}.air_extend_SL", f"{actuator}.air_retract_SL")
     singles = data[~data["label"].str.contains(r"\+") & (data["row"] != "supply")]
-    vmap = VectorizedMap().fit(singles[list(axes)].to_numpy(), singles["label"].to_numpy())
+    measured = singles[list(axes)].to_numpy()
+    unmeasured = int((~np.isfinite(measured)).any(axis=1).sum())
+    if unmeasured:
+        raise InputError(
+            describe(
+                f"actuator {actuator!r} of {desc.name} (--actuator)",
+                f"extend/retract air not measured in {unmeasured} of {len(measured)} cycles",
+                "an actuator whose air per stroke the machine's flow sensors give",
+            )
+        )
+    vmap = VectorizedMap().fit(measured, singles["label"].to_numpy())
     norm = data[list(axes)].to_numpy() / vmap.scale_
     normalised = pd.DataFrame(norm, columns=list(axes))
     normalised["label"] = data["label"].to_numpy()

@@ -245,6 +245,10 @@ def load_tag_map(path: str | Path) -> TagMap:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"{file_label(path)} is not valid TOML ({exc})") from exc
+    except RecursionError as exc:
+        raise FileFormatError(
+            f"{file_label(path)} is nested too deep to read; expected a flat tag map"
+        ) from exc
     return parse_tag_map(data, path.name)
 
 
@@ -285,8 +289,14 @@ def _check_rates(label: str, tag_map: TagMap, recording: Recording) -> None:
 def _csv_header(path: Path, tag_map: TagMap) -> list[str]:
     import csv
 
-    with path.open(newline="", encoding="utf-8-sig") as handle:
-        row = next(csv.reader(handle, delimiter=tag_map.delimiter, skipinitialspace=True), [])
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as handle:
+            row = next(csv.reader(handle, delimiter=tag_map.delimiter, skipinitialspace=True), [])
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise FileFormatError(
+            f"{file_label(path)} is not a UTF-8 CSV file ({exc}); expected a CSV export "
+            f"with the columns of {tag_map.source}"
+        ) from exc
     return [c for c in row if c]
 
 
