@@ -1595,6 +1595,79 @@ def build_vector_map(base: dict[str, Path], root: Path, full: bool) -> list[Case
     return cases
 
 
+def build_history(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "history")
+    (folder / "d").mkdir(exist_ok=True)
+    notdb = _put(folder, "notdb.db", b"garbage, not a database\n")
+    cases = []
+    for label, extra, inputs, words in (
+        ("url_not_a_url", ["--history", "notaurl"], [], ("--history",)),
+        ("url_is_folder", ["--history", "sqlite:///d"], [], ("--history",)),
+        ("url_not_a_database", ["--history", f"sqlite:///{notdb}"], [notdb], ("--history",)),
+        ("url_other_backend", ["--history", "mysql://u@h/db"], [], ("--history",)),
+        ("url_missing_file", ["--history", "sqlite:///missing.db"], [], ("--history",)),
+        ("since_not_a_date", ["--since", "notadate"], [], ("--since",)),
+    ):
+        cases.append(
+            Case(
+                f"history/{label}",
+                "history",
+                ["history", *extra, "--no-figure"],
+                folder,
+                inputs,
+                [],
+                mentions=words,
+            )
+        )
+    return cases
+
+
+def build_monitor(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "monitor")
+    ref = _put(folder, "ref.pnref", base["pnref"]) if "pnref" in base else None
+    bad = _put(folder, "bad.pnref", b"not a reference")
+    run = _put(folder, "run.parquet", base["run"])
+    cases = [
+        Case(
+            "monitor/reference_missing",
+            "monitor",
+            ["monitor", "--reference", "missing.pnref", "--source", "replay:x.parquet", "--once"],
+            folder,
+            [],
+            [],
+            mentions=("missing.pnref",),
+        ),
+        Case(
+            "monitor/reference_damaged",
+            "monitor",
+            ["monitor", "--reference", bad, "--source", "replay:x.parquet", "--once"],
+            folder,
+            [bad],
+            [],
+            mentions=("bad.pnref",),
+        ),
+    ]
+    if ref is not None:
+        for label, source, words in (
+            ("source_scheme", "ftp://host/x", ("--source", "ftp")),
+            ("replay_missing", "replay:missing.parquet", ("missing.parquet",)),
+            ("replay_speed", f"replay:{run}?speed=-3", ("speed", "--source")),
+        ):
+            cases.append(
+                Case(
+                    f"monitor/{label}",
+                    "monitor",
+                    ["monitor", "--reference", ref, "--source", source, "--once",
+                     "--history", "sqlite:///h.db"],
+                    folder,
+                    [ref, run],
+                    [],
+                    mentions=words,
+                )
+            )  # fmt: skip
+    return cases
+
+
 BUILDERS: dict[str, Builder] = {
     "steps": build_steps,
     "features": build_features,
@@ -1603,6 +1676,8 @@ BUILDERS: dict[str, Builder] = {
     "simulate": build_simulate,
     "machines": build_machines,
     "machine vary": build_machine_vary,
+    "history": build_history,
+    "monitor": build_monitor,
     "import": build_import,
     "machine draft": build_machine_draft,
     "machine calibrate": build_machine_calibrate,

@@ -184,7 +184,15 @@ class HistoryDatabase:
         self.url = url
         self.engine: Engine = _engine(url)
         self._machines: dict[str, int] = {}
-        self.migrate()
+        try:
+            self.migrate()
+        except (sa.exc.OperationalError, sa.exc.DatabaseError) as exc:
+            # a folder, a file that is no database, an unreachable server
+            self.engine.dispose()
+            reason = str(getattr(exc, "orig", exc)).splitlines()[0]
+            raise InputError(
+                describe("--history", url, "a database that can be opened") + f" ({reason})"
+            ) from exc
 
     # ----------------------------------------------------------- schema
     def schema_version(self) -> int:

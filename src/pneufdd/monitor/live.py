@@ -36,7 +36,7 @@ from pneufdd.monitor.alarms import Alarm
 from pneufdd.monitor.cycles import CompletedCycle, CycleStreamer, concatenate_rows, needed_channels
 from pneufdd.monitor.database import HistoryDatabase
 from pneufdd.monitor.samples import SampleAssembler, SampleBatch
-from pneufdd.monitor.sequential import CusumDetector, CusumState
+from pneufdd.monitor.sequential import CusumDecision, CusumDetector, CusumState
 
 __all__ = ["WINDOW", "CycleOutcome", "MachineMonitor", "MonitorStats", "run_stream"]
 
@@ -118,6 +118,10 @@ class MachineMonitor:
         self.alarm = alarm
         self.machine_id = history.machine_id(self.machine)
         self.window: deque[CompletedCycle] = deque(maxlen=WINDOW)
+        # the first complete cycles of a stream are start-up cycles, as in a file
+        # (DetectionSettings.startup_cycles): recorded, but neither judged nor used
+        # for the size estimates
+        self._startup_left = int(model.settings.startup_cycles)
         self.stats = MonitorStats()
         self.state = CusumState()
         self.last_start = -math.inf
@@ -153,8 +157,12 @@ class MachineMonitor:
             return CycleOutcome(cycle.start, math.nan, self.state.up, False)
         table = cycle.table
         score = float(self.detector.score_samples(table.features())[0])
-        decision = self.cusum.update(self.state, score, cycle.start)
-        self.window.append(cycle)
+        if self._startup_left > 0:
+            self._startup_left -= 1
+            decision = CusumDecision(None, 0.0, self.state)
+        else:
+            decision = self.cusum.update(self.state, score, cycle.start)
+            self.window.append(cycle)
         if self.state.in_alarm:
             self.alarm_cycles += 1
         pending: list[Alarm] = []
