@@ -41,7 +41,14 @@ from pneufdd.diagnosis.twin_effects import (
     compute_signatures,
     signature_spread,
 )
-from pneufdd.errors import ChannelError, InputError, MachineError, describe, naming
+from pneufdd.errors import (
+    ChannelError,
+    InputError,
+    MachineError,
+    NoCompleteCycleError,
+    describe,
+    naming,
+)
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import check_channels
@@ -312,7 +319,17 @@ def _run_table(model: ReferenceModel, recording: Recording, where: str) -> tuple
         )
     check_channels(recording, model.channels, where)
     cycles, _, _ = segment_cycles(recording, sequence, where)
-    running = running_cycles(cycles, model.settings.startup_cycles)
+    startup = model.settings.startup_cycles
+    if startup and len(cycles) <= startup:
+        # a start-up cycle alone is not a running machine: judging it would be a guess
+        raise NoCompleteCycleError(
+            describe(
+                f"complete cycles of {where}",
+                len(cycles),
+                f"more than its {startup} start-up cycle(s) (docs/assumptions.md)",
+            )
+        )
+    running = running_cycles(cycles, startup)
     table = step_table(
         recording,
         running,
