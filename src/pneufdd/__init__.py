@@ -12,7 +12,9 @@ first use, so ``import pneufdd`` stays light.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from pneufdd._lazy import lazy_getattr
 
 if TYPE_CHECKING:
     from pneufdd.diagnosis.diagnoser import LeakDiagnoser
@@ -31,10 +33,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'pneufdd' has no attribute {name!r}")
-    from importlib import import_module
-
-    return getattr(import_module(module), name)
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())

@@ -6,7 +6,9 @@ economics). Engineering symbols (P1, Cv, xT) are used only inside this package.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from pneufdd._lazy import lazy_getattr
 
 if TYPE_CHECKING:
     from pneufdd.physics.chamber import (
@@ -177,12 +179,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'pneufdd.physics' has no attribute {name!r}")
-    from importlib import import_module
-
-    value = getattr(import_module(module), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())

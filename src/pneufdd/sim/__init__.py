@@ -11,6 +11,8 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
+from pneufdd._lazy import lazy_getattr
+
 if TYPE_CHECKING:
     from pneufdd.sim.description import MachineDescription, parse_description
     from pneufdd.sim.leaks import Leak, LeakSpec, parse_leak_size
@@ -68,15 +70,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'pneufdd.sim' has no attribute {name!r}")
-    from importlib import import_module
-
-    value = getattr(import_module(module), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 class _Package(types.ModuleType):
