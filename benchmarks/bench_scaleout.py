@@ -33,6 +33,7 @@ def _design() -> Any:
         pairs=4,
         run_cycles=4,
         reference_cycles=14,
+        reference_recordings=2,
         uncertainty_plants=1,
         seed_offset=SEED_OFFSET,
     )

@@ -91,3 +91,46 @@ def test_run_threshold_shrinks_with_run_length():
     det = CycleDistanceDetector().fit(rng.normal(size=(50, 30)))
     assert det.run_threshold(10) < det.run_threshold(1)
     assert det.run_threshold(1) == det.threshold_
+
+
+@pytest.mark.parametrize("m", [1, 4, 9, 10])
+def test_median_run_threshold_is_the_order_statistic_quantile(m):
+    """Oracle: the (upper) median of m draws of g chi2(h), sampled 400,000 times."""
+    rng = np.random.default_rng(11)
+    det = CycleDistanceDetector(false_alarm_rate=0.01).fit(rng.normal(size=(60, 30)))
+    g, h = det.chi2_scale_, det.chi2_dof_
+    draws = np.sort(g * rng.chisquare(h, size=(400_000, m)), axis=1)[:, m // 2]
+    assert det.run_threshold(m) == pytest.approx(np.quantile(draws, 0.99), rel=0.005)
+    assert np.mean(draws > det.run_threshold(m)) == pytest.approx(0.01, abs=0.001)
+
+
+@pytest.mark.parametrize("statistic", ["median", "mean"])
+def test_run_p_value_inverts_the_run_threshold(statistic):
+    """At false_alarm_rate = p-value of a run, the run threshold is that run's statistic."""
+    rng = np.random.default_rng(12)
+    det = CycleDistanceDetector(run_statistic=statistic).fit(rng.normal(size=(60, 30)))
+    run = 1.1 * rng.normal(size=(10, 30))
+    p = det.run_p_value(run)
+    assert 1e-6 < p < 0.5
+    det.false_alarm_rate = p
+    assert det.run_threshold(10) == pytest.approx(det.run_score(det.score_samples(run)), rel=1e-6)
+
+
+def test_median_run_is_not_flagged_by_one_odd_cycle_but_a_shift_is():
+    rng = np.random.default_rng(13)
+    p = 40
+    X = rng.normal(size=(80, p))
+    median = CycleDistanceDetector(n_nuisance=0).fit(X)
+    mean = CycleDistanceDetector(n_nuisance=0, run_statistic="mean").fit(X)
+    run = rng.normal(size=(10, p))
+    run[3] *= 4.0  # one odd cycle: 16 times the statistic of the others
+    assert mean.predict_run(run)
+    assert not median.predict_run(run)
+    shifted = rng.normal(size=(10, p)) + 0.6  # every cycle moved (a leak)
+    assert median.predict_run(shifted)
+    assert mean.predict_run(shifted)
+
+
+def test_run_statistic_is_checked():
+    with pytest.raises(ValueError, match="run_statistic: received 'max'"):
+        CycleDistanceDetector(run_statistic="max").fit(np.ones((5, 3)) + np.eye(5, 3))

@@ -99,6 +99,7 @@ TINY = CampaignDesign(
     pairs=1,
     run_cycles=4,
     reference_cycles=14,
+    reference_recordings=2,
     uncertainty_plants=1,
     seed_offset=9_000_000,  # a test's seeds (below the development and campaign ranges)
 )
@@ -132,7 +133,8 @@ def test_campaign_command(tmp_path, capsys):
         [
             "campaign", "--machine", "carton-sorter", "--plants", "1", "--sizes", "80slpm",
             "--leak-free-runs", "1", "--pairs", "0", "--run-cycles", "3",
-            "--reference-cycles", "12", "--uncertainty-plants", "1", "--workers", "2",
+            "--reference-cycles", "12", "--reference-recordings", "2",
+            "--uncertainty-plants", "1", "--workers", "2",
             "--seed-offset", "9100000", "--out", str(tmp_path / "c"),
         ]
     )  # fmt: skip

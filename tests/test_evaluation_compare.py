@@ -20,6 +20,7 @@ DESIGN = CampaignDesign(
     pairs=0,
     run_cycles=2,
     reference_cycles=10,
+    reference_recordings=2,
     uncertainty_plants=0,
     seed_offset=9_200_000,  # a test's seeds (below the development and campaign ranges)
 )

@@ -19,6 +19,7 @@ TINY = CampaignDesign(
     pairs=1,
     run_cycles=4,
     reference_cycles=14,
+    reference_recordings=2,
     uncertainty_plants=1,
     seed_offset=9_200_000,  # a test's seeds (below the development and campaign ranges)
 )

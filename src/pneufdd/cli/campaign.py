@@ -50,7 +50,13 @@ def campaign(
     run_cycles: Annotated[int, typer.Option(min=1, help="Cycles judged per run.")] = 10,
     reference_cycles: Annotated[
         int, typer.Option(min=10, help="Leak-free cycles of each plant's reference.")
-    ] = 40,
+    ] = 100,
+    reference_recordings: Annotated[
+        int,
+        typer.Option(
+            min=1, max=9, help="Recordings the reference cycles are split into (own seeds)."
+        ),
+    ] = 4,
     uncertainty_plants: Annotated[
         int,
         typer.Option(min=0, help="Plausible plants measuring the signatures' model uncertainty."),
@@ -94,6 +100,7 @@ def campaign(
         pairs=pairs,
         run_cycles=run_cycles,
         reference_cycles=reference_cycles,
+        reference_recordings=reference_recordings,
         uncertainty_plants=uncertainty_plants,
         seed_offset=seed_offset,
     )

@@ -86,6 +86,7 @@ def build(
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.diagnosis.pipeline import build_reference, parse_channels
     from pneufdd.diagnosis.pnref import save_reference
+    from pneufdd.diagnosis.reference import RECOMMENDED_REFERENCE_CYCLES
 
     console = Console(stderr=True)
     inputs: dict[str, str | Path | None] = {f"RECORDINGS[{i}]": r for i, r in enumerate(recordings)}
@@ -138,6 +139,14 @@ def build(
         highlight=False,
         markup=False,
     )
+    if model.n_cycles < RECOMMENDED_REFERENCE_CYCLES:
+        console.print(
+            f"note: {model.n_cycles} reference cycles; at least "
+            f"{RECOMMENDED_REFERENCE_CYCLES} in several recordings are recommended, or rare "
+            "leak-free cycles may be flagged as leaks (docs/diagnosis.md, 'Reference length')",
+            highlight=False,
+            markup=False,
+        )
 
 
 def _calibrated(

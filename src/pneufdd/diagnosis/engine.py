@@ -61,7 +61,8 @@ class Diagnosis:
     cycle_threshold : float
         Per-cycle threshold of ``T`` [-].
     run_score, run_threshold : float
-        Mean ``T`` of the run and its threshold [-].
+        The run's statistic (median ``T`` of its cycles, or the mean for references
+        saved with ``run_statistic="mean"``) and its threshold [-].
     p_value : float
         Probability of a leak-free run scoring at least ``run_score`` [-].
     reference_false_alarm_rate : float
@@ -470,7 +471,7 @@ def diagnose(
     det = reference.detector
     scores = det.score_samples(X)
     m = scores.size
-    run_score = float(np.mean(scores))
+    run_score = det.run_score(scores)
     run_threshold = det.run_threshold(m)
     detected = run_score > run_threshold
     band = reference.band_detector()

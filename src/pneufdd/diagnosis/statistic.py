@@ -19,9 +19,20 @@ a squared prediction error as in PCA process monitoring. Its leak-free distribut
 is measured by cross-validation on the reference (each reference cycle scored by a
 model fitted without it, so the estimate is honest) and approximated by a scaled
 chi-square :math:`g \\chi^2_h` matched in mean and variance (Box, 1954). The
-per-cycle threshold is its ``1 - alpha`` quantile; a run of ``m`` cycles is judged on
-the mean statistic against :math:`(g/m) \\chi^2_{m h}`, which averages out noise as
-the dissertation recommends ("take the average of some coming cycles", section 5.3.2).
+per-cycle threshold is its ``1 - alpha`` quantile.
+
+A run of ``m`` cycles is judged on the *median* of its cycle statistics (the upper
+median, order statistic :math:`k = \\lfloor m/2 \\rfloor + 1`, when ``m`` is even),
+which averages out noise as the dissertation recommends ("take the average of some
+coming cycles", section 5.3.2) yet is not moved by a few odd cycles: a leak raises the
+statistic of every cycle, while a leak-free machine has occasional cycles unlike the
+others (two parallel motions that finish in the other order, a PLC timer one scan
+short). For ``m`` independent cycles the ``k``-th order statistic of a distribution
+``F`` exceeds ``x`` with probability :math:`1 - I_{F(x)}(k, m - k + 1)` (regularised
+incomplete beta function; David & Nagaraja, 2003, eq. 2.1.5), so the run threshold is
+:math:`F^{-1}(B^{-1}_{k, m-k+1}(1 - \\alpha))` with :math:`F = g \\chi^2_h`. The
+former rule, the run *mean* against :math:`(g/m) \\chi^2_{m h}`, is kept as
+``run_statistic="mean"`` (references saved before the median existed use it).
 
 References
 ----------
@@ -29,6 +40,7 @@ References
    of analysis of variance problems. Ann. Math. Statist. 25(2), 290-302.
 .. [2] Jackson, J. E., Mudholkar, G. S. (1979). Control procedures for residuals
    associated with principal component analysis. Technometrics 21(3), 341-349.
+.. [3] David, H. A., Nagaraja, H. N. (2003). Order Statistics, 3rd ed. Wiley.
 """
 
 from __future__ import annotations
@@ -41,7 +53,10 @@ from scipy import stats
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-__all__ = ["CycleDistanceDetector", "scaled_chi2_fit"]
+__all__ = ["RUN_STATISTICS", "CycleDistanceDetector", "median_order", "scaled_chi2_fit"]
+
+RUN_STATISTICS = ("median", "mean")
+"""How a run's cycle statistics are combined: their (upper) median, or their mean."""
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -78,6 +93,17 @@ def scaled_chi2_fit(values: npt.ArrayLike) -> tuple[float, float]:
         h = 1e6
         return mean / h, h
     return var / (2.0 * mean), 2.0 * mean**2 / var
+
+
+def median_order(n_cycles: int) -> int:
+    """Order statistic (1-based) of the upper median of ``n_cycles`` values [-].
+
+    Examples
+    --------
+    >>> [median_order(m) for m in (1, 2, 3, 10, 11)]
+    [1, 2, 2, 6, 6]
+    """
+    return int(n_cycles) // 2 + 1
 
 
 def _fit_space(
@@ -117,6 +143,8 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
     n_folds : int
         Cross-validation folds used to measure the leak-free distribution of the
         statistic (leave-one-out when there are no more cycles than folds) [-].
+    run_statistic : {"median", "mean"}
+        How a run's cycle statistics are combined (module docstring).
 
     Attributes
     ----------
@@ -155,11 +183,13 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
         false_alarm_rate: float = 0.005,
         scale_floor: float | npt.ArrayLike = 0.0,
         n_folds: int = 20,
+        run_statistic: str = "median",
     ):
         self.n_nuisance = n_nuisance
         self.false_alarm_rate = false_alarm_rate
         self.scale_floor = scale_floor
         self.n_folds = n_folds
+        self.run_statistic = run_statistic
 
     def _floor(self, n_features: int) -> FloatArray:
         floor = np.asarray(self.scale_floor, dtype=np.float64)
@@ -195,6 +225,10 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
             )
         if not isinstance(self.n_folds, int | np.integer) or self.n_folds < 2:
             raise ValueError(f"n_folds: received {self.n_folds!r}; allowed: int >= 2")
+        if self.run_statistic not in RUN_STATISTICS:
+            raise ValueError(
+                f"run_statistic: received {self.run_statistic!r}; allowed: {list(RUN_STATISTICS)}"
+            )
         data = validate_data(self, X, dtype=np.float64)
         n = data.shape[0]
         if n < 3:
@@ -240,24 +274,46 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
         """1 for a cycle whose statistic exceeds the per-cycle threshold, else 0."""
         return (self.decision_function(X) > 0).astype(np.int64)
 
+    def run_score(self, scores: npt.ArrayLike) -> float:
+        """The run's statistic from its cycle statistics: their median or mean [-].
+
+        Parameters
+        ----------
+        scores : array_like, shape (n_cycles,)
+            Cycle statistics of the run (:meth:`score_samples`).
+        """
+        s = np.sort(np.asarray(scores, dtype=np.float64).ravel())
+        if s.size == 0:
+            raise ValueError("run_score: received no cycle statistics; allowed: at least one")
+        if self.run_statistic == "mean":
+            return float(np.mean(s))
+        return float(s[median_order(s.size) - 1])
+
     def run_threshold(self, n_cycles: int) -> float:
-        """Threshold of the mean statistic of a run of ``n_cycles`` cycles [-]."""
+        """Threshold of the run statistic of a run of ``n_cycles`` cycles [-]."""
         check_is_fitted(self, ["chi2_scale_", "chi2_dof_"])
         m = max(int(n_cycles), 1)
-        return float(
-            self.chi2_scale_ / m * stats.chi2.ppf(1.0 - self.false_alarm_rate, m * self.chi2_dof_)
-        )
+        g, h, alpha = self.chi2_scale_, self.chi2_dof_, self.false_alarm_rate
+        if self.run_statistic == "mean":
+            return float(g / m * stats.chi2.ppf(1.0 - alpha, m * h))
+        k = median_order(m)
+        return float(g * stats.chi2.ppf(stats.beta.ppf(1.0 - alpha, k, m - k + 1), h))
 
     def run_p_value(self, X: npt.ArrayLike) -> float:
-        """Probability of a leak-free run scoring at least this run's mean statistic [-]."""
+        """Probability of a leak-free run scoring at least this run's statistic [-]."""
         scores = self.score_samples(X)
         m = scores.size
-        return float(stats.chi2.sf(np.mean(scores) * m / self.chi2_scale_, m * self.chi2_dof_))
+        g, h = self.chi2_scale_, self.chi2_dof_
+        value = self.run_score(scores)
+        if self.run_statistic == "mean":
+            return float(stats.chi2.sf(value * m / g, m * h))
+        k = median_order(m)
+        return float(stats.beta.sf(stats.chi2.cdf(value / g, h), k, m - k + 1))
 
     def predict_run(self, X: npt.ArrayLike) -> bool:
-        """True when the mean statistic of the run's cycles exceeds the run threshold."""
+        """True when the run statistic of the run's cycles exceeds the run threshold."""
         scores = self.score_samples(X)
-        return bool(np.mean(scores) > self.run_threshold(scores.size))
+        return bool(self.run_score(scores) > self.run_threshold(scores.size))
 
     def __sklearn_tags__(self) -> Any:
         tags = super().__sklearn_tags__()

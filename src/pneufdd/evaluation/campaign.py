@@ -125,7 +125,11 @@ class CampaignDesign:
     run_cycles : int
         Complete cycles judged per run [-].
     reference_cycles : int
-        Leak-free cycles simulated for each plant's reference [-].
+        Leak-free cycles simulated for each plant's reference, start-up cycles not
+        counted [-].
+    reference_recordings : int
+        Recordings the reference cycles are split into (each with its own house-air
+        state and seed) [-].
     signature_cycles : int
         Simulated cycles per signature point [-].
     uncertainty_plants : int
@@ -143,7 +147,8 @@ class CampaignDesign:
     leak_free_runs: int = 70
     pairs: int = 20
     run_cycles: int = 10
-    reference_cycles: int = 40
+    reference_cycles: int = 100
+    reference_recordings: int = 4
     signature_cycles: int = 2
     uncertainty_plants: int = UNCERTAINTY_PLANTS
     seed_offset: int = 100_000_000
@@ -164,6 +169,19 @@ class CampaignDesign:
                 raise InputError(describe(f"campaign {name}", value, "an integer >= 0"))
         if self.reference_cycles < 10:
             raise InputError(describe("campaign reference_cycles", self.reference_cycles, ">= 10"))
+        if (
+            isinstance(self.reference_recordings, bool)
+            or not isinstance(self.reference_recordings, int)
+            or not 1 <= self.reference_recordings <= 9
+            or self.reference_cycles < 5 * self.reference_recordings
+        ):
+            raise InputError(
+                describe(
+                    "campaign reference_recordings",
+                    self.reference_recordings,
+                    "an integer from 1 to 9 with at least 5 reference cycles each",
+                )
+            )
         if any(not (0.0 <= s <= 5.0) for s in self.plant_scales) or not self.plant_scales:
             raise InputError(
                 describe("campaign plant scales", list(self.plant_scales), "numbers from 0 to 5")
@@ -503,7 +521,7 @@ def _run_campaign(
         )
         nominal = float(psig_to_pa(machine.nominal_supply_psig))
         entry: dict[str, Any] = {"machine": machine.name, "source": str(name), "plants": []}
-        half = design.reference_cycles // 2
+        per_recording = -(-design.reference_cycles // design.reference_recordings)
         for s, scale in enumerate(design.plant_scales):
             for k in range(design.plants):
                 plant_seed = _seed(design, m, s, k, 0)
@@ -516,9 +534,12 @@ def _run_campaign(
                     ),
                     "utf-8",
                 )
-                ref_seeds = [_seed(design, m, s, k, 1), _seed(design, m, s, k, 2)]
+                ref_seeds = [
+                    _seed(design, m, s, k, 1 + r) for r in range(design.reference_recordings)
+                ]
                 recordings = [
-                    as_exported(simulate(plant, cycles=half + 2, seed=seed)) for seed in ref_seeds
+                    as_exported(simulate(plant, cycles=per_recording + 2, seed=seed))
+                    for seed in ref_seeds
                 ]
                 references = {}
                 for sensors, channels in sets.items():

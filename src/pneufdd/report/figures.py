@@ -189,7 +189,7 @@ def statistic_figure(
     fig, ax = plt.subplots(figsize=(7, 3.2))
     ax.bar(cycles, scores, color=np.where(scores > threshold, "tab:red", "tab:gray"))
     ax.axhline(threshold, color="tab:red", ls="--", label="per-cycle threshold")
-    ax.axhline(run_score, color="tab:blue", label="run mean")
+    ax.axhline(run_score, color="tab:blue", label="run statistic")
     ax.axhline(run_threshold, color="tab:blue", ls=":", label="run threshold")
     ax.set_yscale("log")
     ax.set_xlabel("cycle of the run")
