@@ -152,3 +152,70 @@ def test_an_unknown_leak_location_is_an_error_not_a_stall():
     assert twin({Location("FEED", "A"): 5e-4}) is not None
     with pytest.raises(InputError, match="NOPE_A"):
         twin({Location("NOPE", "A"): 5e-4})
+
+
+def _imitating_reference(
+    scales: np.ndarray, large: int, small: int, small_size: float, other: float = 0.0
+):
+    """Plant deviations of leak ``large``: ``scales[k]`` times leak ``small``'s effect,
+    plus ``other`` times a random direction of the same norm."""
+    sig = synth_signatures()
+    sizes = sig.sizes[0, [0, -1]]
+    effect = sig.effect(small, small_size)
+    rng = np.random.default_rng(31)
+    extra = rng.normal(size=(scales.size, sig.n_features))
+    extra *= other * np.linalg.norm(effect) / np.linalg.norm(extra, axis=1, keepdims=True)
+    deviations = np.zeros((scales.size, len(sig.locations), sizes.size, sig.n_features))
+    deviations[:, large, :, :] = (scales[:, None] * effect[None, :] + extra)[:, None, :]
+    sig = sig.with_plant_deviations(deviations, sizes)
+    return ReferenceModel.build(synth_table(60, seed=100), signatures=sig), sizes
+
+
+def test_imitated_size_is_the_rms_of_the_deviations_projected_on_the_second_leak():
+    from pneufdd.diagnosis.engine import imitated_size
+
+    scales = np.array([0.1, -0.3, 0.5, 0.2])
+    ref, sizes = _imitating_reference(scales, large=1, small=3, small_size=4e-4)
+    effects = ref.leak_effects()
+    got = imitated_size(ref, effects, 10, (1, float(sizes[-1])), (3, 4e-4))
+    assert got == pytest.approx(4e-4 * float(np.sqrt(np.mean(scales**2))), rel=1e-6)
+    # no deviations, no estimate
+    plain = ReferenceModel.build(synth_table(60, seed=100), signatures=synth_signatures())
+    assert imitated_size(plain, plain.leak_effects(), 10, (1, 1e-3), (3, 4e-4)) is None
+
+
+@pytest.mark.parametrize(("scale", "other", "expected"), [(0.6, 3.0, 1), (0.01, 0.0, 2)])
+def test_a_second_leak_the_first_leaks_model_error_imitates_is_an_alternative(
+    scale, other, expected
+):
+    from pneufdd.diagnosis.engine import _drop_imitated_second_leak, run_whitener
+
+    ref, sizes = _imitating_reference(
+        np.array([scale, -scale, 0.5 * scale]), large=1, small=3, small_size=3e-4, other=other
+    )
+    effects = ref.leak_effects()
+    observed = effects.effect(1, float(sizes[-1])) + effects.effect(3, 3e-4)
+    settings = replace(ref.localisation, simulate_explanations=False)
+    whiten = run_whitener(ref, effects, observed, 10, settings)
+    two = locate(observed, effects, whiten, settings)
+    assert len(two.leaks) == 2
+    notes: list[str] = []
+    result = _drop_imitated_second_leak(ref, effects, observed, 10, whiten, settings, two, notes)
+    assert len(result.leaks) == expected
+    if expected == 1:
+        assert str(result.leaks[0].location) == str(effects.locations[1])
+        assert {str(x) for x in result.alternatives[0].locations} == {
+            str(effects.locations[1]),
+            str(effects.locations[3]),
+        }
+        assert "imitates" in notes[0]
+    else:
+        assert result is two
+        assert not notes
+
+
+def test_references_saved_before_the_imitation_check_read_it_off():
+    data = LocalisationSettings().to_dict()
+    del data["imitation_z"]
+    assert LocalisationSettings.from_dict(data).imitation_z == 0.0
+    assert LocalisationSettings().imitation_z == 3.0

@@ -29,6 +29,7 @@ from pneufdd.diagnosis.localisation import (
     Whitener,
     locate,
 )
+from pneufdd.diagnosis.model_choice import Explanation
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.steps import StepTable
@@ -387,6 +388,86 @@ def run_whitener(
     )
 
 
+def imitated_size(
+    reference: ReferenceModel,
+    effects: LeakEffectModel,
+    n_cycles: int,
+    larger: tuple[int, float],
+    smaller: tuple[int, float],
+) -> float | None:
+    r"""How large a second leak the model error of the first imitates [kg/s].
+
+    A real machine's effect of the larger leak ``(location index, size)`` differs from
+    its signature; on plausible plant ``k`` by :math:`d^{(k)}`
+    (:attr:`SignatureSet.plant_deviations`). Fitting the smaller leak's signature
+    :math:`e` (at its fitted size :math:`f`, linearised) to that deviation alone gives
+    the size :math:`f_k = f\, \langle W d^{(k)}, W e \rangle / \lVert W e \rVert^2`
+    under the noise weighting :math:`W` of the run (:func:`whitener` without model
+    error). The RMS of :math:`f_k` over the plants is what a phantom second leak at that
+    location may reach on a machine with only the larger leak.
+
+    Returns
+    -------
+    float or None
+        RMS of :math:`f_k` [kg/s]; None without plausible-plant deviations.
+    """
+    sig = effects.signatures
+    deviations = sig.deviations(larger[0], larger[1])
+    if deviations is None or smaller[1] <= 0.0:
+        return None
+    weigh = whitener(reference, n_cycles)
+    direction = weigh(effects.effect(smaller[0], smaller[1]))[0]
+    norm = float(direction @ direction)
+    if norm <= 0.0:
+        return None
+    sizes = smaller[1] * (weigh(deviations) @ direction) / norm
+    return float(np.sqrt(np.mean(sizes**2)))
+
+
+def _drop_imitated_second_leak(
+    reference: ReferenceModel,
+    effects: LeakEffectModel,
+    observed: FloatArray,
+    n_cycles: int,
+    whiten: Whitener,
+    settings: LocalisationSettings,
+    localisation: Localisation,
+    notes: list[str],
+) -> Localisation:
+    """One leak instead of two when the second is no larger than the first's model error
+    imitates (:attr:`LocalisationSettings.imitation_z`); the pair becomes an alternative."""
+    found = localisation.leaks
+    if len(found) != 2 or settings.imitation_z <= 0.0 or localisation.simulated:
+        return localisation
+    index = effects.locations.index
+    large, small = sorted(found, key=lambda leak: -leak.mass_flow)
+    imitated = imitated_size(
+        reference,
+        effects,
+        n_cycles,
+        (index(large.location), large.mass_flow),
+        (index(small.location), small.mass_flow),
+    )
+    if imitated is None or small.mass_flow > settings.imitation_z * imitated:
+        return localisation
+    single = locate(observed, effects, whiten, replace(settings, max_leaks=1))
+    if len(single.leaks) != 1:
+        return localisation
+    pair = Explanation(
+        (large.location, small.location),
+        (large.mass_flow, small.mass_flow),
+        localisation.rss,
+    )
+    notes.append(
+        f"a second leak at {small.location} of {kg_s_to_slpm(small.mass_flow):.1f} SLPM "
+        f"would lower the residual, but the model error of the leak at {large.location} "
+        f"alone imitates one of {kg_s_to_slpm(imitated):.1f} SLPM there (RMS over plausible "
+        "plants): one leak is reported and the pair is listed as an alternative"
+    )
+    others = tuple(a for a in single.alternatives if set(a.locations) != set(pair.locations))
+    return replace(single, alternatives=(pair, *others)[: max(settings.max_alternatives, 1)])
+
+
 def _locate_and_cost(
     reference: ReferenceModel,
     observed: FloatArray,
@@ -407,6 +488,9 @@ def _locate_and_cost(
     sig = effects.signatures
     whiten = run_whitener(reference, effects, observed, n_cycles, localisation_settings)
     localisation = locate(observed, effects, whiten, localisation_settings)
+    localisation = _drop_imitated_second_leak(
+        reference, effects, observed, n_cycles, whiten, localisation_settings, localisation, notes
+    )
     if not localisation.leaks:
         notes.append("leak detected but no combination of leak signatures explains it")
     if localisation.simulated:

@@ -124,6 +124,14 @@ class LocalisationSettings:
         on it, beside the coherent error sampled on plausible plants
         (:func:`pneufdd.diagnosis.engine.whitener`): 2 %, the calibration class of the
         sensors (``docs/plant-variation.md``) [-].
+    imitation_z : float
+        A second leak is reported only when its size exceeds this many times the size
+        of it that the larger leak's model error imitates: the RMS over the plausible
+        plants of the size a fit of the second leak gives to a plant's deviation from
+        the larger leak's signature (:func:`pneufdd.diagnosis.engine.imitated_size`).
+        Below it, the two-leak explanation is listed as an alternative. 3: three
+        standard deviations, as the band of eq. 5.3; 0 turns the check off (references
+        saved before it existed) [-].
 
     Examples
     --------
@@ -147,6 +155,7 @@ class LocalisationSettings:
     added_leak_gain: float = 0.5
     group_checks: int = 3
     model_error_floor: float = 0.02
+    imitation_z: float = 3.0
 
     def __post_init__(self) -> None:
         if isinstance(self.max_leaks, bool) or self.max_leaks not in (1, 2):
@@ -177,7 +186,7 @@ class LocalisationSettings:
         unknown = sorted(set(data) - known)
         if unknown:
             raise InputError(describe("localisation settings", unknown, sorted(known)))
-        return cls(**data)  # type: ignore[arg-type]
+        return cls(**{"imitation_z": 0.0, **data})  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
