@@ -168,3 +168,33 @@ def test_digital_only_reference_builds_and_detects_timing_change():
     assert ref.feature_names == tuple(f"duration@{j + 1}" for j in range(12))
     assert diagnose(ref, synth_table(10, {"X_A": 1.5e-3}, seed=47)).detected
     assert not np.any([diagnose(ref, synth_table(10, seed=48 + s)).detected for s in range(10)])
+
+
+@pytest.mark.parametrize("location", ["supply", "X_A", "Y_B"])
+def test_supply_check_says_a_leak_raised_flow_and_lowered_pressure(reference, location):
+    result = diagnose(reference, synth_table(10, {location: 5e-4}, seed=42))
+    assert result.supply is not None
+    assert result.supply.verdict == "leak (eq. 4.21 holds)"
+    assert result.supply.flow_change > 1e-4  # [kg/s]
+    assert result.supply.pressure_change < -5e3  # [Pa]
+    assert result.to_dict()["supply_check"]["verdict"] == "leak (eq. 4.21 holds)"
+
+
+def test_supply_check_tells_house_air_from_a_leak(reference):
+    # the house air 4 reference standard deviations up: flow and pressure rise together
+    up = diagnose(reference, synth_table(10, seed=7, fluctuation=0.2, level_offset=4.0))
+    assert up.supply is not None
+    assert up.supply.verdict == "not a leak (pressure rose too)"
+    assert up.supply.cycles == {"not a leak (pressure rose too)": 10}
+    free = diagnose(reference, synth_table(10, seed=1001))
+    assert free.supply is not None
+    assert free.supply.verdict == "no leak"
+
+
+def test_supply_check_needs_supply_sensors():
+    lines_only = ReferenceModel.build(
+        synth_table(60, seed=100), channels=["P_X_A", "Q_X_A"], signatures=synth_signatures()
+    )
+    result = diagnose(lines_only, synth_table(10, {"X_A": 5e-4}, seed=42))
+    assert result.supply is None
+    assert result.to_dict()["supply_check"] is None

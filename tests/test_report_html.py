@@ -84,6 +84,12 @@ def test_report_contains_table_values(case):
     # the case's signatures hold no mean flows per cycle: the report says so
     assert all(leak.cost_basis == COST_BASIS_CONTINUOUS for leak in result.leaks)
     assert "Costs assume continuous leakage" in text
+    # the eq. 4.21 supply check and the run statistic's kind
+    assert result.supply is not None
+    assert result.supply.verdict == "leak (eq. 4.21 holds)"
+    assert "supply check, eq. 4.21" in text
+    assert "leak (eq. 4.21 holds) (cycles: leak (eq. 4.21 holds): " in text
+    assert "run statistic (median T) / threshold" in text
 
 
 def test_report_escapes_text(case):

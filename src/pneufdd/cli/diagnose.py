@@ -123,6 +123,7 @@ def diagnose(
     from pneufdd.diagnosis.cost import CostSettings
     from pneufdd.diagnosis.pipeline import diagnose_recording
     from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.physics.units import kg_s_to_slpm
     from pneufdd.report.html import render_report
 
     inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}
@@ -180,6 +181,16 @@ def diagnose(
         )
     if result.leaks:
         console.print(leak_table(result))
+    if result.supply is not None and (result.detected or result.supply.verdict != "no leak"):
+        supply = result.supply
+        console.print(
+            f"supply check (eq. 4.21): {supply.verdict} in "
+            f"{supply.cycles.get(supply.verdict, 0)} of {result.cycles_analyzed} cycles; "
+            f"supply flow {kg_s_to_slpm(supply.flow_change):+.1f} SLPM, pressure "
+            f"{supply.pressure_change / 1e5:+.3f} bar against the reference",
+            highlight=False,
+            markup=False,
+        )
     for note in result.notes:
         console.print(f"note: {note}", highlight=False, markup=False)
     if result.detected:

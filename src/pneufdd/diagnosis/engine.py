@@ -31,6 +31,7 @@ from pneufdd.diagnosis.localisation import (
 )
 from pneufdd.diagnosis.model_choice import Explanation
 from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.residuals import SupplyCheck, supply_check
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
@@ -91,6 +92,10 @@ class Diagnosis:
         gap skipped it.
     gaps_repaired : int
         Short gaps (NaN, infinite or out-of-range samples) repaired by interpolation.
+    supply : SupplyCheck, optional
+        The eq. 4.19-4.21 verdict on the supply flow and pressure against the
+        reference (None without supply sensors):
+        :func:`pneufdd.diagnosis.residuals.supply_check`.
     """
 
     detected: bool
@@ -112,6 +117,7 @@ class Diagnosis:
     startup_cycles: int = 0
     cycles_skipped: tuple[tuple[int, str], ...] = ()
     gaps_repaired: int = 0
+    supply: SupplyCheck | None = None
 
     def to_pandas(self) -> pd.DataFrame:
         """The leaks as a table, one row per leak, largest annual cost first.
@@ -193,6 +199,7 @@ class Diagnosis:
                 for alt in self.localisation.alternatives
             ],
             "total_annual_cost": num(self.total_annual_cost),
+            "supply_check": None if self.supply is None else self.supply.to_dict(),
             "detection": {
                 "statistic": "supply-fluctuation-projected standardised step distance",
                 "run_score": num(self.run_score),
@@ -596,4 +603,5 @@ def diagnose(
         notes=notes,
         cycles_skipped=tuple(run.skipped_cycles),
         gaps_repaired=int(run.repaired_gaps),
+        supply=supply_check(reference.feature_names, reference.features, X),
     )

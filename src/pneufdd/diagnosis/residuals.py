@@ -45,7 +45,14 @@ from pneufdd.errors import InputError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.sim import MachineDescription, load_machine, simulate
 
-__all__ = ["RESIDUAL_CHANNELS", "ResidualDetector", "TwinReplay", "Verdict"]
+__all__ = [
+    "RESIDUAL_CHANNELS",
+    "ResidualDetector",
+    "SupplyCheck",
+    "TwinReplay",
+    "Verdict",
+    "supply_check",
+]
 
 FloatArray = npt.NDArray[np.float64]
 RESIDUAL_CHANNELS = ("Q_In", "P_In")
@@ -258,3 +265,93 @@ def residual_rows(
 ) -> FloatArray:
     """Residual rows of several runs stacked (cycles of all runs)."""
     return np.vstack([replay.residuals(r, machine) for r in recordings])
+
+
+@dataclass(frozen=True)
+class SupplyCheck:
+    """Eq. 4.19-4.21 on a run's supply: does its extra flow come with a pressure drop?
+
+    The plant's own leak-free reference plays the calibrated twin: per PLC step, the
+    run's mean supply flow and pressure are compared with the reference cycles'
+    (:class:`ResidualDetector` fitted on them), and each cycle gets the verdict of
+    :meth:`ResidualDetector.verdict`.
+
+    Attributes
+    ----------
+    verdict : str
+        The verdict of most cycles (ties: the first of "leak (eq. 4.21 holds)",
+        "not a leak (pressure rose too)", "no leak").
+    cycles : dict of str to int
+        Number of cycles per verdict [-].
+    flow_change : float
+        Run mean minus reference mean of the supply flow, averaged over the steps
+        [kg/s].
+    pressure_change : float
+        The same for the supply pressure [Pa].
+    """
+
+    verdict: Verdict
+    cycles: dict[str, int]
+    flow_change: float
+    pressure_change: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible form (flows in kg/s, pressures in Pa)."""
+        return {
+            "verdict": self.verdict,
+            "cycles": dict(self.cycles),
+            "flow_change_kg_s": self.flow_change,
+            "pressure_change_pa": self.pressure_change,
+        }
+
+
+_VERDICT_ORDER = ("leak (eq. 4.21 holds)", "not a leak (pressure rose too)", "no leak")
+
+
+def supply_check(
+    feature_names: Sequence[str], reference: npt.ArrayLike, run: npt.ArrayLike
+) -> SupplyCheck | None:
+    """The eq. 4.21 verdict of a run against its leak-free reference (no simulation).
+
+    Parameters
+    ----------
+    feature_names : sequence of str
+        Names of the feature columns (:func:`pneufdd.diagnosis.steps.feature_names`).
+    reference : array_like, shape (n_reference_cycles, n_features)
+        Leak-free cycles.
+    run : array_like, shape (n_cycles, n_features)
+        The run's cycles.
+
+    Returns
+    -------
+    SupplyCheck or None
+        None when the features hold no ``Q_In`` and ``P_In`` step means (no supply
+        sensors) or the reference has fewer than 3 cycles.
+
+    Examples
+    --------
+    >>> names = ("Q_In.mean@1", "Q_In.mean@2", "P_In.mean@1", "P_In.mean@2")
+    >>> rng = np.random.default_rng(0)
+    >>> ref = np.hstack([rng.normal(1e-3, 1e-5, (40, 2)), rng.normal(5e5, 200, (40, 2))])
+    >>> leak = ref[:5] + [2e-4, 2e-4, -3e3, -3e3]
+    >>> supply_check(names, ref, leak).verdict
+    'leak (eq. 4.21 holds)'
+    >>> supply_check(names, ref, ref[:5] + [2e-4, 2e-4, 3e3, 3e3]).verdict
+    'not a leak (pressure rose too)'
+    """
+    names = list(feature_names)
+    flow = [i for i, n in enumerate(names) if n.startswith("Q_In.mean@")]
+    pressure = [i for i, n in enumerate(names) if n.startswith("P_In.mean@")]
+    ref = np.atleast_2d(np.asarray(reference, dtype=np.float64))
+    X = np.atleast_2d(np.asarray(run, dtype=np.float64))
+    if not flow or not pressure or len(flow) != len(pressure) or ref.shape[0] < 3:
+        return None
+    cols = flow + pressure
+    detector = ResidualDetector(flow_columns=len(flow)).fit(ref[:, cols])
+    verdicts = detector.verdict(X[:, cols])
+    counts = {v: verdicts.count(v) for v in _VERDICT_ORDER if v in verdicts}
+    most = max(counts.values())
+    verdict = next(v for v in _VERDICT_ORDER if counts.get(v, 0) == most)
+    change = X[:, cols].mean(axis=0) - ref[:, cols].mean(axis=0)
+    k = len(flow)
+    return SupplyCheck(verdict, counts, float(np.mean(change[:k])), float(np.mean(change[k:])))

@@ -23,6 +23,7 @@ from pneufdd.diagnosis.engine import Diagnosis, check_compatible
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import FileExistsInputError, describe
+from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.report.figures import (
     band_figure,
     statistic_figure,
@@ -214,6 +215,21 @@ def _leak_table(diagnosis: Diagnosis) -> str:
     )
 
 
+def _supply_row(diagnosis: Diagnosis) -> str:
+    """The eq. 4.19-4.21 supply check as a table row (empty without supply sensors)."""
+    supply = diagnosis.supply
+    if supply is None:
+        return ""
+    counts = ", ".join(f"{v}: {n}" for v, n in supply.cycles.items())
+    return (
+        "<tr><th class='l'>supply check, eq. 4.21 (a leak raises the supply flow and lowers "
+        "the supply pressure; a flow rise with a pressure rise is the house air)</th>"
+        f"<td>{_e(supply.verdict)} (cycles: {_e(counts)}); supply flow "
+        f"{_fmt(float(kg_s_to_slpm(supply.flow_change)), 1)} SLPM, pressure "
+        f"{_fmt(supply.pressure_change / 1e5, 3)} bar against the reference</td></tr>"
+    )
+
+
 def render_report(
     reference: ReferenceModel,
     run: StepTable,
@@ -252,7 +268,8 @@ def render_report(
     detection = (
         "<table>"
         f"<tr><th class='l'>cycles analysed</th><td>{diagnosis.cycles_analyzed}</td></tr>"
-        f"<tr><th class='l'>run statistic (mean T) / threshold</th>"
+        f"<tr><th class='l'>run statistic ({reference.settings.run_statistic} T) / threshold"
+        "</th>"
         f"<td>{_fmt(diagnosis.run_score, 3)} / {_fmt(diagnosis.run_threshold, 3)}</td></tr>"
         f"<tr><th class='l'>p-value of a leak-free run</th><td>{diagnosis.p_value:.3g}</td></tr>"
         f"<tr><th class='l'>cycles above the per-cycle threshold</th><td>{flagged}</td></tr>"
@@ -261,6 +278,7 @@ def render_report(
         f"<tr><th class='l'>band method (eps = {_fmt(reference.settings.band_eps, 1)}, "
         f"n = {_fmt(100 * reference.settings.band_alarm_fraction, 1)} %): cycles flagged</th>"
         f"<td>{diagnosis.band_alarms if diagnosis.band_fraction.size else 'n/a'}</td></tr>"
+        f"{_supply_row(diagnosis)}"
         "</table>"
     )
     ambiguous = [leak for leak in diagnosis.leaks if len(leak.ambiguity_group) > 1]
