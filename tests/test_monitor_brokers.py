@@ -19,11 +19,14 @@ import numpy as np
 import pytest
 
 from monitor_data import leak_run, reference
+from pneufdd.errors import InputError
 from pneufdd.monitor.alarms import AlarmSinks
 from pneufdd.monitor.cycles import needed_channels
 from pneufdd.monitor.database import HistoryDatabase
 from pneufdd.monitor.live import MachineMonitor, run_stream
+from pneufdd.monitor.samples import SampleBatch
 from pneufdd.monitor.sources import MqttSource, OpcUaSource, TagMap
+from pneufdd.physics.units import kg_s_to_l_min_anr, pa_to_bar_gauge
 from pneufdd.recording.model import ANALOG, Channel, Recording
 
 
@@ -100,7 +103,17 @@ def _check_history(db: HistoryDatabase, rec: Recording, sinks: AlarmSinks) -> No
 
 
 # ----------------------------------------------------------------------------- MQTT
-def _payloads(rec: Recording, channels: tuple[str, ...], block_s: float = 2.0) -> list[bytes]:
+def _payloads(
+    rec: Recording,
+    channels: tuple[str, ...],
+    block_s: float = 2.0,
+    names: dict[str, str] | None = None,
+    convert: dict[str, object] | None = None,
+) -> list[bytes]:
+    """JSON payloads of ``rec``; ``names``: channel -> published tag, ``convert``:
+    channel -> function from SI to the published unit."""
+    names = names or {}
+    convert = convert or {}
     t0 = rec.start_time.timestamp()
     out = []
     for k in range(int(np.ceil(rec.duration / block_s))):
@@ -109,14 +122,29 @@ def _payloads(rec: Recording, channels: tuple[str, ...], block_s: float = 2.0) -
             info = rec.info(name)
             a, b = round(k * block_s * info.rate_hz), round((k + 1) * block_s * info.rate_hz)
             values = np.asarray(info.values[a:b], dtype=np.float64)
+            if name in convert:
+                values = np.asarray(convert[name](values), dtype=np.float64)  # type: ignore[operator]
             if values.size:
-                body[name] = {
+                body[names.get(name, name)] = {
                     "t0": t0 + info.t0 + a / info.rate_hz,
                     "rate_hz": info.rate_hz,
                     "values": values.tolist(),
                 }
         out.append(json.dumps({"channels": body}).encode())
     return out
+
+
+def _plc_tag_map(tmp_path, analog, digital) -> tuple[dict[str, str], dict[str, object]]:
+    """A file-import style map (PLC tags, bar(g), l/min ANR) for the monitor."""
+    names = {c: f"DB10.{c.replace('_', '.')}" for c in (*analog, *digital)}
+    lines = ["lateness_s = 1.0", "[columns]"]
+    for c in digital:
+        lines.append(f'"{names[c]}" = {{ role = "{c}" }}')
+    units = {"P_In": 'unit = "bar(g)"', "Q_In": 'unit = "l/min", basis = "ANR"'}
+    for c in analog:
+        lines.append(f'"{names[c]}" = {{ role = "{c}", {units[c]} }}')
+    (tmp_path / "plc-tags.toml").write_text("\n".join(lines) + "\n")
+    return names, {"P_In": pa_to_bar_gauge, "Q_In": kg_s_to_l_min_anr}
 
 
 def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
@@ -143,7 +171,12 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
     db = HistoryDatabase(f"sqlite:///{tmp_path / 'mqtt.db'}")
     sinks = AlarmSinks()
     monitor = MachineMonitor(model, db, alarm=sinks)
-    tags = TagMap.default(analog, digital)
+    # the plant's own tag map, as written for `pneufdd import`: PLC tag names, bar(g),
+    # l/min (ANR); the monitor brings the live values to SI with the import's conversion
+    names, convert = _plc_tag_map(tmp_path, analog, digital)
+    tags = TagMap.read(tmp_path / "plc-tags.toml", analog, digital)
+    assert tags.aliases["DB10.P.In"] == "P_In"
+    assert tags.units == {"P_In": "bar(g)", "Q_In": "l/min (ANR)"}
     source = MqttSource("127.0.0.1", port, "plant/festo-dsd/samples", tags, log=log.append)
     result: dict[str, object] = {}
 
@@ -157,7 +190,7 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
     thread.start()
     try:
         _wait_for(log, "subscribed to MQTT topic")
-        payloads = _payloads(rec, (*analog, *digital))
+        payloads = _payloads(rec, (*analog, *digital), names=names, convert=convert)
         half = len(payloads) // 2
         topic = "plant/festo-dsd/samples"
         msgs = [{"topic": topic, "payload": p, "qos": 1} for p in payloads[:half]]
@@ -317,3 +350,48 @@ def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path, tag_reference):
     finally:
         db.close()
         loop.close()
+
+
+# ------------------------------------------------------------------ tag maps
+def test_one_tag_map_for_files_and_live_sources(tmp_path):
+    path = tmp_path / "tags.toml"
+    path.write_text(
+        "lateness_s = 2.0\n"
+        "[columns]\n"
+        '"t" = { role = "time", unit = "s" }\n'
+        '"B_P1" = { role = "P_In", unit = "bar(g)", rate_hz = 50 }\n'
+        '"B_F1" = { role = "Q_In", unit = "l/min", basis = "ANR", node = "ns=3;s=F1" }\n'
+        '"Y1.0" = "U_FEED_A"\n'
+    )
+    tags = TagMap.read(path, ["P_In", "Q_In"], ["U_FEED_A"])
+    assert tags.nodes == {"P_In": "ns=2;s=B_P1", "Q_In": "ns=3;s=F1", "U_FEED_A": "ns=2;s=Y1.0"}
+    assert tags.rates_hz["P_In"] == 50.0
+    assert tags.lateness_s == 2.0
+    # 5 bar(g) is 601,325 Pa absolute; 60 l/min ANR is 1.185 g/s (ISO 8778 reference
+    # air: 20 degC, 100 kPa, 65 % RH, 1.185 kg/m3)
+    p = tags.to_si(SampleBatch("B_P1", np.array([5.0]), t0=0.0, rate_hz=50.0))
+    assert p.channel == "P_In"
+    assert p.values[0] == pytest.approx(601_325.0)
+    q = tags.to_si(SampleBatch("Q_In", np.array([60.0]), t0=0.0, rate_hz=50.0))
+    assert q.values[0] == pytest.approx(1.185e-3, rel=1e-9)
+    u = SampleBatch("Y1.0", np.array([1.0]), t0=0.0, rate_hz=100.0)
+    assert tags.to_si(u).channel == "U_FEED_A"
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ('[channels.P_In]\nnode = "a"\n[columns]\n"B" = "P_In"\n', "both"),
+        (
+            '[columns]\n"B" = { role = "P_In", unit = "bar(g)", rate_hz = 0 }\n"Y" = "U_X_A"\n',
+            "rate_hz",
+        ),
+        ('[columns]\n"B" = { role = "Q_In", unit = "l/min" }\n"Y" = "U_X_A"\n', "basis"),
+    ],
+)
+def test_tag_map_errors_name_the_file_and_entry(tmp_path, text, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(InputError, match=match) as info:
+        TagMap.read(path, ["P_In", "Q_In"], ["U_X_A"])
+    assert "bad.toml" in str(info.value)

@@ -33,6 +33,21 @@ The tag map (``--tags tags.toml``) names each channel's tag and grid rate::
 
 Without a tag map, OPC UA tags are ``ns=2;s=<channel>`` and grid rates are 1 kHz for
 analog and 100 Hz for PLC channels (the rates of the twin's recordings).
+
+The same map a plant writes for its files (``pneufdd import --map``,
+:mod:`pneufdd.recording.tag_map`) also serves the monitor: its keys are the PLC's tag
+names, each with its role, unit and flow basis, plus the optional ``node`` (OPC UA node
+id; default ``ns=2;s=<tag>``) and ``rate_hz`` (grid rate) the monitor needs::
+
+    lateness_s = 1.0
+    [columns]
+    "B_P1" = { role = "P_In", unit = "bar(g)", rate_hz = 50 }
+    "B_F1" = { role = "Q_In", unit = "l/min", basis = "ANR", node = "ns=3;s=DB10.F1" }
+    "Y1.0" = { role = "U_FEED_A" }
+
+Live values are brought to SI at the edge with the very conversion the import uses
+(:func:`pneufdd.physics.units.to_si`); MQTT payloads may name their channels by tag.
+A map with both ``[channels]`` and ``[columns]`` is refused.
 """
 
 from __future__ import annotations
@@ -47,7 +62,7 @@ import time as wallclock
 import tomllib
 import urllib.parse
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC as _UTC
 from pathlib import Path
 from typing import Any
@@ -56,6 +71,7 @@ import numpy as np
 
 from pneufdd.errors import InputError, describe
 from pneufdd.monitor.samples import SampleBatch
+from pneufdd.physics.units import UNITS, to_si
 from pneufdd.recording.model import Recording
 
 __all__ = [
@@ -80,12 +96,30 @@ def _quiet(_: str) -> None:
 
 @dataclass(frozen=True)
 class TagMap:
-    """Channel -> tag (node id) and grid rate; optional end tag and lateness."""
+    """Channel -> tag (node id) and grid rate; optional end tag and lateness.
+
+    ``aliases`` maps a PLC tag name arriving in a stream to its channel, ``units`` a
+    channel to the unit its live values come in (absent: already SI); both are filled
+    from the PLC-tag form of the map (module docstring).
+    """
 
     nodes: dict[str, str]
     rates_hz: dict[str, float]
     end: str | None = None
     lateness_s: float = 1.0
+    aliases: dict[str, str] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+
+    def to_si(self, batch: SampleBatch) -> SampleBatch:
+        """The batch under its channel's name, its values in SI units."""
+        channel = self.aliases.get(batch.channel, batch.channel)
+        unit = self.units.get(channel)
+        if channel == batch.channel and unit is None:
+            return batch
+        values = batch.values
+        if unit is not None:
+            values, _ = to_si(values, unit, f"of live tag {batch.channel!r}")
+        return replace(batch, channel=channel, values=np.asarray(values, dtype=np.float64))
 
     @classmethod
     def default(cls, analog: Sequence[str], digital: Sequence[str]) -> TagMap:
@@ -102,6 +136,16 @@ class TagMap:
         except (OSError, tomllib.TOMLDecodeError) as exc:
             raise InputError(describe("--tags", str(path), "a readable TOML tag map")) from exc
         base = cls.default(analog, digital)
+        if "columns" in raw:
+            if "channels" in raw:
+                raise InputError(
+                    describe(
+                        f"--tags {path}",
+                        "both [channels] and [columns]",
+                        "one form: [columns] keyed by PLC tag, or [channels] keyed by channel",
+                    )
+                )
+            return cls._read_plc_tags(raw, Path(path), base)
         nodes, rates = dict(base.nodes), dict(base.rates_hz)
         channels = raw.get("channels", {})
         if not isinstance(channels, dict):
@@ -119,6 +163,45 @@ class TagMap:
         lateness = float(raw.get("lateness_s", 1.0))
         end = raw.get("end")
         return cls(nodes, rates, None if end is None else str(end), lateness)
+
+    @classmethod
+    def _read_plc_tags(cls, raw: dict[str, Any], path: Path, base: TagMap) -> TagMap:
+        """The file-import form (``[columns]`` keyed by PLC tag) with ``node``/``rate_hz``."""
+        from pneufdd.recording.tag_map import parse_tag_map
+
+        live = ("node", "rate_hz")
+        columns = raw["columns"]
+        if not isinstance(columns, dict):
+            raise InputError(describe(f"[columns] of {path}", columns, "a table per PLC tag"))
+        plain: dict[str, Any] = {}
+        extra: dict[str, dict[str, Any]] = {}
+        for tag, entry in columns.items():
+            entry = {"role": entry} if isinstance(entry, str) else entry
+            if not isinstance(entry, dict):
+                raise InputError(describe(f"columns.{tag!r} of {path}", entry, "a table"))
+            plain[tag] = {k: v for k, v in entry.items() if k not in live}
+            extra[tag] = {k: v for k, v in entry.items() if k in live}
+        rest = {k: v for k, v in raw.items() if k not in ("lateness_s", "end", "columns")}
+        parsed = parse_tag_map({**rest, "columns": plain}, str(path))
+        nodes, rates = dict(base.nodes), dict(base.rates_hz)
+        aliases: dict[str, str] = {}
+        units: dict[str, str] = {}
+        for column in parsed.channels:
+            options = extra[column.column]
+            nodes[column.role] = str(options.get("node", f"ns=2;s={column.column}"))
+            if "rate_hz" in options:
+                rate = options["rate_hz"]
+                if isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0:
+                    raise InputError(
+                        describe(f"columns.{column.column!r}.rate_hz of {path}", rate, "> 0")
+                    )
+                rates[column.role] = float(rate)
+            aliases[column.column] = column.role
+            if not column.digital and UNITS[column.unit].si_unit != column.unit:
+                units[column.role] = column.unit
+        lateness = float(raw.get("lateness_s", 1.0))
+        end = raw.get("end")
+        return cls(nodes, rates, None if end is None else str(end), lateness, aliases, units)
 
 
 # --------------------------------------------------------------------- replay
@@ -231,6 +314,7 @@ class MqttSource:
         idle_s: float = 0.5,
     ) -> None:
         self.host, self.port, self.topic = host, port, topic
+        self.tags = tags
         self.rates_hz = dict(tags.rates_hz)
         self.lateness_s = tags.lateness_s
         self.log = log
@@ -265,7 +349,8 @@ class MqttSource:
 
         def on_message(_c: Any, _u: Any, message: Any) -> None:
             try:
-                self._queue.put(parse_payload(message.payload))
+                batches, end = parse_payload(message.payload)
+                self._queue.put(([self.tags.to_si(b) for b in batches], end))
             except InputError as exc:
                 self.bad_payloads += 1
                 self.log(f"ignored a bad MQTT payload: {exc}")
@@ -365,7 +450,8 @@ class OpcUaSource:
                 if stamp is None or val is None:
                     return
                 t = stamp.timestamp() if stamp.tzinfo else stamp.replace(tzinfo=_UTC).timestamp()
-                source._queue.put(SampleBatch(name, np.array([float(val)]), times=np.array([t])))
+                batch = SampleBatch(name, np.array([float(val)]), times=np.array([t]))
+                source._queue.put(source.tags.to_si(batch))
 
         attempt = 0
         while not self._stop.is_set():
