@@ -134,3 +134,33 @@ def test_median_run_is_not_flagged_by_one_odd_cycle_but_a_shift_is():
 def test_run_statistic_is_checked():
     with pytest.raises(ValueError, match="run_statistic: received 'max'"):
         CycleDistanceDetector(run_statistic="max").fit(np.ones((5, 3)) + np.eye(5, 3))
+
+
+def test_recording_level_shifts_need_leave_one_recording_out_cross_validation():
+    # Cycles of one recording share its conditions (drift level, compressor phase):
+    # each recording here is offset by its own random vector. Scored in turn, the
+    # reference hides that; leaving whole recordings out measures what a new run meets.
+    rng = np.random.default_rng(3)
+    p, per = 30, 20
+
+    def recordings(n):
+        return [0.5 * rng.normal(size=p) + rng.normal(size=(per, p)) for _ in range(n)]
+
+    X = np.vstack(recordings(5))
+    groups = np.repeat(np.arange(5), per)
+    in_turn = CycleDistanceDetector(n_nuisance=0, false_alarm_rate=0.01).fit(X)
+    grouped = CycleDistanceDetector(n_nuisance=0, false_alarm_rate=0.01).fit(X, groups=groups)
+    assert grouped.grouped_cv_ and not in_turn.grouped_cv_
+    assert grouped.run_threshold(10) > in_turn.run_threshold(10)
+    new_runs = [r[:10] for r in recordings(2000)]
+
+    def flagged(det):
+        return np.mean([det.predict_run(r) for r in new_runs])
+
+    assert flagged(in_turn) > 0.05  # 13 % of new leak-free runs, designed for 1 %
+    assert flagged(grouped) < 0.03  # 2 %
+
+
+def test_groups_are_checked():
+    with pytest.raises(ValueError, match=r"groups: received shape \(3,\)"):
+        CycleDistanceDetector().fit(np.eye(5, 3) + 1.0, groups=[0, 1, 2])

@@ -204,3 +204,43 @@ def test_no_pickle_inside(model, tmp_path):
     assert "header.npy" in names
     with np.load(path, allow_pickle=False) as data:
         assert all(data[k].dtype != object for k in data.files)
+
+
+def test_cycle_recording_round_trips_and_groups_the_cross_validation(tmp_path):
+    groups = np.repeat([0, 1, 2], [7, 7, 6])
+    grouped = ReferenceModel.build(
+        synth_table(20, seed=3),
+        machine_description=synth_description(),
+        sources=["a.parquet", "b.parquet", "c.parquet"],
+        cycle_recording=groups,
+    )
+    back = load_reference(save_reference(grouped, tmp_path / "grouped.pnref"))
+    assert np.array_equal(back.cycle_recording, groups)
+    assert back.detector.grouped_cv_
+    assert back.detector.threshold_ == grouped.detector.threshold_
+    # leaving whole recordings out scores the reference differently from cycles in turn
+    ungrouped = ReferenceModel.build(
+        synth_table(20, seed=3), machine_description=synth_description()
+    )
+    assert ungrouped.cycle_recording is None
+    assert not ungrouped.detector.grouped_cv_
+    assert not np.array_equal(
+        grouped.detector.reference_scores_, ungrouped.detector.reference_scores_
+    )
+
+
+def test_file_without_cycle_recording_reads_as_ungrouped(model, tmp_path):
+    path = save_reference(model, tmp_path / "ref.pnref")
+    assert model.cycle_recording is None
+    with np.load(path) as data:
+        assert "cycle_recording" not in data.files
+    assert load_reference(path).cycle_recording is None
+
+
+def test_cycle_recording_of_wrong_length_is_refused():
+    with pytest.raises(InputError, match=r"cycle_recording .*received 'shape \(3,\)"):
+        ReferenceModel.build(
+            synth_table(20, seed=3),
+            machine_description=synth_description(),
+            cycle_recording=np.array([0, 1, 2]),
+        )

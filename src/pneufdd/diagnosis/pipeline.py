@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.diagnosis.engine import Diagnosis, diagnose
@@ -176,6 +177,7 @@ def build_reference_from_recordings(
         for rec, cycles, where in zip(recordings, all_cycles, labels, strict=True)
     ]
     table = StepTable.concatenate(tables)
+    cycle_recording = np.repeat(np.arange(len(tables)), [t.n_cycles for t in tables])
     signatures = None
     if with_signatures and description is not None:
         signatures = compute_signatures(
@@ -203,7 +205,14 @@ def build_reference_from_recordings(
             )
     try:
         return _build_model(
-            table, description, signatures, settings, labels, sequence, localisation
+            table,
+            description,
+            signatures,
+            settings,
+            labels,
+            sequence,
+            localisation,
+            cycle_recording,
         )
     except InputError as exc:
         raise naming(exc, ", ".join(labels)) from exc
@@ -217,6 +226,7 @@ def _build_model(
     labels: Sequence[str],
     sequence: Sequence[Any],
     localisation: LocalisationSettings | None,
+    cycle_recording: npt.NDArray[np.int64],
 ) -> ReferenceModel:
     return ReferenceModel.build(
         table,
@@ -226,6 +236,7 @@ def _build_model(
         sources=labels,
         sequence=sequence_to_records(sequence),
         localisation=localisation,
+        cycle_recording=cycle_recording,
     )
 
 

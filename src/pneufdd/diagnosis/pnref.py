@@ -12,6 +12,9 @@ entry                  content
                        settings, sources, supply pressure, trace rate, signature
                        locations, PLC sequence
 ``features``           (n_cycles, n_features) float64 reference feature vectors
+``cycle_recording``    (n_cycles,) int64, optional: index in ``sources`` of the
+                       recording each reference cycle came from (absent in files
+                       written before; the detector then cross-validates cycles in turn)
 ``band_mean``          (n_channels, n_samples) float64, optional
 ``band_std``           (n_channels, n_samples) float64, optional
 ``trace_offsets``      (n_steps + 1,) int64, optional (with the band arrays)
@@ -124,6 +127,8 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
         "header": np.array(json.dumps(_header(model), allow_nan=False)),
         "features": model.features,
     }
+    if model.cycle_recording is not None:
+        arrays["cycle_recording"] = np.asarray(model.cycle_recording, dtype=np.int64)
     if model.band_mean is not None and model.band_std is not None:
         arrays["band_mean"] = model.band_mean
         arrays["band_std"] = model.band_std
@@ -353,6 +358,9 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 raise _bad(source, "header field", str(exc), "a complete header") from exc
             n_feat = len(names)
             features = _array(data, source, "features", "f", (n_cycles, n_feat))
+            cycle_recording = None
+            if "cycle_recording" in data.files:
+                cycle_recording = _array(data, source, "cycle_recording", "i", (n_cycles,))
             band_mean = band_std = offsets = None
             if "band_mean" in data.files:
                 band_mean = _array(data, source, "band_mean", "f", (len(channels), None))
@@ -422,6 +430,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 sources=tuple(str(s) for s in header.get("sources", [])),
                 sequence=tuple(dict(step) for step in header.get("sequence", [])),
                 localisation=localisation,
+                cycle_recording=cycle_recording,
             )
     except FileFormatError:
         raise

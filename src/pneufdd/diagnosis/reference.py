@@ -171,6 +171,11 @@ class ReferenceModel:
         exactly as the reference was segmented (empty: learn it from each run).
     localisation : LocalisationSettings
         Tuning of leak location and sizing.
+    cycle_recording : ndarray of int, shape (n_cycles,), optional
+        Index (in :attr:`sources`) of the recording each reference cycle came from;
+        the detector's cross-validation leaves out one recording at a time when there
+        are three or more (:mod:`pneufdd.diagnosis.statistic`). None for references
+        saved before it was stored, or built from one table of unknown origin.
     """
 
     machine: str
@@ -189,6 +194,7 @@ class ReferenceModel:
     sources: tuple[str, ...] = ()
     sequence: tuple[dict[str, Any], ...] = ()
     localisation: LocalisationSettings = field(default_factory=LocalisationSettings)
+    cycle_recording: npt.NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         feats = np.asarray(self.features, dtype=np.float64)
@@ -198,6 +204,17 @@ class ReferenceModel:
                     "shape of reference features", feats.shape, f"(n, {len(self.feature_names)})"
                 )
             )
+        if self.cycle_recording is not None:
+            groups = np.asarray(self.cycle_recording)
+            if groups.shape != (feats.shape[0],) or groups.dtype.kind not in "iu":
+                raise InputError(
+                    describe(
+                        "cycle_recording (recording of each reference cycle)",
+                        f"shape {groups.shape}, dtype {groups.dtype}",
+                        f"integers of shape ({feats.shape[0]},)",
+                    )
+                )
+            object.__setattr__(self, "cycle_recording", groups.astype(np.int64))
         if feats.shape[0] < MIN_REFERENCE_CYCLES:
             raise InputError(
                 describe(
@@ -237,6 +254,7 @@ class ReferenceModel:
         sources: Sequence[str] = (),
         sequence: Sequence[Mapping[str, Any]] = (),
         localisation: LocalisationSettings | None = None,
+        cycle_recording: npt.ArrayLike | None = None,
     ) -> ReferenceModel:
         """Build a reference from the step table of leak-free cycles.
 
@@ -259,6 +277,8 @@ class ReferenceModel:
             The PLC step sequence (see :attr:`sequence`).
         localisation : LocalisationSettings, optional
             Tuning of leak location and sizing.
+        cycle_recording : array_like of int, shape (n_cycles,), optional
+            Recording (index in ``sources``) of each cycle of ``table``.
 
         Returns
         -------
@@ -301,6 +321,9 @@ class ReferenceModel:
             sources=tuple(sources),
             sequence=tuple(dict(step) for step in sequence),
             localisation=localisation or LocalisationSettings(),
+            cycle_recording=None
+            if cycle_recording is None
+            else np.asarray(cycle_recording, dtype=np.int64),
         )
 
     # ----------------------------------------------------------- derived
@@ -353,7 +376,7 @@ class ReferenceModel:
             false_alarm_rate=self.settings.false_alarm_rate,
             scale_floor=floor,
             run_statistic=self.settings.run_statistic,
-        ).fit(self.features)
+        ).fit(self.features, groups=self.cycle_recording)
 
     def band_detector(self, channel: str | None = None) -> BandDetector | None:
         """The band detector of eq. 5.21 over all channels, or over one channel."""

@@ -21,6 +21,15 @@ model fitted without it, so the estimate is honest) and approximated by a scaled
 chi-square :math:`g \\chi^2_h` matched in mean and variance (Box, 1954). The
 per-cycle threshold is its ``1 - alpha`` quantile.
 
+The cycles of one recording share its conditions (the house-pressure drift level and
+compressor phase of section 4.4.1, the machine's warmth), so a cycle scored by a model
+that learned its neighbours from the same recording looks closer to the reference than
+a cycle of a new run does. When the reference cycles are labelled with their recording
+(``groups``) and there are at least :data:`MIN_GROUPS_FOR_GROUPED_CV` recordings, each
+recording is scored by a model fitted on the others (leave-one-group-out, the
+cross-validation for grouped data of Roberts et al., 2017), which measures the
+distribution a new run meets; with fewer, cycles are assigned to folds in turn.
+
 A run of ``m`` cycles is judged on the *median* of its cycle statistics (the upper
 median, order statistic :math:`k = \\lfloor m/2 \\rfloor + 1`, when ``m`` is even),
 which averages out noise as the dissertation recommends ("take the average of some
@@ -41,6 +50,9 @@ References
 .. [2] Jackson, J. E., Mudholkar, G. S. (1979). Control procedures for residuals
    associated with principal component analysis. Technometrics 21(3), 341-349.
 .. [3] David, H. A., Nagaraja, H. N. (2003). Order Statistics, 3rd ed. Wiley.
+.. [4] Roberts, D. R. et al. (2017). Cross-validation strategies for data with
+   temporal, spatial, hierarchical, or phylogenetic structure. Ecography 40(8),
+   913-929.
 """
 
 from __future__ import annotations
@@ -53,10 +65,21 @@ from scipy import stats
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-__all__ = ["RUN_STATISTICS", "CycleDistanceDetector", "median_order", "scaled_chi2_fit"]
+__all__ = [
+    "MIN_GROUPS_FOR_GROUPED_CV",
+    "RUN_STATISTICS",
+    "CycleDistanceDetector",
+    "cross_validation_folds",
+    "median_order",
+    "scaled_chi2_fit",
+]
 
 RUN_STATISTICS = ("median", "mean")
 """How a run's cycle statistics are combined: their (upper) median, or their mean."""
+
+MIN_GROUPS_FOR_GROUPED_CV = 3
+"""Fewest recordings for leave-one-recording-out cross-validation: with two, each
+model would learn from half the reference and overstate the spread [-]."""
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -104,6 +127,48 @@ def median_order(n_cycles: int) -> int:
     [1, 2, 2, 6, 6]
     """
     return int(n_cycles) // 2 + 1
+
+
+def cross_validation_folds(
+    n_samples: int, n_folds: int, groups: npt.ArrayLike | None = None
+) -> npt.NDArray[np.int64]:
+    """Fold number of each sample for the cross-validated leak-free statistic.
+
+    Parameters
+    ----------
+    n_samples : int
+        Number of reference cycles [-].
+    n_folds : int
+        Folds when the cycles are not grouped (leave-one-out when ``n_samples`` is not
+        larger) [-].
+    groups : array_like of int, shape (n_samples,), optional
+        Recording of each cycle. With at least :data:`MIN_GROUPS_FOR_GROUPED_CV`
+        distinct recordings each recording is one fold.
+
+    Returns
+    -------
+    ndarray of int, shape (n_samples,)
+
+    Examples
+    --------
+    >>> cross_validation_folds(6, 3).tolist()
+    [0, 1, 2, 0, 1, 2]
+    >>> cross_validation_folds(6, 3, [7, 7, 8, 8, 9, 9]).tolist()
+    [0, 0, 1, 1, 2, 2]
+    >>> cross_validation_folds(4, 2, [0, 0, 1, 1]).tolist()   # two recordings: in turn
+    [0, 1, 0, 1]
+    """
+    if groups is not None:
+        g = np.asarray(groups)
+        if g.shape != (n_samples,) or g.dtype.kind not in "iu":
+            raise ValueError(
+                f"groups: received shape {g.shape} of dtype {g.dtype}; allowed: one "
+                f"integer recording number per sample ({n_samples})"
+            )
+        labels, folds = np.unique(g, return_inverse=True)
+        if labels.size >= MIN_GROUPS_FOR_GROUPED_CV:
+            return np.asarray(folds, dtype=np.int64)
+    return np.arange(n_samples, dtype=np.int64) % min(int(n_folds), n_samples)
 
 
 def _fit_space(
@@ -156,6 +221,8 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
         Orthonormal supply-fluctuation directions in standardised space.
     reference_scores_ : ndarray, shape (n_cycles,)
         Cross-validated statistic of each reference cycle.
+    grouped_cv_ : bool
+        True when the cross-validation left out one recording at a time.
     chi2_scale_, chi2_dof_ : float
         Box fit ``g``, ``h`` of the leak-free distribution.
     threshold_ : float
@@ -202,7 +269,9 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
             )
         return floor
 
-    def fit(self, X: npt.ArrayLike, y: object = None) -> CycleDistanceDetector:
+    def fit(
+        self, X: npt.ArrayLike, y: object = None, groups: npt.ArrayLike | None = None
+    ) -> CycleDistanceDetector:
         """Learn reference statistics, fluctuation directions and the threshold.
 
         Parameters
@@ -211,6 +280,8 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
             Per-cycle feature vectors of leak-free cycles.
         y : None
             Ignored.
+        groups : array_like of int, shape (n_cycles,), optional
+            Recording of each cycle (:func:`cross_validation_folds`).
 
         Returns
         -------
@@ -237,14 +308,16 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
             )
         floor = self._floor(data.shape[1])
         self.mean_, self.scale_, self.components_ = _fit_space(data, floor, int(self.n_nuisance))
-        folds = min(int(self.n_folds), n)
+        fold_of = cross_validation_folds(n, int(self.n_folds), groups)
         scores = np.empty(n)
-        fold_of = np.arange(n) % folds
-        for f in range(folds):
+        for f in np.unique(fold_of):
             test = fold_of == f
             mean, scale, comps = _fit_space(data[~test], floor, int(self.n_nuisance))
             scores[test] = _residual_stat((data[test] - mean) / scale, comps)
         self.reference_scores_ = scores
+        self.grouped_cv_ = bool(
+            groups is not None and np.unique(np.asarray(groups)).size >= MIN_GROUPS_FOR_GROUPED_CV
+        )
         self.chi2_scale_, self.chi2_dof_ = scaled_chi2_fit(scores)
         self.threshold_ = self.run_threshold(1)
         self.reference_false_alarm_rate_ = float(np.mean(scores > self.threshold_))
