@@ -150,7 +150,8 @@ def test_recording_level_shifts_need_leave_one_recording_out_cross_validation():
     groups = np.repeat(np.arange(5), per)
     in_turn = CycleDistanceDetector(n_nuisance=0, false_alarm_rate=0.01).fit(X)
     grouped = CycleDistanceDetector(n_nuisance=0, false_alarm_rate=0.01).fit(X, groups=groups)
-    assert grouped.grouped_cv_ and not in_turn.grouped_cv_
+    assert grouped.grouped_cv_
+    assert not in_turn.grouped_cv_
     assert grouped.run_threshold(10) > in_turn.run_threshold(10)
     new_runs = [r[:10] for r in recordings(2000)]
 

@@ -354,6 +354,35 @@ def test_both_lines_alternative_needs_a_comparable_residual():
     loose = locate(observed, sig, _whiten, both_lines_max_ratio=1e12)
     strict = locate(observed, sig, _whiten)
     assert [str(leak.location) for leak in strict.leaks] == ["supply"]
-    (alt,) = pairs(loose)
+    alt = pairs(loose)[0]  # the best actuator first
+    assert set(names(alt.locations)) == {"X_A", "X_B"}
+    assert [a.rss for a in pairs(loose)] == sorted(a.rss for a in pairs(loose))
     assert alt.rss > 30.0 * loose.rss  # a far worse fit ...
     assert pairs(strict) == []  # ... is not offered by default
+
+
+def test_every_actuator_whose_two_lines_fit_a_supply_leak_is_offered():
+    # two actuators whose line pairs both make the supply leak's effect: the additive
+    # residual cannot say which, so both pairs are listed, best first
+    rng = np.random.default_rng(26)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    matrix[0] = matrix[1] + matrix[2]
+    matrix[3] = matrix[1] + 0.02 * rng.normal(size=50)
+    matrix[4] = matrix[2] + 0.02 * rng.normal(size=50)
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    observed = 2.0 * matrix[0] + 0.05 * rng.normal(size=50)  # noise above the mismatch
+    result = locate(observed, sig, _whiten)
+    pairs = [set(names(a.locations)) for a in result.alternatives if len(a.locations) == 2]
+    assert {"X_A", "X_B"} in pairs
+    assert {"Y_A", "Y_B"} in pairs
+    assert pairs.index({"X_A", "X_B"}) < pairs.index({"Y_A", "Y_B"})
+    one = locate(observed, sig, _whiten, max_alternatives=1)
+    assert [set(names(a.locations)) for a in one.alternatives if len(a.locations) == 2] == [
+        {"X_A", "X_B"}
+    ]

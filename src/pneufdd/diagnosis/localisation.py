@@ -26,7 +26,7 @@ unit variance for a run mean of ``m`` cycles. Steps:
 5. **Ambiguity groups and confidence**
    (:func:`~pneufdd.diagnosis.model_choice.ambiguity_group`) and **alternative
    explanations** (:func:`~pneufdd.diagnosis.model_choice.alternative_explanations`,
-   :func:`~pneufdd.diagnosis.model_choice.both_lines_alternative`).
+   :func:`~pneufdd.diagnosis.model_choice.both_lines_alternatives`).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from pneufdd.diagnosis.model_choice import (
     Subset,
     alternative_explanations,
     ambiguity_group,
-    both_lines_alternative,
+    both_lines_alternatives,
     choose_leak_count,
     same_actuator_pair,
 )
@@ -96,7 +96,8 @@ class LocalisationSettings:
         Number of best additive pairs refined with their bilinear interaction before
         the model is chosen [-].
     max_alternatives : int
-        Largest number of disjoint alternative explanations reported [-].
+        Largest number of disjoint alternative explanations reported, and of "both
+        lines of one actuator" explanations of a supply leak [-].
     both_lines_max_ratio : float
         A supply leak's alternative "both lines of one actuator" is offered only when
         the additive residual of those two leaks is at most this multiple of the
@@ -568,13 +569,18 @@ def locate(
         settings.relative_tolerance,
         settings.max_alternatives,
     )
-    both_lines = both_lines_alternative(
-        locations, subset, coef, model, rss, settings.min_flow, settings.both_lines_max_ratio
-    )
-    if both_lines is not None and all(
-        set(both_lines.locations) != set(e.locations) for e in explanations
+    for both_lines in both_lines_alternatives(
+        locations,
+        subset,
+        coef,
+        model,
+        rss,
+        settings.min_flow,
+        settings.both_lines_max_ratio,
+        settings.max_alternatives,
     ):
-        explanations.append(both_lines)
+        if all(set(both_lines.locations) != set(e.locations) for e in explanations):
+            explanations.append(both_lines)
     return Localisation(
         tuple(leaks), rss_null, float(rss), dof, float(explained), tuple(explanations), simulated
     )

@@ -9,7 +9,7 @@ function here:
 - :func:`ambiguity_group`: for each chosen leak, the locations the sensors cannot tell
   apart from it (nearly the same residual, Akaike-type weight, or collinear whitened
   signature) and the confidence of the group;
-- :func:`alternative_explanations` and :func:`both_lines_alternative`: explanations
+- :func:`alternative_explanations` and :func:`both_lines_alternatives`: explanations
   that share no location with the chosen one yet fit about as well (a supply leak
   versus leaks on both lines of one actuator draw air alike).
 """
@@ -31,7 +31,7 @@ __all__ = [
     "Group",
     "alternative_explanations",
     "ambiguity_group",
-    "both_lines_alternative",
+    "both_lines_alternatives",
     "choose_leak_count",
     "same_actuator_pair",
 ]
@@ -173,7 +173,7 @@ def ambiguity_group(
         A location that joins the group in any case, last, and the size it would
         need [kg/s] when ``fits`` has no fit with it (it then adds no weight): the
         supply for the smaller of two leaks on both lines of one actuator, which
-        draw air like a supply leak (see :func:`both_lines_alternative`).
+        draw air like a supply leak (see :func:`both_lines_alternatives`).
     composite_rss : sequence of float
         Residuals of explanations that compete with this leak but are not one location
         (two line leaks standing for a supply leak): their weights count against the
@@ -254,7 +254,7 @@ def alternative_explanations(
     ]
 
 
-def both_lines_alternative(
+def both_lines_alternatives(
     locations: Sequence[Location],
     subset: Subset,
     sizes: FloatArray,
@@ -262,47 +262,52 @@ def both_lines_alternative(
     chosen_rss: float,
     min_flow: float,
     max_ratio: float,
-) -> Explanation | None:
-    """A supply leak re-explained as leaks on both lines of one actuator.
+    max_count: int,
+) -> tuple[Explanation, ...]:
+    """A supply leak re-explained as leaks on both lines of one actuator, best first.
 
     Leaks on the extend and the retract line of one actuator draw air in every step,
     like a supply leak; with supply sensors (and without line sensors on that
     actuator) the two explanations are physically near-indistinguishable, and their
     simultaneous effect is far from the additive model, so residuals cannot separate
-    them. When the chosen model holds a supply leak, the actuator whose two lines fit
-    best (additive residual, the same model for every actuator) replaces it; the
-    chosen model's other leaks are kept (a kept leak on one of those lines adds to
-    its flow). An actuator whose fit needs a size at the size cap cannot produce the
-    supply leak's effect and is not offered, nor one whose additive residual exceeds
-    ``max_ratio`` times the chosen model's ``chosen_rss`` (only the residual of the
-    two line leaks is compared, not the kept leaks).
+    them, nor one actuator's pair from another's. When the chosen model holds a supply
+    leak, each actuator whose two lines fit (additive residual, the same model for
+    every actuator) gives an explanation in which that pair replaces it, the best
+    ``max_count`` of them in order of residual; the chosen model's other leaks are
+    kept (a kept leak on one of those lines adds to its flow). An actuator whose fit
+    needs a size at the size cap cannot produce the supply leak's effect and is not
+    offered, nor one whose additive residual exceeds ``max_ratio`` times the chosen
+    model's ``chosen_rss`` (only the residual of the two line leaks is compared, not
+    the kept leaks).
+
+    Why more than one: on festo-dsd plants with only the supply sensors, leaks on both
+    lines of HMPL_HZ (199 SLPM each) fitted as a 99 SLPM supply leak; the additive
+    residuals of the nine actuators' pairs lay within a factor 1.5 of each other, and
+    the best was HMPL_VS's, so one alternative named the wrong actuator
+    (``docs/diagnosis.md``).
     """
-    if SUPPLY not in locations:
-        return None
+    if SUPPLY not in locations or max_count < 1:
+        return ()
     supply = locations.index(SUPPLY)
     if supply not in subset:
-        return None
+        return ()
     keep = [i for i in subset if i != supply]
-    best: tuple[float, int, int] | None = None
+    candidates: list[tuple[float, int, int, FloatArray]] = []
     for a, loc in enumerate(locations):
         if loc.side != "A" or loc.other_line() not in locations:
             continue
         b = locations.index(loc.other_line())
         flows, rss = model.fit((a, b))
         at_cap = np.any(flows >= (1.0 - 1e-9) * model.size_cap[[a, b]])
-        if np.all(flows >= min_flow) and not at_cap and (best is None or rss < best[0]):
-            best = (rss, a, b)
-    if best is None:
-        return None
-    rss, a, b = best
-    if rss > max_ratio * chosen_rss:
-        return None
-    pair_flows = model.fit((a, b))[0]
-    fitted = {a: float(pair_flows[0]), b: float(pair_flows[1])}
-    for i in keep:
-        fitted[i] = fitted.get(i, 0.0) + float(sizes[subset.index(i)])
-    return Explanation(
-        tuple(locations[i] for i in fitted),
-        tuple(fitted.values()),
-        float(rss),
-    )
+        if np.all(flows >= min_flow) and not at_cap and rss <= max_ratio * chosen_rss:
+            candidates.append((float(rss), a, b, flows))
+    candidates.sort(key=lambda c: c[0])
+    explanations = []
+    for rss, a, b, pair_flows in candidates[:max_count]:
+        fitted = {a: float(pair_flows[0]), b: float(pair_flows[1])}
+        for i in keep:
+            fitted[i] = fitted.get(i, 0.0) + float(sizes[subset.index(i)])
+        explanations.append(
+            Explanation(tuple(locations[i] for i in fitted), tuple(fitted.values()), rss)
+        )
+    return tuple(explanations)
