@@ -129,3 +129,24 @@ def test_one_odd_cycle_never_declares_two_leaky_cycles_do_and_a_repair_is_seen()
     after = [det.update(state, quiet, 20.0 + i).event for i in range(20)]
     assert "repaired" in after
     assert not state.in_alarm
+
+
+def test_the_change_point_cycle_is_left_out_of_the_estimate_once_two_follow_it():
+    # A leak appears during a cycle: that cycle is part leak-free, part leaky, and its
+    # transient matches no leak signature (acceptance seed 96,200,104: a 3-turn DNC_A
+    # leak was "unknown" at declaration on a window holding it).
+    from collections import deque
+    from types import SimpleNamespace
+
+    from pneufdd.monitor.live import MachineMonitor
+
+    cycles = [SimpleNamespace(start=10.0 * i) for i in range(8)]
+
+    def window(change: float | None, newest: int) -> list[float]:
+        monitor = SimpleNamespace(window=deque(cycles[: newest + 1]), episode_start=change)
+        return [c.start for c in MachineMonitor._since_change(monitor)]
+
+    assert window(50.0, 6) == [50.0, 60.0]  # two cycles since the change: both kept
+    assert window(50.0, 7) == [60.0, 70.0]  # three: the change-point cycle goes
+    assert window(60.0, 6) == [50.0, 60.0]  # one: the newest two
+    assert window(None, 7)[-2:] == [60.0, 70.0]

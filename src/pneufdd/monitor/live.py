@@ -218,10 +218,18 @@ class MachineMonitor:
         return CycleOutcome(cycle.start, score, self.state.up, recorded, tuple(pending))
 
     def _since_change(self) -> list[CompletedCycle]:
-        """Cycles since the change point of the current episode, at most the newest 10."""
+        """Cycles since the change point of the current episode, at most the newest 10.
+
+        The change-point cycle itself is left out once two cycles follow it: a leak
+        usually appears during a cycle, so that cycle is part leak-free, part leaky,
+        and its transient matches no leak signature (a 3-turn DNC_A leak appearing
+        mid-cycle made the localisation explain 0 % of a 3-cycle window).
+        """
         rows = list(self.window)
         if self.episode_start is not None:
             since = [c for c in rows if c.start >= self.episode_start - 5e-4]
+            if len(since) >= 3:
+                since = since[1:]
             rows = since if len(since) >= 2 else rows[-2:]
         return rows[-(WINDOW // 2) :]
 
