@@ -143,3 +143,38 @@ def test_campaign_command(tmp_path, capsys):
     assert "=== carton-sorter, plant scale 1, sensor set supply-only ===" in out
     assert "reliability" in out
     assert "full" not in out.split("sensor set")[1].split("\n")[0]  # supply sensors only
+
+
+def test_a_run_whose_leaks_leave_no_complete_cycle_is_not_judged(tmp_path):
+    # Found by an acceptance campaign (which then stopped with an error): on this
+    # festo-dsd plant, 5-turn leaks on HMPL_V_B and DGPL_A keep the vacuum switch
+    # S_VAC from falling in step 8, so the PLC sequence never completes a cycle.
+    from pneufdd.diagnosis.pipeline import build_reference_from_recordings
+    from pneufdd.diagnosis.pnref import save_reference
+    from pneufdd.evaluation.campaign import Job, run_job
+    from pneufdd.sim import load_machine, simulate
+    from pneufdd.sim.variation import machine_to_toml, vary_machine
+
+    plant = vary_machine(load_machine("festo-dsd"), 1.0, 240_020_000)
+    plant_file = tmp_path / "plant.toml"
+    plant_file.write_text(machine_to_toml(plant))
+    free = [simulate(plant, cycles=7, seed=5 + i) for i in range(2)]
+    reference = build_reference_from_recordings(free, [], with_signatures=False)
+    ref_file = save_reference(reference, tmp_path / "digital.pnref")
+    leaks = {"HMPL_V_B": "5", "DGPL_A": "5"}
+    job = Job(
+        "festo-dsd",
+        1.0,
+        3,
+        "pair",
+        leaks,
+        240_020_284,
+        str(plant_file),
+        {"digital-only": str(ref_file)},
+        6.0e5,
+        10,
+    )
+    (record,) = run_job(job)
+    assert record["stalled"] is True
+    assert record["leaks"] == leaks
+    assert "S_VAC did not fall" in record["reason"]

@@ -45,7 +45,7 @@ from pneufdd.diagnosis.twin_effects import (
     compute_signatures,
     signature_spread,
 )
-from pneufdd.errors import InputError, describe
+from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.evaluation.scoring import RunOutcome, Tally, outcome_from_record
 from pneufdd.location import locations_of
 from pneufdd.parallel import executor, map_unordered, resolve_workers
@@ -242,7 +242,10 @@ class CampaignResult:
             out.append(f"=== {machine}, plant scale {scale:g}, sensor set {sensors} ===")
             out.extend(t.lines(targets))
         out.append("")
-        out.append(f"runs not judged (the plant stalled with these leaks): {len(self.stalled)}")
+        out.append(
+            "runs not judged (the plant stalled, or completed no cycle, with these leaks): "
+            f"{len(self.stalled)}"
+        )
         out.extend(f"  {s}" for s in self.stalled[:20])
         out.append(f"campaign wall time {self.seconds:.0f} s; outputs in {self.out}")
         return out
@@ -339,6 +342,14 @@ def _cached_plant(path: str) -> MachineDescription:
     return _PLANTS[path]
 
 
+def _stall_entry(record: dict[str, Any]) -> dict[str, Any]:
+    """What the campaign prints of a run it could not judge."""
+    entry = {k: record[k] for k in ("machine", "leaks", "seed")}
+    if "reason" in record:
+        entry["reason"] = record["reason"]
+    return entry
+
+
 def run_job(job: Job) -> list[dict[str, Any]]:
     """Simulate one run on its plant and diagnose it with every reference (a worker)."""
     plant = _cached_plant(job.plant_file)
@@ -364,7 +375,13 @@ def run_job(job: Job) -> list[dict[str, Any]]:
     records = []
     for sensors, path in job.references.items():
         model = _cached_reference(path)
-        table = run_table(model, recording, f"campaign run seed {job.seed}")
+        try:
+            table = run_table(model, recording, f"campaign run seed {job.seed}")
+        except NoCompleteCycleError as exc:
+            # the leaks keep the machine from completing its sequence as the PLC
+            # expects (a vacuum switch that never falls): a plant failure like a stall,
+            # not a run to judge
+            return [{**base, "stalled": True, "reason": str(exc)}]
         table = table.take(np.arange(min(job.run_cycles, table.n_cycles)))
         start = time.perf_counter()
         result = diagnose(model, table)
@@ -597,7 +614,7 @@ def _run_campaign(
                 handle.write(json.dumps(record) + "\n")
                 handle.flush()
                 if record.get("stalled"):
-                    result.stalled.append({k: record[k] for k in ("machine", "leaks", "seed")})
+                    result.stalled.append(_stall_entry(record))
                     continue
                 key = (record["machine"], float(record["scale"]), record["sensors"])
                 result.tallies.setdefault(key, Tally()).add(outcome_from_record(record))
@@ -623,7 +640,7 @@ def rescore(folder: str | Path) -> CampaignResult:
     for line in path.read_text("utf-8").splitlines():
         record = json.loads(line)
         if record.get("stalled"):
-            result.stalled.append({k: record[k] for k in ("machine", "leaks", "seed")})
+            result.stalled.append(_stall_entry(record))
             continue
         key = (record["machine"], float(record["scale"]), record["sensors"])
         outcomes.setdefault(key, []).append(outcome_from_record(record))
