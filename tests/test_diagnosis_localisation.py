@@ -261,17 +261,22 @@ def test_line_pair_with_interaction_is_recovered():
     assert biased.keys() != {"X_A", "Y_A"} or abs(biased["X_A"] / a - 1) > 0.02
 
 
-def _supply_equals_both_lines(seed=23):
-    rng = np.random.default_rng(seed)
-    matrix = np.abs(rng.normal(size=(5, 50)))
-    matrix[0] = matrix[1] + matrix[2]  # supply leak = both lines of X: indistinguishable
-    sig = SignatureSet(
+def _two_actuator_set(matrix):
+    """Signatures of supply, X_A, X_B, Y_A, Y_B: one size (10) with effects ``matrix``."""
+    return SignatureSet(
         ("supply", "X_A", "X_B", "Y_A", "Y_B"),
         np.full((5, 1), 10.0),
         10.0 * matrix[:, None, :],
         tuple(f"f{j}" for j in range(50)),
         np.full(5, 6e5),
     )
+
+
+def _supply_equals_both_lines(seed=23):
+    rng = np.random.default_rng(seed)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    matrix[0] = matrix[1] + matrix[2]  # supply leak = both lines of X: indistinguishable
+    sig = _two_actuator_set(matrix)
     return matrix, sig
 
 
@@ -300,13 +305,7 @@ def test_distinct_single_leak_has_no_alternative():
 def test_smaller_of_two_same_actuator_leaks_may_be_a_supply_leak():
     rng = np.random.default_rng(24)
     matrix = np.abs(rng.normal(size=(5, 50)))
-    sig = SignatureSet(
-        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
-        np.full((5, 1), 10.0),
-        10.0 * matrix[:, None, :],
-        tuple(f"f{j}" for j in range(50)),
-        np.full(5, 6e5),
-    )
+    sig = _two_actuator_set(matrix)
     result = locate(3.0 * matrix[1] + 1.0 * matrix[2], sig, _whiten)
     groups = {str(leak.location): names(leak.ambiguity_group) for leak in result.leaks}
     assert groups == {"X_A": ("X_A",), "X_B": ("X_B", "supply")}
@@ -339,13 +338,7 @@ def test_both_lines_alternative_needs_a_comparable_residual():
     rng = np.random.default_rng(25)
     matrix = np.abs(rng.normal(size=(5, 50)))
     matrix[0] = matrix[1] + matrix[2] + 0.5 * np.abs(rng.normal(size=50))  # not quite
-    sig = SignatureSet(
-        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
-        np.full((5, 1), 10.0),
-        10.0 * matrix[:, None, :],
-        tuple(f"f{j}" for j in range(50)),
-        np.full(5, 6e5),
-    )
+    sig = _two_actuator_set(matrix)
     observed = 2.0 * matrix[0] + 0.01 * rng.normal(size=50)
 
     def pairs(result):
@@ -369,13 +362,7 @@ def test_every_actuator_whose_two_lines_fit_a_supply_leak_is_offered():
     matrix[0] = matrix[1] + matrix[2]
     matrix[3] = matrix[1] + 0.02 * rng.normal(size=50)
     matrix[4] = matrix[2] + 0.02 * rng.normal(size=50)
-    sig = SignatureSet(
-        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
-        np.full((5, 1), 10.0),
-        10.0 * matrix[:, None, :],
-        tuple(f"f{j}" for j in range(50)),
-        np.full(5, 6e5),
-    )
+    sig = _two_actuator_set(matrix)
     observed = 2.0 * matrix[0] + 0.05 * rng.normal(size=50)  # noise above the mismatch
     result = locate(observed, sig, _whiten)
     pairs = [set(names(a.locations)) for a in result.alternatives if len(a.locations) == 2]
