@@ -244,3 +244,12 @@ def test_cycle_recording_of_wrong_length_is_refused():
             machine_description=synth_description(),
             cycle_recording=np.array([0, 1, 2]),
         )
+
+
+def test_cycle_recording_of_fractions_is_refused_not_truncated():
+    with pytest.raises(InputError, match=r"cycle_recording .*dtype float64"):
+        ReferenceModel.build(
+            synth_table(20, seed=3),
+            machine_description=synth_description(),
+            cycle_recording=np.repeat([0.0, 1.5, 2.0], [7, 7, 6]),
+        )

@@ -321,9 +321,7 @@ class ReferenceModel:
             sources=tuple(sources),
             sequence=tuple(dict(step) for step in sequence),
             localisation=localisation or LocalisationSettings(),
-            cycle_recording=None
-            if cycle_recording is None
-            else np.asarray(cycle_recording, dtype=np.int64),
+            cycle_recording=None if cycle_recording is None else np.asarray(cycle_recording),
         )
 
     # ----------------------------------------------------------- derived

@@ -158,17 +158,26 @@ def cross_validation_folds(
     >>> cross_validation_folds(4, 2, [0, 0, 1, 1]).tolist()   # two recordings: in turn
     [0, 1, 0, 1]
     """
-    if groups is not None:
-        g = np.asarray(groups)
-        if g.shape != (n_samples,) or g.dtype.kind not in "iu":
-            raise ValueError(
-                f"groups: received shape {g.shape} of dtype {g.dtype}; allowed: one "
-                f"integer recording number per sample ({n_samples})"
-            )
-        labels, folds = np.unique(g, return_inverse=True)
-        if labels.size >= MIN_GROUPS_FOR_GROUPED_CV:
-            return np.asarray(folds, dtype=np.int64)
+    by_recording = _recording_folds(n_samples, groups)
+    if by_recording is not None:
+        return by_recording
     return np.arange(n_samples, dtype=np.int64) % min(int(n_folds), n_samples)
+
+
+def _recording_folds(n_samples: int, groups: npt.ArrayLike | None) -> npt.NDArray[np.int64] | None:
+    """One fold per recording, or None when there are too few recordings to group."""
+    if groups is None:
+        return None
+    g = np.asarray(groups)
+    if g.shape != (n_samples,) or g.dtype.kind not in "iu":
+        raise ValueError(
+            f"groups: received shape {g.shape} of dtype {g.dtype}; allowed: one "
+            f"integer recording number per sample ({n_samples})"
+        )
+    labels, folds = np.unique(g, return_inverse=True)
+    if labels.size < MIN_GROUPS_FOR_GROUPED_CV:
+        return None
+    return np.asarray(folds, dtype=np.int64)
 
 
 def _fit_space(
@@ -308,16 +317,17 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
             )
         floor = self._floor(data.shape[1])
         self.mean_, self.scale_, self.components_ = _fit_space(data, floor, int(self.n_nuisance))
-        fold_of = cross_validation_folds(n, int(self.n_folds), groups)
+        by_recording = _recording_folds(n, groups)
+        self.grouped_cv_ = by_recording is not None
+        fold_of = (
+            cross_validation_folds(n, int(self.n_folds)) if by_recording is None else by_recording
+        )
         scores = np.empty(n)
         for f in np.unique(fold_of):
             test = fold_of == f
             mean, scale, comps = _fit_space(data[~test], floor, int(self.n_nuisance))
             scores[test] = _residual_stat((data[test] - mean) / scale, comps)
         self.reference_scores_ = scores
-        self.grouped_cv_ = bool(
-            groups is not None and np.unique(np.asarray(groups)).size >= MIN_GROUPS_FOR_GROUPED_CV
-        )
         self.chi2_scale_, self.chi2_dof_ = scaled_chi2_fit(scores)
         self.threshold_ = self.run_threshold(1)
         self.reference_false_alarm_rate_ = float(np.mean(scores > self.threshold_))
