@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pneufdd.errors import InputError
-from pneufdd.signals.digital import debounce, edges
+from pneufdd.signals.digital import debounce, debounced_edges, edges
 
 
 def _runs(x: np.ndarray) -> np.ndarray:
@@ -27,6 +27,39 @@ def test_debounced_runs_last_at_least_the_dwell(bits: list[int], n: int) -> None
     assert y.size == len(bits)
     # Debouncing is idempotent.
     assert np.array_equal(debounce(y, fs, n / fs), y)
+
+
+def _debounce_by_the_rule(bits: list[int], min_run: int) -> list[int]:
+    """The documented rule, run by run in plain Python (the oracle)."""
+    runs: list[list[int]] = []  # [value, length]
+    for b in bits:
+        if runs and runs[-1][0] == b:
+            runs[-1][1] += 1
+        else:
+            runs.append([b, 1])
+    accepted = [k == 0 or length >= min_run for k, (_, length) in enumerate(runs)]
+    out: list[int] = []
+    for k, (value, length) in enumerate(runs):
+        if not accepted[k]:
+            later = [runs[j][0] for j in range(k + 1, len(runs)) if accepted[j]]
+            earlier = [runs[j][0] for j in range(k) if accepted[j]]
+            value = later[0] if later else earlier[-1]
+        out += [value] * length
+    return out
+
+
+@given(st.lists(st.integers(0, 1), min_size=0, max_size=300), st.integers(0, 5))
+def test_debounce_and_edges_follow_the_rule(bits: list[int], n: int) -> None:
+    fs = 100.0
+    expected = _debounce_by_the_rule(bits, n) if n else bits
+    clean = debounce(bits, fs, n / fs)
+    assert clean.tolist() == expected
+    both, e = debounced_edges(bits, fs, n / fs)
+    assert both.tolist() == expected
+    up = [k for k in range(1, len(expected)) if expected[k - 1] == 0 and expected[k] == 1]
+    down = [k for k in range(1, len(expected)) if expected[k - 1] == 1 and expected[k] == 0]
+    assert e.rising.tolist() == up == edges(clean).rising.tolist()
+    assert e.falling.tolist() == down == edges(clean).falling.tolist()
 
 
 def test_chatter_at_switch_arrival_is_removed() -> None:

@@ -37,7 +37,7 @@ from pneufdd.identification.supply import fit_supply_path
 from pneufdd.physics.constants import P_ATM, PSI
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.recording.model import Recording
-from pneufdd.signals.digital import debounce, edges
+from pneufdd.signals.digital import debounced_edges
 from pneufdd.signals.segmentation import (
     RELEASE,
     StepSpec,
@@ -157,8 +157,7 @@ def _toml(value: Any) -> str:
 
 def _edge_times(recording: Recording, name: str, dwell_s: float) -> tuple[FloatArray, FloatArray]:
     info = recording.info(name)
-    clean = debounce(info.values, info.rate_hz, dwell_s)
-    e = edges(clean)
+    clean, e = debounced_edges(info.values, info.rate_hz, dwell_s)
     rising = np.r_[0, e.rising] if clean.size and clean[0] == 1 else e.rising
     return info.t0 + rising / info.rate_hz, info.t0 + e.falling / info.rate_hz
 

@@ -28,7 +28,7 @@ import numpy.typing as npt
 from pneufdd.errors import InputError, UnitError, describe
 from pneufdd.features.registry import Unavailable
 from pneufdd.recording.model import Recording
-from pneufdd.signals.digital import debounce, edges
+from pneufdd.signals.digital import debounced_edges
 from pneufdd.signals.filtering import DEFAULT_CUTOFF_HZ, Kinematics, kinematics
 from pneufdd.signals.segmentation import DEFAULT_SWITCH_DWELL_S, Cycle, Step
 
@@ -133,7 +133,7 @@ class RecordingData:
             return None
         if name not in self._switch:
             ch = self.recording.info(name)
-            e = edges(debounce(ch.values, ch.rate_hz, self.options.switch_min_dwell_s))
+            _, e = debounced_edges(ch.values, ch.rate_hz, self.options.switch_min_dwell_s)
             self._switch[name] = (ch.t0 + e.rising / ch.rate_hz, ch.t0 + e.falling / ch.rate_hz)
         return self._switch[name]
 

@@ -181,7 +181,7 @@ class CycleStreamer:
             if name in self.units:
                 channels.append(Channel(name, values, rate, self.units[name], ANALOG, t0))
             else:
-                digital = np.where(values > 0.5, 1, 0).astype(np.uint8)
+                digital = (values > 0.5).view(np.uint8)
                 channels.append(Channel(name, digital, rate, "1", DIGITAL, t0))
         return Recording(channels)
 

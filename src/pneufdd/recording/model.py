@@ -88,8 +88,12 @@ class Channel:
         if self.kind == DIGITAL:
             if self.unit != "1":
                 raise UnitError(describe(f"unit of digital {where}", self.unit, ["1"]))
-            finite = values[np.isfinite(values)] if values.dtype.kind == "f" else values
-            if finite.size != values.size or np.any((finite != 0) & (finite != 1)):
+            if values.dtype.kind in "ub":
+                wrong = values.size > 0 and int(values.max()) > 1
+            else:
+                finite = values[np.isfinite(values)] if values.dtype.kind == "f" else values
+                wrong = finite.size != values.size or bool(np.any((finite != 0) & (finite != 1)))
+            if wrong:
                 raise ChannelError(
                     describe(f"values of digital {where}", "values other than 0 and 1", "0 or 1")
                 )

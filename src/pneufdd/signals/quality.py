@@ -306,14 +306,13 @@ def usable_cycles(
         start, end = sample_bounds(cycles, ch.rate_hz, ch.t0)
         first, last = start[:, 0], end[:, -1]
         size = values.size
-        outside = (first < 0) | (last > size)  # not recorded: a gap too
-        csum = np.concatenate([[0], np.cumsum(long_gap, dtype=np.int64)])
-        msum = np.concatenate([[0], np.cumsum(missing, dtype=np.int64)])
-        a, b = np.clip(first, 0, size), np.clip(last, 0, size)
-        lost = msum[b] - msum[a]
-        touched = (
-            outside | (csum[b] - csum[a] > 0) | (lost > MAX_GAP_FRACTION * np.maximum(b - a, 1))
-        )
+        touched = (first < 0) | (last > size)  # not recorded: a gap too
+        if missing.any():
+            csum = np.concatenate([[0], np.cumsum(long_gap, dtype=np.int64)])
+            msum = np.concatenate([[0], np.cumsum(missing, dtype=np.int64)])
+            a, b = np.clip(first, 0, size), np.clip(last, 0, size)
+            lost = msum[b] - msum[a]
+            touched |= (csum[b] - csum[a] > 0) | (lost > MAX_GAP_FRACTION * np.maximum(b - a, 1))
         for i in np.flatnonzero(touched & usable):
             blame[int(i)] = name
         per_channel[name] = int(np.sum(touched))

@@ -40,7 +40,7 @@ import numpy.typing as npt
 
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.recording.model import Recording
-from pneufdd.signals.digital import debounce, edges
+from pneufdd.signals.digital import debounced_edges
 from pneufdd.signals.final_step import close_final_step
 
 __all__ = [
@@ -287,8 +287,7 @@ def _valve_edges(
     period, end_s = 0.0, 0.0
     for name in valves:
         ch = recording.info(name)
-        clean = debounce(ch.values, ch.rate_hz, valve_min_dwell_s)
-        e = edges(clean)
+        clean, e = debounced_edges(ch.values, ch.rate_hz, valve_min_dwell_s)
         # A solenoid already energised at the first sample fired there (a run that
         # starts with its first step, like a simulation started at t = 0).
         rising = np.r_[0, e.rising] if clean.size and clean[0] == 1 else e.rising
@@ -362,8 +361,7 @@ def _events(
     state: dict[str, tuple[float, float, npt.NDArray[np.uint8]]] = {}
     for name in _digital(recording, SWITCH_PREFIX):
         ch = recording.info(name)
-        clean = debounce(ch.values, ch.rate_hz, switch_min_dwell_s)
-        sw = edges(clean)
+        clean, sw = debounced_edges(ch.values, ch.rate_hz, switch_min_dwell_s)
         rise[name] = ch.t0 + sw.rising / ch.rate_hz
         fall[name] = ch.t0 + sw.falling / ch.rate_hz
         state[name] = (ch.t0, ch.rate_hz, clean)
