@@ -9,6 +9,7 @@ the step's end).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -113,8 +114,12 @@ def _summaries(values: FloatArray, start: IntArray, end: IntArray) -> FloatArray
     s = np.clip(start, 0, n - 1)
     e = np.clip(np.maximum(end, start + 1), 1, n)
     e = np.maximum(e, s + 1)
-    # long gaps stay NaN (in skipped cycles only): keep them out of the running sum
-    csum = np.concatenate([[0.0], np.cumsum(np.where(np.isnan(values), 0.0, values))])
+    csum = np.empty(n + 1)
+    csum[0] = 0.0
+    np.cumsum(values, out=csum[1:])
+    if not math.isfinite(csum[-1]):
+        # long gaps stay NaN (in skipped cycles only): keep them out of the running sum
+        np.cumsum(np.where(np.isnan(values), 0.0, values), out=csum[1:])
     mean = (csum[e] - csum[s]) / (e - s)
     bounds = np.stack([s.ravel(), e.ravel()], axis=1).ravel()
     order_ok = np.all(np.diff(bounds) >= 0)
@@ -203,10 +208,14 @@ def step_table(
     n_cycles, n_steps = start.shape
     summaries = np.zeros((n_cycles, n_steps, len(names), 3))
     traces = None if offsets is None or not names else np.zeros((n_cycles, len(names), offsets[-1]))
+    bounds: dict[tuple[float, float], tuple[IntArray, IntArray]] = {}
     for i, name in enumerate(names):
         info = recording.info(name)
         values = repaired[name]
-        s_idx, e_idx = sample_bounds(cycles, info.rate_hz, info.t0)
+        key = (info.rate_hz, info.t0)
+        if key not in bounds:
+            bounds[key] = sample_bounds(cycles, info.rate_hz, info.t0)
+        s_idx, e_idx = bounds[key]
         summaries[:, :, i, :] = _summaries(values, s_idx, e_idx)
         if traces is not None and offsets is not None:
             traces[:, i, :] = _traces(values, info.rate_hz, info.t0, cycles, offsets, trace_rate_hz)

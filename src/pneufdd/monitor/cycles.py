@@ -156,13 +156,7 @@ class CycleStreamer:
             self._buffer[name].append(values)
             self._size[name] += values.size
         end = self._end_s()
-        # the next cycle completes when the one after it starts: about a cycle after the
-        # last one ended (the buffer starts MARGIN_S before that end); retry every 0.1 cycle
-        due = max(
-            self._tried_at + 0.1 * self.cycle_s,
-            self._buffer_t0 + MARGIN_S + 1.02 * self.cycle_s,
-        )
-        if not final and end < due:
+        if not final and end < self.due_s:
             return []
         self._tried_at = end
         cycles = self._complete(final)
@@ -171,6 +165,21 @@ class CycleStreamer:
             self.dropped_s += keep_from - self._buffer_t0
             self._cut(keep_from)
         return cycles
+
+    @property
+    def due_s(self) -> float:
+        """Stream time from which the next cycle can be complete [s after origin].
+
+        The next cycle completes when the one after it starts: about a cycle after the
+        last one ended (the buffer starts ``MARGIN_S`` before that end); while none
+        completes, segmentation is retried every 0.1 cycle. Samples that end before
+        this time need not be added yet (:func:`pneufdd.monitor.live.run_stream`
+        releases them from the assembler only then).
+        """
+        return max(
+            self._tried_at + 0.1 * self.cycle_s,
+            self._buffer_t0 + MARGIN_S + 1.02 * self.cycle_s,
+        )
 
     def _recording(self) -> Recording:
         self._consolidate()

@@ -396,6 +396,8 @@ def run_stream(
         if batch is not None:
             assembler.add(batch)
             continue
+        if streamer is not None and assembler.watermark_s < streamer.due_s:
+            continue  # nothing the streamer could complete a cycle with: keep assembling
         block = assembler.release()
         if block is None:
             continue

@@ -181,6 +181,16 @@ class SampleAssembler:
         self.newest = max(self.newest, batch.t0 + (values.size - 1) / rate)
         return True
 
+    @property
+    def watermark_s(self) -> float:
+        """Time up to which :meth:`release` would release [s after the origin].
+
+        Minus infinity before the first sample.
+        """
+        if self.origin is None:
+            return -math.inf
+        return self.newest - self.lateness_s - self.origin
+
     def time_of(self, channel: str, index: int) -> float:
         """Time of grid sample ``index`` of ``channel`` [s since 1970-01-01 UTC]."""
         return (self.origin or 0.0) + index / self.rates_hz[channel]

@@ -28,6 +28,7 @@ usable is refused, naming the file and the channel.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -58,6 +59,7 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.int64]
 
 MAX_REPAIR_S = 0.05
 """Longest run of missing samples repaired by interpolation [s]."""
@@ -244,8 +246,14 @@ def repair_gaps(
     >>> v.tolist(), bool(long_gap.any()), n
     ([1.0, 2.0, 3.0, 4.0, 5.0], False, 2)
     """
-    x = np.asarray(values, dtype=np.float64).copy()
+    x = np.asarray(values, dtype=np.float64)
     low, high = PHYSICAL_RANGE.get(unit, (-np.inf, np.inf))
+    # fast path: the extremes are in range (NaN fails both comparisons)
+    finite_range = math.isfinite(low) and math.isfinite(high)
+    if finite_range and x.size and low <= float(x.min()) and float(x.max()) <= high:
+        none = np.zeros(x.size, dtype=bool)
+        return x.copy(), none, 0, none
+    x = x.copy()
     with np.errstate(invalid="ignore"):
         bad = ~np.isfinite(x) | (x < low) | (x > high)
     if not bad.any():
@@ -296,6 +304,7 @@ def usable_cycles(
     per_channel: dict[str, int] = {}
     repaired_total = 0
     repaired: dict[str, FloatArray] = {}
+    bounds: dict[tuple[float, float], tuple[IntArray, IntArray]] = {}
     for name in channels:
         ch = recording.info(name)
         values, long_gap, count, missing = repair_gaps(ch.values, ch.rate_hz, ch.unit)
@@ -303,7 +312,10 @@ def usable_cycles(
         repaired_total += count
         if n == 0:
             continue
-        start, end = sample_bounds(cycles, ch.rate_hz, ch.t0)
+        key = (ch.rate_hz, ch.t0)
+        if key not in bounds:
+            bounds[key] = sample_bounds(cycles, ch.rate_hz, ch.t0)
+        start, end = bounds[key]
         first, last = start[:, 0], end[:, -1]
         size = values.size
         touched = (first < 0) | (last > size)  # not recorded: a gap too
