@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pneufdd.errors import InputError
-from pneufdd.signals.digital import debounce, debounced_edges, edges
+from pneufdd.signals.digital import debounce, debounced_edges, debounced_edges_many, edges
 
 
 def _runs(x: np.ndarray) -> np.ndarray:
@@ -60,6 +60,29 @@ def test_debounce_and_edges_follow_the_rule(bits: list[int], n: int) -> None:
     down = [k for k in range(1, len(expected)) if expected[k - 1] == 1 and expected[k] == 0]
     assert e.rising.tolist() == up == edges(clean).rising.tolist()
     assert e.falling.tolist() == down == edges(clean).falling.tolist()
+
+
+@given(
+    st.integers(1, 6).flatmap(
+        lambda rows: st.integers(0, 60).flatmap(
+            lambda n: st.lists(
+                st.lists(st.integers(0, 1), min_size=n, max_size=n), min_size=rows, max_size=rows
+            )
+        )
+    ),
+    st.integers(0, 5),
+)
+def test_many_channels_at_once_equal_one_at_a_time(bits: list[list[int]], n: int) -> None:
+    fs = 100.0
+    clean, found = debounced_edges_many(
+        np.array(bits, dtype=np.uint8).reshape(len(bits), -1), fs, n / fs
+    )
+    assert clean.shape == (len(bits), len(bits[0]))
+    for row, row_clean, e in zip(bits, clean, found, strict=True):
+        one_clean, one = debounced_edges(row, fs, n / fs)
+        assert row_clean.tolist() == one_clean.tolist()
+        assert e.rising.tolist() == one.rising.tolist()
+        assert e.falling.tolist() == one.falling.tolist()
 
 
 def test_chatter_at_switch_arrival_is_removed() -> None:

@@ -62,7 +62,7 @@ import time as wallclock
 import tomllib
 import urllib.parse
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from datetime import UTC as _UTC
 from pathlib import Path
 from typing import Any
@@ -119,7 +119,7 @@ class TagMap:
         values = batch.values
         if unit is not None:
             values, _ = to_si(values, unit, f"of live tag {batch.channel!r}")
-        return replace(batch, channel=channel, values=np.asarray(values, dtype=np.float64))
+        return batch._replace(channel=channel, values=np.asarray(values, dtype=np.float64))
 
     @classmethod
     def default(cls, analog: Sequence[str], digital: Sequence[str]) -> TagMap:

@@ -40,7 +40,7 @@ import numpy.typing as npt
 
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.recording.model import Recording
-from pneufdd.signals.digital import debounced_edges
+from pneufdd.signals.digital import Edges, debounced_edges, debounced_edges_many
 from pneufdd.signals.final_step import close_final_step
 
 __all__ = [
@@ -274,6 +274,26 @@ def _digital(recording: Recording, prefix: str) -> list[str]:
     return [n for n in recording.digital_channels if n.startswith(prefix)]
 
 
+def _debounced(
+    recording: Recording, names: Sequence[str], min_dwell_s: float
+) -> dict[str, tuple[npt.NDArray[np.uint8], Edges]]:
+    """Debounced samples and edges of digital channels, channels on one time base at once."""
+    groups: dict[tuple[float, float, int], list[str]] = {}
+    for name in names:
+        ch = recording.info(name)
+        groups.setdefault((ch.rate_hz, ch.t0, ch.values.size), []).append(name)
+    out: dict[str, tuple[npt.NDArray[np.uint8], Edges]] = {}
+    for (rate, _, _), members in groups.items():
+        if len(members) == 1:
+            out[members[0]] = debounced_edges(recording.info(members[0]).values, rate, min_dwell_s)
+            continue
+        stacked = np.stack([recording.info(m).values for m in members])
+        clean, found = debounced_edges_many(stacked, rate, min_dwell_s)
+        for k, m in enumerate(members):
+            out[m] = (clean[k], found[k])
+    return out
+
+
 def _valve_edges(
     recording: Recording, valve_min_dwell_s: float
 ) -> tuple[list[str], dict[str, tuple[FloatArray, FloatArray]], float, float]:
@@ -285,9 +305,10 @@ def _valve_edges(
         )
     out: dict[str, tuple[FloatArray, FloatArray]] = {}
     period, end_s = 0.0, 0.0
+    debounced = _debounced(recording, valves, valve_min_dwell_s)
     for name in valves:
         ch = recording.info(name)
-        clean, e = debounced_edges(ch.values, ch.rate_hz, valve_min_dwell_s)
+        clean, e = debounced[name]
         # A solenoid already energised at the first sample fired there (a run that
         # starts with its first step, like a simulation started at t = 0).
         rising = np.r_[0, e.rising] if clean.size and clean[0] == 1 else e.rising
@@ -353,15 +374,18 @@ def _events(
     new_group = np.r_[True, np.diff(t) > period * 1.001]
     starts = t[new_group]
     bounds = np.r_[np.flatnonzero(new_group), t.size]
+    id_list, cut = ids.tolist(), bounds.tolist()
     signatures = tuple(
-        frozenset(names[j] for j in ids[bounds[g] : bounds[g + 1]]) for g in range(starts.size)
+        frozenset(names[j] for j in id_list[cut[g] : cut[g + 1]]) for g in range(starts.size)
     )
     rise: dict[str, FloatArray] = {}
     fall: dict[str, FloatArray] = {}
     state: dict[str, tuple[float, float, npt.NDArray[np.uint8]]] = {}
-    for name in _digital(recording, SWITCH_PREFIX):
+    switches = _digital(recording, SWITCH_PREFIX)
+    debounced = _debounced(recording, switches, switch_min_dwell_s)
+    for name in switches:
         ch = recording.info(name)
-        clean, sw = debounced_edges(ch.values, ch.rate_hz, switch_min_dwell_s)
+        clean, sw = debounced[name]
         rise[name] = ch.t0 + sw.rising / ch.rate_hz
         fall[name] = ch.t0 + sw.falling / ch.rate_hz
         state[name] = (ch.t0, ch.rate_hz, clean)
@@ -693,9 +717,12 @@ def segment(
         hi = hi_all[starts[:, None] + np.arange(p)]
         bad = np.zeros(starts.size, dtype=bool)
         why = [""] * starts.size
+        present = _awaited_edges_present(ev, specs, lo, hi)
         for j, spec in enumerate(specs):
             for switch, state in sorted(spec.switches):
-                ok = _edge_present(ev, switch, state, lo[:, j], hi[:, j])
+                ok = present[(j, switch, state)]
+                if ok.all():
+                    continue
                 for r in np.flatnonzero(~ok & ~bad):
                     why[r] = _switch_reason(ev, switch, state, j, lo[r, j], hi[r, j])
                 bad |= ~ok
@@ -719,6 +746,26 @@ def segment(
         cycles.append(Cycle(len(cycles) + 1, steps_of(pos, n), False, reason))
     cycles = close_final_step(cycles, specs, ev.end_s, ev.switch_rise, ev.switch_fall)
     return Segmentation(tuple(cycles), specs, source)
+
+
+def _awaited_edges_present(
+    ev: _Events, specs: Sequence[StepSpec], lo: FloatArray, hi: FloatArray
+) -> dict[tuple[int, str, int], npt.NDArray[np.bool_]]:
+    """Whether each step's awaited switch edges occur, per candidate cycle.
+
+    ``lo``, ``hi``: step windows, shape (candidates, steps). One search per switch
+    edge for all the steps that await it. Keys: (step index, switch, state).
+    """
+    steps_of_edge: dict[tuple[str, int], list[int]] = {}
+    for j, spec in enumerate(specs):
+        for edge in spec.switches:
+            steps_of_edge.setdefault(edge, []).append(j)
+    out: dict[tuple[int, str, int], npt.NDArray[np.bool_]] = {}
+    for (switch, state), steps in steps_of_edge.items():
+        ok = _edge_present(ev, switch, state, lo[:, steps], hi[:, steps])
+        for k, j in enumerate(steps):
+            out[(j, switch, state)] = ok[:, k]
+    return out
 
 
 def _switch_reason(ev: _Events, switch: str, state: int, j: int, lo: float, hi: float) -> str:
