@@ -9,7 +9,6 @@ the step's end).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -110,28 +109,36 @@ def trace_offsets(cycles: Sequence[Cycle], rate_hz: float) -> IntArray:
 
 
 def _summaries(values: FloatArray, start: IntArray, end: IntArray) -> FloatArray:
-    n = values.size
+    """Mean, minimum and maximum of every step window of channels on one time base.
+
+    ``values``: shape (channels, samples); ``start``, ``end``: window sample bounds,
+    shape (cycles, steps). Returns shape (channels, cycles, steps, 3). All channels are
+    summarised with one running sum and one ``reduceat`` each (row by row the same
+    arithmetic as one channel at a time).
+    """
+    k, n = values.shape
     s = np.clip(start, 0, n - 1)
     e = np.clip(np.maximum(end, start + 1), 1, n)
     e = np.maximum(e, s + 1)
-    csum = np.empty(n + 1)
-    csum[0] = 0.0
-    np.cumsum(values, out=csum[1:])
-    if not math.isfinite(csum[-1]):
+    csum = np.empty((k, n + 1))
+    csum[:, 0] = 0.0
+    np.cumsum(values, axis=1, out=csum[:, 1:])
+    if not np.all(np.isfinite(csum[:, -1])):
         # long gaps stay NaN (in skipped cycles only): keep them out of the running sum
-        np.cumsum(np.where(np.isnan(values), 0.0, values), out=csum[1:])
-    mean = (csum[e] - csum[s]) / (e - s)
+        np.cumsum(np.where(np.isnan(values), 0.0, values), axis=1, out=csum[:, 1:])
+    mean = (csum[:, e] - csum[:, s]) / (e - s)
     bounds = np.stack([s.ravel(), e.ravel()], axis=1).ravel()
     order_ok = np.all(np.diff(bounds) >= 0)
+    shape = (k, *start.shape)
     if order_ok and bounds[-1] <= n:
         idx = bounds.copy()
         idx[idx >= n] = n - 1
-        lo = np.minimum.reduceat(values, idx)[0::2].reshape(start.shape)
-        hi = np.maximum.reduceat(values, idx)[0::2].reshape(start.shape)
+        lo = np.minimum.reduceat(values, idx, axis=1)[:, 0::2].reshape(shape)
+        hi = np.maximum.reduceat(values, idx, axis=1)[:, 0::2].reshape(shape)
     else:  # overlapping windows (never for a valid segmentation): slow path
-        lo = np.array([values[a:b].min() for a, b in zip(s.ravel(), e.ravel(), strict=True)])
-        hi = np.array([values[a:b].max() for a, b in zip(s.ravel(), e.ravel(), strict=True)])
-        lo, hi = lo.reshape(start.shape), hi.reshape(start.shape)
+        pairs = list(zip(s.ravel(), e.ravel(), strict=True))
+        lo = np.array([[row[a:b].min() for a, b in pairs] for row in values]).reshape(shape)
+        hi = np.array([[row[a:b].max() for a, b in pairs] for row in values]).reshape(shape)
     return np.stack([mean, lo, hi], axis=-1)
 
 
@@ -208,17 +215,21 @@ def step_table(
     n_cycles, n_steps = start.shape
     summaries = np.zeros((n_cycles, n_steps, len(names), 3))
     traces = None if offsets is None or not names else np.zeros((n_cycles, len(names), offsets[-1]))
-    bounds: dict[tuple[float, float], tuple[IntArray, IntArray]] = {}
+    # channels on one time base are summarised together
+    groups: dict[tuple[float, float, int], list[int]] = {}
     for i, name in enumerate(names):
         info = recording.info(name)
-        values = repaired[name]
-        key = (info.rate_hz, info.t0)
-        if key not in bounds:
-            bounds[key] = sample_bounds(cycles, info.rate_hz, info.t0)
-        s_idx, e_idx = bounds[key]
-        summaries[:, :, i, :] = _summaries(values, s_idx, e_idx)
-        if traces is not None and offsets is not None:
-            traces[:, i, :] = _traces(values, info.rate_hz, info.t0, cycles, offsets, trace_rate_hz)
+        groups.setdefault((info.rate_hz, info.t0, repaired[name].size), []).append(i)
+    for (rate, t0, _), members in groups.items():
+        s_idx, e_idx = sample_bounds(cycles, rate, t0)
+        stacked = np.stack([repaired[names[i]] for i in members])
+        summaries[:, :, members, :] = np.moveaxis(_summaries(stacked, s_idx, e_idx), 0, 2)
+    if traces is not None and offsets is not None:
+        for i, name in enumerate(names):
+            info = recording.info(name)
+            traces[:, i, :] = _traces(
+                repaired[name], info.rate_hz, info.t0, cycles, offsets, trace_rate_hz
+            )
     return StepTable(
         machine=machine,
         step_start=start,

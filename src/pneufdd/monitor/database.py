@@ -184,6 +184,7 @@ class HistoryDatabase:
         self.url = url
         self.engine: Engine = _engine(url)
         self._machines: dict[str, int] = {}
+        self._statements: dict[tuple[str, str], Any] = {}
         try:
             self.migrate()
         except (sa.exc.OperationalError, sa.exc.DatabaseError) as exc:
@@ -265,13 +266,12 @@ class HistoryDatabase:
             "supply_air_kg": _num(supply_air_kg),
             "supply_pressure_pa": _num(supply_pressure_pa),
         }
-        stmt = (
-            _insert(conn, cycles)
-            .values(**values)
-            .on_conflict_do_nothing()
-            .returning(cycles.c.start_ms)
-        )
-        return conn.execute(stmt).first() is not None
+        key = ("add_cycle", conn.dialect.name)
+        stmt = self._statements.get(key)
+        if stmt is None:  # built once: a statement per cycle costs more than its execution
+            stmt = _insert(conn, cycles).on_conflict_do_nothing().returning(cycles.c.start_ms)
+            self._statements[key] = stmt
+        return conn.execute(stmt, values).first() is not None
 
     def save_state(
         self, conn: Connection, machine_id: int, last_start: float, state: dict[str, Any]
@@ -279,15 +279,19 @@ class HistoryDatabase:
         """Store the detector state after the cycle starting at ``last_start``."""
         text = json.dumps(state, allow_nan=False)
         ms = round(last_start * 1000.0)
-        stmt = _insert(conn, monitor_state).values(
-            machine_id=machine_id, last_start_ms=ms, state=text
-        )
-        conn.execute(
-            stmt.on_conflict_do_update(
+        key = ("save_state", conn.dialect.name)
+        stmt = self._statements.get(key)
+        if stmt is None:
+            insert = _insert(conn, monitor_state)
+            stmt = insert.on_conflict_do_update(
                 index_elements=[monitor_state.c.machine_id],
-                set_={"last_start_ms": ms, "state": text},
+                set_={
+                    "last_start_ms": insert.excluded.last_start_ms,
+                    "state": insert.excluded.state,
+                },
             )
-        )
+            self._statements[key] = stmt
+        conn.execute(stmt, {"machine_id": machine_id, "last_start_ms": ms, "state": text})
 
     def load_state(self, machine_id: int) -> tuple[float, dict[str, Any]] | None:
         """The newest cycle's start [s] and the detector state after it; None when new."""
