@@ -37,6 +37,24 @@ def test_out_of_order_samples_are_sorted_in_and_late_ones_dropped():
     assert final.start["U"] == 4
 
 
+def test_a_jittered_block_does_not_keep_its_channel_off_the_fast_path():
+    a = SampleAssembler({"P": 10.0}, lateness_s=0.5)
+    a.add(SampleBatch("P", np.arange(10.0), t0=100.0, rate_hz=10.0))
+    # 4 ms late: 0.04 of a sample off the grid, so placed sample by sample
+    a.add(SampleBatch("P", np.arange(10.0, 20.0), t0=101.004, rate_hz=10.0))
+    block = a.release()
+    assert block is not None
+    assert block.values["P"].tolist() == list(range(15))  # up to 101.904 - 0.5
+    a.add(SampleBatch("P", np.arange(20.0, 30.0), t0=102.0, rate_hz=10.0))
+    # the 5 samples left waiting and the new block form one contiguous run
+    assert a._pending["P"].dense_size == 15
+    assert not a._pending["P"].index
+    final = a.release(final=True)
+    assert final is not None
+    assert final.start["P"] == 15
+    assert final.values["P"].tolist() == list(range(15, 30))
+
+
 def test_streamed_cycles_are_the_files_cycles_with_the_same_scores():
     model = reference()
     rec = free_run()

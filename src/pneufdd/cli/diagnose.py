@@ -124,7 +124,6 @@ def diagnose(
     from pneufdd.diagnosis.pipeline import diagnose_recording
     from pneufdd.diagnosis.pnref import load_reference
     from pneufdd.physics.units import kg_s_to_slpm
-    from pneufdd.report.html import render_report
 
     inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}
     inputs.update({"RUN" if len(runs) == 1 else f"RUN {i + 1}": p for i, p in enumerate(runs)})
@@ -159,6 +158,8 @@ def diagnose(
         data.update({"run": str(run), "reference": str(reference), "machine": model.machine})
         outputs.append((json_out, json.dumps(data, indent=2, allow_nan=False) + "\n"))
     if report is not None:
+        from pneufdd.report.html import render_report  # matplotlib: only for --report
+
         outputs.append((report, render_report(model, table, result, run_name=str(run))))
     for path, text in outputs:
         write_text_atomic(path, text)

@@ -258,6 +258,12 @@ class SampleAssembler:
                 if not np.all(now):
                     keep_index, keep_values = [idx[~now]], [vals[~now]]
             pending.index, pending.values = keep_index, keep_values
+            if keep_index and _continues(keep_index[0], last + 1):
+                # what waits is one contiguous run: back on the fast path, so one
+                # jittered or late batch does not slow the channel for good
+                pending.index, pending.values = [], []
+                pending.dense_start = last + 1
+                pending.dense_values, pending.dense_size = keep_values, keep_values[0].size
             # hold the previous value where no sample landed (report by exception)
             filled = ~np.isnan(out)
             where = np.where(filled, np.arange(count), -1)
@@ -267,3 +273,8 @@ class SampleAssembler:
             start[name], values[name] = first, held
             self._next[name] = last + 1
         return GridBlock(start, values)
+
+
+def _continues(index: npt.NDArray[np.int64], start: int) -> bool:
+    """Whether ``index`` is exactly ``start, start + 1, ...`` (a contiguous run)."""
+    return bool(index[0] == start and np.all(np.diff(index) == 1))
