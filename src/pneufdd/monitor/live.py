@@ -359,8 +359,12 @@ def run_stream(
 ) -> MonitorStats:
     """Feed a source's batches through segmentation and the monitor until it ends.
 
-    ``None`` items are heartbeats (no data; the stream is alive). ``rates_hz`` gives
-    the grid rate of each channel; channels the reference does not need are ignored.
+    ``None`` items are heartbeats (no data; the stream is alive). On a heartbeat the
+    assembled samples are released to the streamer once they reach the time from
+    which the next cycle can be complete (:attr:`CycleStreamer.due_s`), so a cycle is
+    segmented once and its samples are copied once or twice (memory: about one cycle
+    of samples waits in the assembler). ``rates_hz`` gives the grid rate of each
+    channel; channels the reference does not need are ignored.
     ``flush``: at the end, close the last cycle as a file's last cycle is closed.
     """
     analog, digital = needed_channels(monitor.model)
