@@ -97,3 +97,31 @@ def test_vector_map_command(tmp_path):
     assert (out / "vector_map.png").stat().st_size > 10_000
     assert (out / "sign_table.png").stat().st_size > 10_000
     assert main(["vector-map", "--out", str(out)]) == 2
+
+
+def test_a_run_left_without_a_complete_cycle_is_not_labelled(tmp_path):
+    # festo-dsd plant of evaluation campaign 270M (scale 2): a 5-turn supply leak keeps
+    # the vacuum switch S_VAC on, so no cycle completes; the campaign lists such a run
+    # as not judged, and the labelling must skip it rather than stop
+    from pneufdd.diagnosis.residuals import TwinReplay
+    from pneufdd.evaluation.labelled import _plant_rows
+    from pneufdd.sim import load_machine, machine_to_toml, vary_machine
+
+    machine = load_machine("festo-dsd")
+    plant_file = tmp_path / "plant.toml"
+    plant_file.write_text(machine_to_toml(vary_machine(machine, 2.0, 270_000_000)))
+    entry = {
+        "plant_file": str(plant_file),
+        "scale": 2.0,
+        "plant": 1,
+        "reference_seeds": [],
+        "runs": [
+            {"kind": "single", "leaks": {"supply": "5"}, "seed": 270_000_102},
+            {"kind": "free", "leaks": {}, "seed": 270_000_010},
+        ],
+    }
+    design = {"reference_cycles": 4, "run_cycles": 3}
+    replay = TwinReplay.of(machine, cycles=3, seed=1)
+    rows = _plant_rows(entry, machine, replay, design)
+    assert set(rows["kind"]) == {"free"}
+    assert len(rows) == 3

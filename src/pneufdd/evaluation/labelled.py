@@ -36,7 +36,7 @@ import pandas as pd
 
 from pneufdd.diagnosis.residuals import TwinReplay
 from pneufdd.diagnosis.step_summaries import machine_sequence
-from pneufdd.errors import InputError, describe
+from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.features import feature_matrix
 from pneufdd.features.registry import REGISTRY
 from pneufdd.physics.leaks import leak_mass_flow
@@ -145,11 +145,16 @@ def _plant_rows(
             for leak in rec.metadata["leaks"]
         )
         rec = as_exported(rec)
-        feats = feature_matrix(
-            rec, machine.actuator_ids, FEATURE_GROUPS, sequence=sequence, on_missing="nan"
-        )
+        try:
+            feats = feature_matrix(
+                rec, machine.actuator_ids, FEATURE_GROUPS, sequence=sequence, on_missing="nan"
+            )
+            residuals = replay.residuals(rec, machine)
+        except NoCompleteCycleError:
+            # leaks that leave the PLC no complete cycle: the campaign lists the run as
+            # not judged, with the reason; it is not labelled either
+            continue
         feats = feats[[c for c in feats.columns if not c.startswith("leak_")]]
-        residuals = replay.residuals(rec, machine)
         n_steps = residuals.shape[1] // 2
         names = [f"res_Q_step{j + 1:02d}" for j in range(n_steps)]
         names += [f"res_P_step{j + 1:02d}" for j in range(n_steps)]
