@@ -6,8 +6,9 @@ Not a benchmark (``run.py`` skips it). For each plant (festo-dsd varied at scale
 2. the description calibrated to them (:func:`calibrate_machine`, twin in the loop);
 3. :class:`ResidualDetector` (1 % design false-alarm rate) fitted on the residuals of
    those recordings against the calibrated twin's replay (eq. 4.1, per step);
-4. judged on new runs: leak-free cycles flagged, and cycles of a 2-turn ``DNC_A`` leak
-   flagged (with the eq. 4.21 consistency check).
+4. judged on new runs (every complete cycle of 12-cycle runs): leak-free cycles
+   flagged, and cycles of a 2-turn ``DNC_A`` leak flagged (with the eq. 4.21
+   consistency check).
 
 The same is printed with the twin as written (uncalibrated), for comparison.
 
