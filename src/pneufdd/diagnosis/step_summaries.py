@@ -215,15 +215,13 @@ def step_table(
     n_cycles, n_steps = start.shape
     summaries = np.zeros((n_cycles, n_steps, len(names), 3))
     traces = None if offsets is None or not names else np.zeros((n_cycles, len(names), offsets[-1]))
-    # channels on one time base are summarised together
-    groups: dict[tuple[float, float, int], list[int]] = {}
-    for i, name in enumerate(names):
-        info = recording.info(name)
-        groups.setdefault((info.rate_hz, info.t0, repaired[name].size), []).append(i)
-    for (rate, t0, _), members in groups.items():
+    # channels on one time base are summarised together (the gap rule keeps their size)
+    column = {name: i for i, name in enumerate(names)}
+    for (rate, t0, _), members in recording.time_bases(names).items():
         s_idx, e_idx = sample_bounds(cycles, rate, t0)
-        stacked = np.stack([repaired[names[i]] for i in members])
-        summaries[:, :, members, :] = np.moveaxis(_summaries(stacked, s_idx, e_idx), 0, 2)
+        stacked = np.stack([repaired[m] for m in members])
+        columns = [column[m] for m in members]
+        summaries[:, :, columns, :] = np.moveaxis(_summaries(stacked, s_idx, e_idx), 0, 2)
     if traces is not None and offsets is not None:
         for i, name in enumerate(names):
             info = recording.info(name)

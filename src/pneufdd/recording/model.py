@@ -287,6 +287,26 @@ class Recording:
         """Longest time span of any channel [s]."""
         return max((c.t0 + c.duration for c in self._channels.values()), default=0.0)
 
+    def time_bases(self, names: Iterable[str]) -> dict[tuple[float, float, int], list[str]]:
+        """``names`` grouped by time base: (rate [Hz], t0 [s], sample count) -> names.
+
+        Channels on one time base can be processed as one 2-D array.
+
+        Examples
+        --------
+        >>> rec = Recording.from_arrays(
+        ...     analog={"P_In": np.zeros(10), "Q_In": np.zeros(10)}, analog_rate_hz=1000.0,
+        ...     digital={"U_A": np.zeros(1, dtype=np.uint8)}, digital_rate_hz=100.0,
+        ...     units={"P_In": "Pa", "Q_In": "kg/s"})
+        >>> rec.time_bases(["P_In", "U_A", "Q_In"])
+        {(1000.0, 0.0, 10): ['P_In', 'Q_In'], (100.0, 0.0, 1): ['U_A']}
+        """
+        groups: dict[tuple[float, float, int], list[str]] = {}
+        for name in names:
+            ch = self.info(name)
+            groups.setdefault((ch.rate_hz, ch.t0, ch.values.size), []).append(name)
+        return groups
+
     def info(self, name: str) -> Channel:
         """Return the :class:`Channel` called ``name``.
 

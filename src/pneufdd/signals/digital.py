@@ -52,11 +52,7 @@ def debounce(values: npt.ArrayLike, fs: float, min_dwell_s: float) -> npt.NDArra
     >>> debounce([0, 0, 0, 1, 0, 1, 1, 1, 0, 1, 1, 1], fs=100.0, min_dwell_s=0.025)
     array([0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1], dtype=uint8)
     """
-    x = np.asarray(values).astype(np.uint8)
-    _check_dwell(fs, min_dwell_s)
-    if x.size == 0 or min_dwell_s == 0:
-        return x
-    return _absorb_short_runs(x, _change_points(x), fs, min_dwell_s)
+    return debounced_edges(values, fs, min_dwell_s)[0]
 
 
 def _check_dwell(fs: float, min_dwell_s: float) -> None:
@@ -64,13 +60,6 @@ def _check_dwell(fs: float, min_dwell_s: float) -> None:
         raise InputError(describe("fs [Hz]", fs, "> 0"))
     if not (math.isfinite(min_dwell_s) and min_dwell_s >= 0):
         raise InputError(describe("min_dwell_s [s]", min_dwell_s, ">= 0"))
-
-
-def _change_points(x: npt.NDArray[np.uint8]) -> IntArray:
-    """Indices of the first sample of every run after the first."""
-    changes: IntArray = np.nonzero(x[1:] != x[:-1])[0].astype(np.int64, copy=False)
-    changes += 1
-    return changes
 
 
 def _absorb_short_runs(
@@ -138,8 +127,8 @@ def debounced_edges(
     """:func:`debounce` and then :func:`edges`, sharing one run-length encoding.
 
     Same results as ``clean = debounce(values, fs, min_dwell_s)`` followed by
-    ``edges(clean)``, in fewer passes over the samples (the segmentation of every
-    cycle the live monitor streams calls it once per PLC channel).
+    ``edges(clean)``, in fewer passes over the samples (one channel of
+    :func:`debounced_edges_many`).
 
     Returns
     -------
@@ -154,16 +143,11 @@ def debounced_edges(
     >>> clean.tolist(), e.rising.tolist(), e.falling.tolist()
     ([0, 0, 1, 1, 1, 1, 1, 0, 0, 0], [2], [7])
     """
-    x = np.asarray(values).astype(np.uint8)
-    _check_dwell(fs, min_dwell_s)
-    changes = _change_points(x)
-    clean = x
-    if x.size and min_dwell_s > 0 and changes.size:
-        clean = _absorb_short_runs(x, changes, fs, min_dwell_s)
-        if clean is not x:
-            changes = _change_points(clean)
-    up = clean[changes] == 1
-    return clean, Edges(rising=changes[up], falling=changes[~up])
+    x = np.asarray(values)
+    if x.ndim != 1:
+        raise InputError(describe("shape of a digital channel", x.shape, "(samples,)"))
+    clean, (found,) = debounced_edges_many(x[None, :], fs, min_dwell_s)
+    return clean[0], found
 
 
 def debounced_edges_many(
@@ -171,10 +155,10 @@ def debounced_edges_many(
 ) -> tuple[npt.NDArray[np.uint8], list[Edges]]:
     """:func:`debounced_edges` of every row of a 2-D array (channels on one time base).
 
-    Same results as calling :func:`debounced_edges` row by row, with one pass of
-    numpy operations for all channels when no row has a short run (the usual case:
-    a PLC's channels rarely chatter), so a segmentation costs a few operations
-    instead of a few per channel.
+    Each row is debounced as :func:`debounce` says; all channels share one pass of
+    numpy operations when no row has a short run (the usual case: a PLC's channels
+    rarely chatter), so a segmentation costs a few operations instead of a few per
+    channel. :func:`debounce` and :func:`debounced_edges` are its one-channel forms.
 
     Parameters
     ----------

@@ -40,7 +40,7 @@ import numpy.typing as npt
 
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.recording.model import Recording
-from pneufdd.signals.digital import Edges, debounced_edges, debounced_edges_many
+from pneufdd.signals.digital import Edges, debounced_edges_many
 from pneufdd.signals.final_step import close_final_step
 
 __all__ = [
@@ -278,15 +278,8 @@ def _debounced(
     recording: Recording, names: Sequence[str], min_dwell_s: float
 ) -> dict[str, tuple[npt.NDArray[np.uint8], Edges]]:
     """Debounced samples and edges of digital channels, channels on one time base at once."""
-    groups: dict[tuple[float, float, int], list[str]] = {}
-    for name in names:
-        ch = recording.info(name)
-        groups.setdefault((ch.rate_hz, ch.t0, ch.values.size), []).append(name)
     out: dict[str, tuple[npt.NDArray[np.uint8], Edges]] = {}
-    for (rate, _, _), members in groups.items():
-        if len(members) == 1:
-            out[members[0]] = debounced_edges(recording.info(members[0]).values, rate, min_dwell_s)
-            continue
+    for (rate, _, _), members in recording.time_bases(names).items():
         stacked = np.stack([recording.info(m).values for m in members])
         clean, found = debounced_edges_many(stacked, rate, min_dwell_s)
         for k, m in enumerate(members):
