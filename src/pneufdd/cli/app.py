@@ -40,6 +40,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
 )
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
@@ -83,6 +84,7 @@ def _app_for(args: list[str]) -> typer.Typer:
         no_args_is_help=True,
         add_completion=False,
         pretty_exceptions_enable=False,
+        rich_markup_mode=None,
     )
     single.callback(invoke_without_command=True)(_root)
     single.registered_commands = commands

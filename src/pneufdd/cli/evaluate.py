@@ -84,7 +84,7 @@ def vector_map(
     cycles: Annotated[int, typer.Option(min=2, help="Cycles per run.")] = 8,
     seed: Annotated[int, typer.Option(min=0, help="First seed (plant, then runs).")] = 96_200_000,
 ) -> None:
-    """Fig. 5.18 and eq. 5.23 on a plant: combined extend + retract leaks as vector sums.
+    """Combined extend + retract leaks as vector sums on a plant (Fig. 5.18, eq. 5.23).
 
     Also learns the sign table of the Table 4.4 features and sets it beside Table 4.5.
     """
