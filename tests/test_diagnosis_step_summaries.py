@@ -16,7 +16,7 @@ from pneufdd.diagnosis.step_summaries import (
 from pneufdd.diagnosis.twin_effects import compute_signatures
 from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
-from pneufdd.sim import load_machine, run_simulation, simulate
+from pneufdd.sim import MachineStalledError, load_machine, run_simulation, simulate
 
 SEED = 32_000
 
@@ -154,3 +154,32 @@ def test_rod_side_leak_next_to_a_supply_leak(signatures):
         assert estimate == pytest.approx(lost / (t1 - t0), rel=0.05)
     # alone, the DNC_B leak would lose more
     assert avg_line < sig.average_flow(1, line)
+
+
+def test_signature_ladder_ends_below_the_stall_limit():
+    # a ladder size the machine cannot run with (a DNC_B leak of 3000 SLPM keeps the
+    # DNC from retracting) is replaced by the largest size found to run below it, and
+    # later sizes are searched below the smallest that stalled: increasing knots
+    # instead of an error (issue 10, drafted machines with weak valves)
+    seq = machine_sequence(load_machine("festo-dsd"))
+    rec = simulate("festo-dsd", cycles=3, seed=SEED + 2)
+    cycles, _, _ = segment_cycles(rec, seq)
+    names = step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
+    with pytest.raises(MachineStalledError):
+        simulate("festo-dsd", cycles=1, leaks={"DNC_B": "3000slpm"}, seed=SEED, max_cycle_s=30.0)
+    sig = compute_signatures(
+        load_machine("festo-dsd"),
+        names,
+        seq,
+        cycles=1,
+        channels=["Q_In"],
+        sizes_slpm=(30.0, 3000.0, 4000.0),
+        locations=(Location("DNC", "B"),),
+        workers=1,
+    )
+    knots = sig.sizes[0]
+    assert knots[0] == pytest.approx(slpm_to_kg_s(30.0), rel=1e-6)
+    assert np.all(np.diff(knots) > 0.0)
+    assert knots[-1] < slpm_to_kg_s(3000.0)
+    # the effect grows with the leak all the way up
+    assert np.all(np.diff(sig.mean_flow[0]) > 0.0)

@@ -24,6 +24,7 @@ leak by eq. 1.1 (:mod:`pneufdd.diagnosis.cost`) without extra simulations.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -65,6 +66,10 @@ SIGNATURE_SEED = 5_300_001
 
 MACHINE_CANNOT_RUN = (MachineStalledError, NoCompleteCycleError)
 """What a leak too large for the machine causes: a stall, or no complete cycle."""
+
+_LADDER_TRIES = 12
+"""Sizes tried per signature point, each 0.6 of the way from the last size that ran to
+the one that stalled (the last is 0.2 % of that gap above it) [-]."""
 
 
 UNCERTAINTY_PLANTS = 12
@@ -206,6 +211,12 @@ def _location_ladder(
     leaked mass flow per cycle at every size [kg/s], and, at the interaction sizes,
     the line leak's mean flow alone, with the supply leak, and the supply leak's mean
     flow with the line leak [kg/s] (NaN for the supply itself).
+
+    A size the machine cannot run with (the leak stalls it, or leaves it no complete
+    cycle) is replaced by the largest that runs on the way down to the last size that
+    ran; later sizes are then searched below the smallest that stalled, so the ladder
+    of a weak machine ends just below its stall limit instead of failing (a drafted
+    festo-dsd stalled at 154 SLPM on DNC_B where the default ladder asks 230 SLPM).
     """
     machine, loc, ladder, cycles, seed, sequence, channels = job
     sizes = np.zeros(len(ladder))
@@ -213,9 +224,11 @@ def _location_ladder(
     means: list[npt.NDArray[np.float64]] = []
     pressure = float("nan")
     previous = 0.0
+    ceiling = math.inf  # smallest size found to stall the machine [SLPM]
     for k, slpm in enumerate(ladder):
-        trial = float(slpm)
-        for _ in range(6):
+        # a size at or above one that stalled is searched for below that one
+        trial = float(slpm) if slpm < ceiling else previous + 0.6 * (ceiling - previous)
+        for _ in range(_LADDER_TRIES):
             try:
                 mean, truth, _, flows = _mean_features(
                     machine, {loc: trial}, cycles, seed, sequence, channels
@@ -223,6 +236,7 @@ def _location_ladder(
                 leaked[k] = flows[loc]
                 break
             except MACHINE_CANNOT_RUN:
+                ceiling = min(ceiling, trial)
                 trial = previous + 0.6 * (trial - previous)
         else:
             raise InputError(
@@ -230,7 +244,7 @@ def _location_ladder(
                     f"leak signature of machine {machine.name!r} at {loc}",
                     f"{slpm} SLPM",
                     "a size the machine runs with (it stalls even at "
-                    f"{trial:.3g} SLPM; give smaller --signature-sizes)",
+                    f"{ceiling:.3g} SLPM; give smaller --signature-sizes)",
                 )
             )
         sizes[k] = float(truth[0]["mass_flow_kg_s"])
