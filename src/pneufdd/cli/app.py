@@ -8,11 +8,9 @@ subsystem a command needs is imported inside the command function, so ``pneufdd
 from __future__ import annotations
 
 import sys
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
-from rich.markup import escape
 
 from pneufdd import __version__
 from pneufdd.cli import (
@@ -31,6 +29,9 @@ from pneufdd.cli import (
 )
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.errors import InputError, PneufddError
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 __all__ = ["app", "main"]
 
@@ -92,8 +93,27 @@ def _app_for(args: list[str]) -> typer.Typer:
     return single
 
 
-def _internal_error(err: Console, exc: BaseException) -> int:
+def _stderr() -> Console:
+    """The console errors are printed on (rich is imported only when one is)."""
+    from rich.console import Console
+
+    return Console(stderr=True)
+
+
+def _error(text: str) -> None:
+    """Print ``error: text`` on stderr, the text as written (no markup read in it)."""
+    from rich.markup import escape
+
+    _stderr().print(
+        f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True
+    )
+
+
+def _internal_error(exc: BaseException) -> int:
     """Exit 3 with one line (the traceback with ``--debug``): a bug, never "leak found"."""
+    from rich.markup import escape
+
+    err = _stderr()
     if _STATE["debug"]:
         err.print_exception(show_locals=False)
     text = " ".join(str(exc).split())
@@ -117,33 +137,24 @@ def main(argv: list[str] | None = None) -> int:
     read or write, a click usage error) exits 2; any other exception is a bug and
     exits 3 with one line pointing to ``--debug``.
     """
-    err = Console(stderr=True)
     args = sys.argv[1:] if argv is None else list(argv)
     _STATE["debug"] = "--debug" in args[: args.index("--") if "--" in args else len(args)]
     try:
         # In non-standalone mode click returns a raised typer.Exit's code as the value.
         returned = _app_for(args)(args=args, standalone_mode=False, prog_name="pneufdd")
     except (InputError, PneufddError) as exc:
-        err.print(
-            f"[bold red]error:[/] {escape(str(exc))}", highlight=False, markup=True, soft_wrap=True
-        )
+        _error(str(exc))
         return ExitCode.INPUT_ERROR
     except typer.Exit as exc:
         return int(exc.exit_code)
     except (typer.Abort, KeyboardInterrupt):
-        err.print("aborted")
+        _stderr().print("aborted")
         return ExitCode.INPUT_ERROR
     except OSError as exc:
         # the system refused a file the user named (permissions, a folder, a full disk)
         if getattr(exc, "filename", None) is None:
-            return _internal_error(err, exc)
-        err.print(
-            f"[bold red]error:[/] {escape(exc.strerror or type(exc).__name__)}: "
-            f"{escape(repr(exc.filename))}",
-            highlight=False,
-            markup=True,
-            soft_wrap=True,
-        )
+            return _internal_error(exc)
+        _error(f"{exc.strerror or type(exc).__name__}: {exc.filename!r}")
         return ExitCode.INPUT_ERROR
     except Exception as exc:
         code = getattr(exc, "exit_code", None)
@@ -151,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(code, int) and callable(show):  # click usage errors
             show()
             return code
-        return _internal_error(err, exc)
+        return _internal_error(exc)
     return int(returned) if isinstance(returned, int) else ExitCode.OK
 
 

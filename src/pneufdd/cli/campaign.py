@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 from pneufdd.errors import InputError, describe
 
@@ -86,6 +85,8 @@ def campaign(
     ] = None,
 ) -> None:
     """Simulate plants varied from each MACHINE, diagnose their runs, print the figures."""
+    from rich.console import Console
+
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.evaluation import CampaignDesign, run_campaign
 

@@ -18,8 +18,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
 __all__ = ["DEMO_LEAKS", "DEMO_SEED", "register"]
 
@@ -42,6 +40,8 @@ def demo(
 ) -> None:
     """Run the section 5.3.1.5 demonstration and write its outputs under OUT."""
     import numpy as np
+    from rich.console import Console
+    from rich.table import Table
 
     from pneufdd.cli.diagnose import leak_table
     from pneufdd.cli.progress_bar import progress_bars

@@ -13,14 +13,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
-from rich.markup import escape
-from rich.table import Table
 
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.cli.outputs import check_outputs, write_text_atomic
 from pneufdd.cli.recordings import MapOption, read_recording
 from pneufdd.errors import InputError, describe
+
+if TYPE_CHECKING:
+    from rich.table import Table
 
 if TYPE_CHECKING:
     from pneufdd.diagnosis.engine import Diagnosis
@@ -30,6 +30,8 @@ __all__ = ["leak_table", "register"]
 
 def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first") -> Table:
     """A rich table of the diagnosis' leaks."""
+    from rich.table import Table
+
     from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
 
     table = Table(title=title)
@@ -118,6 +120,9 @@ def diagnose(
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
     from dataclasses import replace
+
+    from rich.console import Console
+    from rich.markup import escape
 
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.diagnosis.cost import CostSettings

@@ -15,8 +15,6 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from rich.console import Console
-
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.errors import InputError, describe
@@ -42,6 +40,8 @@ def run_batch(
     scheduler: str | None,
 ) -> int:
     """Diagnose every run; print or write one JSON line per run; return the exit code."""
+    from rich.console import Console
+
     from pneufdd.diagnosis.batch import diagnose_runs
     from pneufdd.diagnosis.pnref import load_reference
 

@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 __all__ = ["register"]
 
@@ -21,6 +20,8 @@ def import_data(
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
 ) -> None:
     """Read DATA through the tag map and write it as a pneufdd recording (SI units)."""
+    from rich.console import Console
+
     from pneufdd.cli.outputs import check_outputs
     from pneufdd.recording.tag_map import load_tag_map, read_mapped
 

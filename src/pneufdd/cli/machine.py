@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
 
 from pneufdd import __version__
 from pneufdd.cli.outputs import check_outputs
@@ -45,6 +44,8 @@ def vary(
 
     Spreads and their sources: docs/plant-variation.md.
     """
+    from rich.console import Console
+
     from pneufdd.sim import load_machine
     from pneufdd.sim.variation import MAX_SCALE, parameter_changes, vary_machine, write_machine
 
@@ -112,6 +113,8 @@ def draft(
 
     Rules and defaults: docs/calibration.md.
     """
+    from rich.console import Console
+
     from pneufdd.calibration.draft import draft_machine
     from pneufdd.cli.outputs import write_text_atomic
     from pneufdd.sim import load_machine
@@ -165,6 +168,8 @@ def calibrate(
     valve and throttle capacities (step durations) and, with line pressure sensors,
     friction; parameters the data cannot inform stay at their prior and are listed.
     """
+    from rich.console import Console
+
     from pneufdd.calibration.calibrate import calibrate_machine
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.report.calibration import render_calibration_report

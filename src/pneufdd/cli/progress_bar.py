@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
-
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
+from typing import TYPE_CHECKING
 
 from pneufdd.progress import Progress as ProgressCallback
+
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.progress import TaskID
 
 __all__ = ["progress_bars"]
 
@@ -16,6 +18,9 @@ __all__ = ["progress_bars"]
 @contextmanager
 def progress_bars(console: Console | None = None) -> Iterator[ProgressCallback]:
     """A rich display with one bar per task; yields the callback to pass to the library."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),

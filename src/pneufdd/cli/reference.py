@@ -7,11 +7,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
 
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption
 from pneufdd.errors import InputError, describe
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 if TYPE_CHECKING:
     from pneufdd.diagnosis.machine import MachineLike
@@ -83,6 +85,8 @@ def build(
     ] = False,
 ) -> None:
     """Build a reference from leak-free RECORDINGS and write it to OUT."""
+    from rich.console import Console
+
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.diagnosis.pipeline import build_reference, parse_channels
     from pneufdd.diagnosis.pnref import save_reference

@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import InputError, describe
@@ -64,6 +63,7 @@ def simulate_command(
     ] = 120.0,
 ) -> None:
     """Simulate a machine with optional leaks and write the recording to OUT."""
+    from rich.console import Console
     from rich.progress import (
         BarColumn,
         Progress,

@@ -7,11 +7,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
-from rich.markup import escape
-from rich.table import Table
 
 from pneufdd.cli.recordings import MapOption, read_recording
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 if TYPE_CHECKING:
     from pneufdd.recording.model import Recording
@@ -33,6 +33,9 @@ def render_steps(
     "reason"}]}``.
     """
     import numpy as np
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
 
     from pneufdd.signals.segmentation import actuator_of, segment
 
