@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pneufdd.calibration import draft_machine
@@ -57,3 +58,27 @@ def test_draft_cli_marks_assumed_lines(tmp_path: Path) -> None:
         load_machine("press-fit-cell").supply.regulator_set_psig, abs=3.0
     )
     assert main(["machine", "draft", str(tmp_path / "run.parquet"), "--out", str(out)]) == 2
+
+
+def test_a_closed_centre_is_drafted_from_data_with_empty_samples() -> None:
+    # a PLC export joins the 1 kHz analog and the 100 Hz digital time stamps, so
+    # analog columns have empty (NaN) cells; a NaN median made the closed-centre test
+    # false and drafted festo-dsd's DNC as a 5/2 bistable valve (issue 10 end to end)
+    rec = as_exported(simulate("festo-dsd", cycles=3, seed=44))
+    analog = {}
+    for name in rec.analog_channels:
+        values = rec.channel(name)[1].astype(np.float64).copy()
+        values[np.arange(150, values.size, 300)] = np.nan
+        analog[name] = values
+    digital = {name: rec.channel(name)[1] for name in rec.digital_channels}
+    holed = Recording.from_arrays(
+        analog,
+        rec.rate(rec.analog_channels[0]),
+        digital,
+        rec.rate(rec.digital_channels[0]),
+        units={name: rec.unit(name) for name in rec.analog_channels},
+    )
+    drafted = load_machine(draft_machine([holed], name="festo-dsd").data)
+    kinds = {a.id: a.valve.kind for a in drafted.actuators}
+    assert kinds["DNC"] == "5/3-closed-centre"
+    assert kinds == {a.id: a.valve.kind for a in load_machine("festo-dsd").actuators}

@@ -255,7 +255,8 @@ def _closed_centre(recording: Recording, ident: str) -> bool | None:
                 state = 2
             last_side[k] = state == (1 if side == "A" else 2) and not (ua[k] or ub[k])
         idx = np.clip(np.searchsorted(tu, t, side="right") - 1, 0, tu.size - 1)
-        mask = last_side[idx]
+        # samples a DAQ left empty (NaN) say nothing about the valve
+        mask = last_side[idx] & np.isfinite(pin) & np.isfinite(p)
         if np.count_nonzero(mask) > 100:
             gaps.append(float(np.median(pin[mask] - p[mask])))
     if not gaps:
