@@ -278,24 +278,38 @@ def run_cycle(
     # node pressures [Pa]: kept current, recomputed only where a node's state changes
     for j in range(nn):
         p[j] = chamber_pressure_kernel(m[j], temp[j], vol[j])
+    # Work skipped while it cannot change anything (the first sample does all of it):
+    # the position switches while no piston moved, the release checks while no
+    # solenoid waits for a release, the spool logic while no solenoid changed.
+    x_moved = True
+    armed = True
+    pending = True
+    eff_changed = True
 
     while True:
         t = ss[SS_TIME]
         # ---------------------------------------------------------- switches
-        for i in range(na):
-            sw[2 * i] = 1 if x[i] <= window else 0
-            sw[2 * i + 1] = 1 if x[i] >= ap[i, AP_STROKE] - window else 0
+        if x_moved:
+            for i in range(na):
+                sw[2 * i] = 1 if x[i] <= window else 0
+                sw[2 * i + 1] = 1 if x[i] >= ap[i, AP_STROKE] - window else 0
+            x_moved = False
         if has_vac:
             sw[nc] = 1 if ss[SS_VAC] >= sp[SP_VAC_LEVEL] else 0
         # ---------------------------------------------------------------- PLC
-        for s in range(ns):
-            by_switch = rel_sw[s] >= 0 and sw[rel_sw[s]] == 1
-            by_time = rel_t[s] >= 0.0 and t >= rel_t[s]
-            if cmd[s] == 1 and (by_switch or by_time):
-                cmd[s] = 0
-                chg[s] = t
-                rel_sw[s] = -1
-                rel_t[s] = -1.0
+        if armed:
+            armed = False
+            for s in range(ns):
+                by_switch = rel_sw[s] >= 0 and sw[rel_sw[s]] == 1
+                by_time = rel_t[s] >= 0.0 and t >= rel_t[s]
+                if cmd[s] == 1 and (by_switch or by_time):
+                    cmd[s] = 0
+                    chg[s] = t
+                    rel_sw[s] = -1
+                    rel_t[s] = -1.0
+                    pending = True
+                elif cmd[s] == 1 and (rel_sw[s] >= 0 or rel_t[s] >= 0.0):
+                    armed = True
         k = istate[IS_STEP]
         if istate[IS_PHASE] == 1 and t >= ss[SS_PHASE_END] - 1e-9:
             k += 1
@@ -321,6 +335,8 @@ def run_cycle(
                         chg[s] = t
                     rel_sw[s] = act_sw[a] if mode == 0 else -1
                     rel_t[s] = t + act_dur[a] if mode == 1 else -1.0
+                    armed = armed or mode <= 1
+            pending = True
             istate[IS_PHASE] = 0
         if istate[IS_PHASE] == 0:
             ok = True
@@ -332,15 +348,20 @@ def run_cycle(
                 istate[IS_PHASE] = 1
                 ss[SS_PHASE_END] = t + dwell[k] + jitter[k]
         # ------------------------------------------------- solenoids -> spools
-        for s in range(ns):
-            if eff[s] != cmd[s]:
-                if s < nc:
-                    delay = ap[s // 2, AP_ON_DELAY] if cmd[s] == 1 else ap[s // 2, AP_OFF_DELAY]
-                else:
-                    delay = sp[SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[SP_VAC_OFF_DELAY]
-                if t - chg[s] >= delay - 1e-9:
-                    eff[s] = cmd[s]
-        for i in range(na):
+        if pending:
+            pending = False
+            for s in range(ns):
+                if eff[s] != cmd[s]:
+                    if s < nc:
+                        delay = ap[s // 2, AP_ON_DELAY] if cmd[s] == 1 else ap[s // 2, AP_OFF_DELAY]
+                    else:
+                        delay = sp[SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[SP_VAC_OFF_DELAY]
+                    if t - chg[s] >= delay - 1e-9:
+                        eff[s] = cmd[s]
+                        eff_changed = True
+                    else:
+                        pending = True
+        for i in range(na if eff_changed else 0):
             ea = eff[2 * i]
             eb = eff[2 * i + 1]
             old = spool[i]
@@ -371,6 +392,7 @@ def run_cycle(
             else:
                 conn[2 * i] = 0
                 conn[2 * i + 1] = 0
+        eff_changed = False
         vac_on = has_vac and eff[nc] == 1
         # -------------------------------------------------------------- record
         if n_out >= max_samples:
@@ -600,6 +622,8 @@ def run_cycle(
                     mv_t0[i, 3] = 1.0
                 vdot[ca] = cp[2 * i, CP_AREA] * (x_new - x[i]) / dt
                 vdot[cb] = -cp[2 * i + 1, CP_AREA] * (x_new - x[i]) / dt
+                if x_new != x[i]:
+                    x_moved = True
                 x[i] = x_new
                 v[i] = v_new
             # ----- mass and energy update (eq. 4.7-4.9), heat exchange to the wall
