@@ -40,9 +40,10 @@ DIGITAL_RATE_HZ = 100.0
 _DIGITAL_EVERY = round(ANALOG_RATE_HZ / DIGITAL_RATE_HZ)
 BUFFER_START_S = 20.0
 """Cycle length the output buffers first hold [s]. A longer cycle is simulated again
-from the state it started in, with buffers twice as long (up to ``max_cycle_s``), so
-the results do not depend on it; buffers sized for ``max_cycle_s`` (120 s) at once
-cost about 3-6 ms of page faults per run (measured, issue 13)."""
+from the state it started in, with buffers for ``max_cycle_s``, so the results do not
+depend on it (a stalled machine is detected after 20 s + ``max_cycle_s`` of simulated
+time instead of ``max_cycle_s``); buffers sized for ``max_cycle_s`` (120 s) from the
+start cost about 3-6 ms of page faults per run (measured, issue 13)."""
 RUN_END_IDLE_S = 0.3
 """Idle time recorded after the last cycle's last step [s]: the PLC stops in cycle-stop
 mode and the DAQ runs on briefly, as on the rig, so the last cycle's final switch
@@ -209,7 +210,7 @@ def run_simulation(
             # buffers full before max_cycle_s: same cycle again, from the same state
             for name, arr in start_state.items():
                 state[name][...] = arr
-            n_buf = min(n_max, 2 * n_buf)
+            n_buf = n_max
             buf = _Buffers(n_buf, nn, na, plant.n_solenoids, plant.n_switches, nsteps)
             outputs = Outputs(*(getattr(buf, name) for name in Outputs._fields))
             n, status, n_ev, nsub = run_cycle(params, program, draws, records_state, outputs)
