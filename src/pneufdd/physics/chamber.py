@@ -35,6 +35,7 @@ from pneufdd.physics._jit import (
     as_float_array,
     elementwise,
     njit,
+    njit_inline,
     require,
     scalar_or_array,
 )
@@ -56,7 +57,7 @@ CV_AIR: float = R_AIR / (GAMMA_AIR - 1.0)
 """Specific heat of air at constant volume, R/(k-1) = 717.6 [J/(kg K)]."""
 
 
-@njit
+@njit_inline
 def chamber_volume_kernel(
     x: float, area: float, dead_volume: float, stroke: float, side: float
 ) -> float:
@@ -274,7 +275,7 @@ def chamber_pressure_derivative(
     )
 
 
-@njit
+@njit_inline
 def chamber_pressure_kernel(m: float, T: float, V: float) -> float:
     """Chamber pressure from the ideal gas law, eq. 4.7: P = m R T / V [Pa].
 

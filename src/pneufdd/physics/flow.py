@@ -40,6 +40,7 @@ from pneufdd.physics._jit import (
     as_float_array,
     elementwise,
     njit,
+    njit_inline,
     require,
     scalar_or_array,
 )
@@ -112,7 +113,7 @@ def critical_pressure_ratio(k: float = GAMMA_AIR) -> float:
 # ---------------------------------------------------------------------------
 
 
-@njit
+@njit_inline
 def _orifice_turbulent(r: float) -> float:
     # Mass flux factor of eq. 4.3 per unit C_D A P1 / sqrt(T) [sqrt(kg K/J)].
     if r <= CRITICAL_RATIO:
@@ -120,7 +121,7 @@ def _orifice_turbulent(r: float) -> float:
     return float(_C2 * r ** (1.0 / _K) * math.sqrt(1.0 - r ** ((_K - 1.0) / _K)))
 
 
-@njit
+@njit_inline
 def _orifice_forward(P1: float, P2: float, area: float, Cd: float, T: float) -> float:
     if P1 <= 0.0:
         return 0.0
@@ -392,7 +393,7 @@ def iso6358_mass_flow(
 # ---------------------------------------------------------------------------
 
 
-@njit
+@njit_inline
 def _isa_turbulent(P1: float, x: float, Cv: float, xT: float, T: float) -> float:
     # Eq. 4.6 in scfm at ISA standard (60 degF, 14.73 psia) times its density.
     xe = min(x, xT)
@@ -401,7 +402,7 @@ def _isa_turbulent(P1: float, x: float, Cv: float, xT: float, T: float) -> float
     return scfm * _ISA_MASS_PER_SCFM
 
 
-@njit
+@njit_inline
 def _isa_forward(P1: float, P2: float, Cv: float, xT: float, T: float) -> float:
     if P1 <= 0.0:
         return 0.0

@@ -33,6 +33,30 @@ Karnopp friction (``friction_force_kernel``); :mod:`pneufdd.sim.rhs` uses the sa
 functions. The body stays one loop on purpose: split into compiled stage functions
 (measured, issue 13) the cycle took 43 % longer, because numba passes and
 reference-counts every array argument of every stage call once per sub-step.
+For the same reason the kernel's own helpers take scalars only and are inlined
+(``inline="always"``), and so are the small private helpers of the flow kernels and
+the chamber volume/pressure kernels (:func:`pneufdd.physics._jit.njit_inline`);
+the ISA valve kernel stays one compiled function shared by its five call sites
+(inlining it everywhere cost 4 s more compilation for about 4 % speed).
+
+Where the time goes (issue 13, festo-dsd, 2-core development machine, perf with
+numba's debug line table): about two thirds in the awake chambers (conductances,
+the elimination into the manifold, edge flows, mass and energy), 20-25 % in the
+per-sample bookkeeping (PLC, freeze/wake, recording), 5 % in the pistons. On
+average 11 of the 18 chambers are awake: the held chambers of resting actuators
+follow every manifold dip caused by another actuator's stroke (time constant
+C/g of about 0.2 ms) and need about 0.5 s to settle thermally afterwards, and some
+actuator moves in 68 % of the samples. Only 2.5 % of the samples have every piston
+at rest and no chamber pressure changing by more than 500 Pa per ms (10.5 % below
+2 kPa per ms), so quiet-period macro steps over several milliseconds were not
+built: they could save at most a few per cent. Loosening the freeze threshold
+(30 -> 100 Pa) saved nothing measurable and moved step starts by up to 20 ms after
+three cycles: the cycle's timing integrates small changes of the supply dynamics.
+Work that cannot change anything is skipped instead (bit-identical results): node
+pressures are kept current rather than recomputed three times per sample, the
+sub-step loops run over a list of the awake chambers, and the position switches,
+the release checks and the spool logic run only after a piston moved, while a
+solenoid waits for its release, or after a solenoid changed.
 
 The PLC (section 3.2.3) runs every millisecond: a step starts by applying its
 valve commands, ends when all awaited switches (and its dwell timer) are
@@ -132,66 +156,61 @@ _WAKE = 300.0  # pressure difference that wakes a frozen chamber [Pa]
 _SLEEP = 30.0  # pressure difference below which a resting chamber may freeze [Pa]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _isa_g(p1: float, p2: float, cv: float, xt: float, t1: float, t2: float) -> float:
-    """Secant conductance of an ISA valve path, f / (p1 - p2) [kg/(s Pa)]."""
+    """Secant conductance of an ISA valve path, f / (p1 - p2) [kg/(s Pa)].
+
+    Below 1 Pa of difference the slope over the last pascal above the higher
+    pressure; one call site of the flow kernel, so inlining stays small.
+    """
     if cv <= 0.0:
         return 0.0
     if p1 >= p2:
-        d = p1 - p2
-        if d < 1.0:
-            return isa_mass_flow_kernel(p1 + 1.0, p1, cv, xt, t1)
-        return isa_mass_flow_kernel(p1, p2, cv, xt, t1) / d
-    d = p2 - p1
+        hi, lo, t = p1, p2, t1
+    else:
+        hi, lo, t = p2, p1, t2
+    d = hi - lo
     if d < 1.0:
-        return isa_mass_flow_kernel(p2 + 1.0, p2, cv, xt, t2)
-    return isa_mass_flow_kernel(p2, p1, cv, xt, t2) / d
+        hi, lo, d = hi + 1.0, hi, 1.0
+    return isa_mass_flow_kernel(hi, lo, cv, xt, t) / d
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _orifice_g(p1: float, p2: float, area: float, t1: float, t2: float) -> float:
     """Secant conductance of an orifice (effective area, Cd included) [kg/(s Pa)]."""
     if area <= 0.0:
         return 0.0
     if p1 >= p2:
-        d = p1 - p2
-        if d < 1.0:
-            return orifice_mass_flow_kernel(p1 + 1.0, p1, area, 1.0, t1)
-        return orifice_mass_flow_kernel(p1, p2, area, 1.0, t1) / d
-    d = p2 - p1
+        hi, lo, t = p1, p2, t1
+    else:
+        hi, lo, t = p2, p1, t2
+    d = hi - lo
     if d < 1.0:
-        return orifice_mass_flow_kernel(p2 + 1.0, p2, area, 1.0, t2)
-    return orifice_mass_flow_kernel(p2, p1, area, 1.0, t2) / d
+        hi, lo, d = hi + 1.0, hi, 1.0
+    return orifice_mass_flow_kernel(hi, lo, area, 1.0, t) / d
 
 
-@njit(cache=True)
-def _house_pressure(sp: np.ndarray, t: float, t0: float, ou: np.ndarray) -> float:
-    """House-air pressure: nominal + compressor load/unload cycle + slow drift [Pa]."""
-    period = sp[SP_COMP_PERIOD]
-    ph = (t / period + sp[SP_COMP_PHASE]) % 1.0
+@njit(cache=True, inline="always")
+def _house_pressure(
+    t: float, period: float, phase: float, p_house: float, band: float, drift: float
+) -> float:
+    """House-air pressure: nominal + compressor load/unload cycle + slow drift [Pa].
+
+    ``t`` time [s], ``period`` of the compressor cycle [s], its ``phase`` at t = 0
+    [-], nominal ``p_house`` [Pa], load/unload ``band`` peak to peak [Pa] and the
+    slow ``drift`` at t [Pa]. Scalars only: array arguments of a helper cost a
+    reference count each call.
+    """
+    ph = (t / period + phase) % 1.0
     # loaded (rising) for 30 % of the period, unloaded (falling) for 70 %
     saw = ph / 0.3 if ph < 0.3 else 1.0 - (ph - 0.3) / 0.7
-    u = (t - t0) / sp[SP_OU_DT]
-    i = int(u)
-    n = ou.size
-    if i >= n - 1:
-        drift = ou[n - 1]
-    else:
-        w = u - i
-        drift = ou[i] * (1.0 - w) + ou[i + 1] * w
-    return float(sp[SP_P_HOUSE] + sp[SP_COMP_BAND] * (saw - 0.5) + drift)
+    return p_house + band * (saw - 0.5) + drift
 
 
-@njit(cache=True)
-def _edge_energy(
-    f: float, ti: float, tj: float, ei: np.ndarray, i: int, ej: np.ndarray, j: int
-) -> None:
-    """Book the enthalpy of an edge flow f (i -> j positive) [W]."""
-    h = _CP_AIR * f * (ti if f > 0.0 else tj)
-    if i >= 0:
-        ei[i] -= h
-    if j >= 0:
-        ej[j] += h
+@njit(cache=True, inline="always")
+def _enthalpy_flow(f: float, ti: float, tj: float) -> float:
+    """Enthalpy carried by an edge flow f (i -> j positive, upstream temperature) [W]."""
+    return _CP_AIR * f * (ti if f > 0.0 else tj)
 
 
 @njit(cache=True)
@@ -238,6 +257,12 @@ def run_cycle(
     n_max = int(sp[SP_N_MAX])
     dp_tol = sp[SP_DP_TOL]
     t0 = ss[SS_TIME]
+    ou_dt = sp[SP_OU_DT]
+    n_ou = ou.size
+    comp_period = sp[SP_COMP_PERIOD]
+    comp_phase = sp[SP_COMP_PHASE]
+    p_house = sp[SP_P_HOUSE]
+    comp_band = sp[SP_COMP_BAND]
     vol = np.empty(nn)
     vdot = np.zeros(nn)
     vol[0] = sp[SP_V_RES]
@@ -250,13 +275,10 @@ def run_cycle(
     g_leak = np.zeros(nc)
     conn = np.zeros(nc, dtype=np.int64)  # 0 closed, 1 manifold, 2 exhaust
     awake = np.ones(nc, dtype=np.int64)
+    aw = np.zeros(nc, dtype=np.int64)
     alpha = np.zeros(nc)
     beta = np.zeros(nc)
     sw = np.zeros(nsw, dtype=np.uint8)
-    acc_fch = np.zeros(nc)
-    acc_fexh = np.zeros(nc)
-    acc_fleak = np.zeros(nc)
-    acc_fr = np.zeros(4)
     n_ev = 0
     total_sub = 0
     dp_prev = 1e9
@@ -277,24 +299,41 @@ def run_cycle(
         vol[2 + c] = chamber_volume_kernel(
             x[i], cp[c, CP_AREA], cp[c, CP_DEAD], ap[i, AP_STROKE], float(c % 2)
         )
+    # node pressures [Pa]: kept current, recomputed only where a node's state changes
+    for j in range(nn):
+        p[j] = chamber_pressure_kernel(m[j], temp[j], vol[j])
+    # Work skipped while it cannot change anything (the first sample does all of it):
+    # the position switches while no piston moved, the release checks while no
+    # solenoid waits for a release, the spool logic while no solenoid changed.
+    x_moved = True
+    armed = True
+    pending = True
+    eff_changed = True
 
     while True:
         t = ss[SS_TIME]
         # ---------------------------------------------------------- switches
-        for i in range(na):
-            sw[2 * i] = 1 if x[i] <= window else 0
-            sw[2 * i + 1] = 1 if x[i] >= ap[i, AP_STROKE] - window else 0
+        if x_moved:
+            for i in range(na):
+                sw[2 * i] = 1 if x[i] <= window else 0
+                sw[2 * i + 1] = 1 if x[i] >= ap[i, AP_STROKE] - window else 0
+            x_moved = False
         if has_vac:
             sw[nc] = 1 if ss[SS_VAC] >= sp[SP_VAC_LEVEL] else 0
         # ---------------------------------------------------------------- PLC
-        for s in range(ns):
-            by_switch = rel_sw[s] >= 0 and sw[rel_sw[s]] == 1
-            by_time = rel_t[s] >= 0.0 and t >= rel_t[s]
-            if cmd[s] == 1 and (by_switch or by_time):
-                cmd[s] = 0
-                chg[s] = t
-                rel_sw[s] = -1
-                rel_t[s] = -1.0
+        if armed:
+            armed = False
+            for s in range(ns):
+                by_switch = rel_sw[s] >= 0 and sw[rel_sw[s]] == 1
+                by_time = rel_t[s] >= 0.0 and t >= rel_t[s]
+                if cmd[s] == 1 and (by_switch or by_time):
+                    cmd[s] = 0
+                    chg[s] = t
+                    rel_sw[s] = -1
+                    rel_t[s] = -1.0
+                    pending = True
+                elif cmd[s] == 1 and (rel_sw[s] >= 0 or rel_t[s] >= 0.0):
+                    armed = True
         k = istate[IS_STEP]
         if istate[IS_PHASE] == 1 and t >= ss[SS_PHASE_END] - 1e-9:
             k += 1
@@ -320,6 +359,8 @@ def run_cycle(
                         chg[s] = t
                     rel_sw[s] = act_sw[a] if mode == 0 else -1
                     rel_t[s] = t + act_dur[a] if mode == 1 else -1.0
+                    armed = armed or mode <= 1
+            pending = True
             istate[IS_PHASE] = 0
         if istate[IS_PHASE] == 0:
             ok = True
@@ -331,15 +372,20 @@ def run_cycle(
                 istate[IS_PHASE] = 1
                 ss[SS_PHASE_END] = t + dwell[k] + jitter[k]
         # ------------------------------------------------- solenoids -> spools
-        for s in range(ns):
-            if eff[s] != cmd[s]:
-                if s < nc:
-                    delay = ap[s // 2, AP_ON_DELAY] if cmd[s] == 1 else ap[s // 2, AP_OFF_DELAY]
-                else:
-                    delay = sp[SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[SP_VAC_OFF_DELAY]
-                if t - chg[s] >= delay - 1e-9:
-                    eff[s] = cmd[s]
-        for i in range(na):
+        if pending:
+            pending = False
+            for s in range(ns):
+                if eff[s] != cmd[s]:
+                    if s < nc:
+                        delay = ap[s // 2, AP_ON_DELAY] if cmd[s] == 1 else ap[s // 2, AP_OFF_DELAY]
+                    else:
+                        delay = sp[SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[SP_VAC_OFF_DELAY]
+                    if t - chg[s] >= delay - 1e-9:
+                        eff[s] = cmd[s]
+                        eff_changed = True
+                    else:
+                        pending = True
+        for i in range(na if eff_changed else 0):
             ea = eff[2 * i]
             eb = eff[2 * i + 1]
             old = spool[i]
@@ -370,12 +416,12 @@ def run_cycle(
             else:
                 conn[2 * i] = 0
                 conn[2 * i + 1] = 0
+        eff_changed = False
         vac_on = has_vac and eff[nc] == 1
         # -------------------------------------------------------------- record
         if n_out >= max_samples:
             return n_out, 1, n_ev, total_sub
         for j in range(nn):
-            p[j] = chamber_pressure_kernel(m[j], temp[j], vol[j])
             out_p[n_out, j] = p[j]
         for i in range(na):
             out_x[n_out, i] = x[i]
@@ -413,6 +459,11 @@ def run_cycle(
                 awake[c] = 0
             elif awake[c] == 0 and d > _WAKE:
                 awake[c] = 1
+        n_aw = 0  # the awake chambers, in order: the sub-step loops run over these only
+        for c in range(nc):
+            if awake[c] == 1:
+                aw[n_aw] = c
+                n_aw += 1
         # ---------------------------------------------------- sub-step count
         nsub = 1
         if any_moving:
@@ -428,21 +479,27 @@ def run_cycle(
         dt = SAMPLE_DT / nsub
         total_sub += nsub
         for c in range(nc):
-            acc_fch[c] = 0.0
-            acc_fexh[c] = 0.0
-            acc_fleak[c] = 0.0
+            out_fch[n_out, c] = 0.0
+            out_fexh[n_out, c] = 0.0
+            out_fleak[n_out, c] = 0.0
         for q in range(4):
-            acc_fr[q] = 0.0
+            out_fr[n_out, q] = 0.0
         p_start_m = p[1]
         dp_max = 0.0
         for sub in range(nsub):
             ts = t + sub * dt
-            ph = _house_pressure(sp, ts, t0, ou)
+            u_ou = (ts - t0) / ou_dt
+            i_ou = int(u_ou)
+            if i_ou >= n_ou - 1:
+                drift = ou[n_ou - 1]
+            else:
+                w_ou = u_ou - i_ou
+                drift = ou[i_ou] * (1.0 - w_ou) + ou[i_ou + 1] * w_ou
+            ph = _house_pressure(ts, comp_period, comp_phase, p_house, comp_band, drift)
             p_src = sp[SP_P_SET] + sp[SP_REG_EFFECT] * (ph - sp[SP_P_HOUSE])
             if p_src > ph:
                 p_src = ph
             for j in range(nn):
-                p[j] = chamber_pressure_kernel(m[j], temp[j], vol[j])
                 energy_in[j] = 0.0
                 dm[j] = 0.0
             # ----- conductances at the start of the sub-step
@@ -459,13 +516,12 @@ def run_cycle(
             a_m = vol[1] / (_G * R_AIR * temp[1] * dt)
             lhs_m = a_m + g_rm + g_ml + g_mv
             rhs_m = a_m * p[1] + (g_ml + g_mv) * P_ATM
-            for c in range(nc):
+            # conductances of the awake chambers (independent: the CPU overlaps them)
+            for q in range(n_aw):
+                c = aw[q]
+                j = 2 + c
                 g_fill[c] = 0.0
                 g_exh[c] = 0.0
-                g_leak[c] = 0.0
-                if awake[c] == 0:
-                    continue
-                j = 2 + c
                 if conn[c] == 1:
                     g_fill[c] = _isa_g(
                         p[1], p[j], cp[c, CP_CV_FILL], cp[c, CP_XT], temp[1], temp[j]
@@ -473,8 +529,11 @@ def run_cycle(
                 elif conn[c] == 2:
                     g_exh[c] = _isa_g(p[j], P_ATM, cp[c, CP_CV_EXH], cp[c, CP_XT], temp[j], t_wall)
                 g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, CP_LEAK], temp[j], t_wall)
+            for q in range(n_aw):
+                c = aw[q]
+                j = 2 + c
                 a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
-                s_c = -p[j] * vdot[j] / (R_AIR * temp[j])
+                s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
                 den = a_c + g_fill[c] + g_exh[c] + g_leak[c]
                 alpha[c] = (a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM) / den
                 beta[c] = g_fill[c] / den
@@ -494,15 +553,16 @@ def run_cycle(
             dm[0] += f_reg - f_line
             dm[1] += f_line - f_sl - f_vac
             energy_in[0] += _CP_AIR * f_reg * t_wall
-            _edge_energy(f_line, temp[0], temp[1], energy_in, 0, energy_in, 1)
-            _edge_energy(f_sl + f_vac, temp[1], t_wall, energy_in, 1, energy_in, -1)
-            acc_fr[FR_REG] += f_reg
-            acc_fr[FR_LINE] += f_line
-            acc_fr[FR_SUPPLY_LEAK] += f_sl
-            acc_fr[FR_VAC] += f_vac
-            for c in range(nc):
-                if awake[c] == 0:
-                    continue
+            h = _enthalpy_flow(f_line, temp[0], temp[1])
+            energy_in[0] -= h
+            energy_in[1] += h
+            energy_in[1] -= _enthalpy_flow(f_sl + f_vac, temp[1], t_wall)
+            out_fr[n_out, FR_REG] += f_reg
+            out_fr[n_out, FR_LINE] += f_line
+            out_fr[n_out, FR_SUPPLY_LEAK] += f_sl
+            out_fr[n_out, FR_VAC] += f_vac
+            for q in range(n_aw):
+                c = aw[q]
                 j = 2 + c
                 pc_new = alpha[c] + beta[c] * pm_new
                 f_in = g_fill[c] * (pm_new - pc_new)
@@ -510,11 +570,13 @@ def run_cycle(
                 f_lk = g_leak[c] * (pc_new - P_ATM)
                 dm[1] -= f_in
                 dm[j] += f_in - f_ex - f_lk
-                _edge_energy(f_in, temp[1], temp[j], energy_in, 1, energy_in, j)
-                _edge_energy(f_ex + f_lk, temp[j], t_wall, energy_in, j, energy_in, -1)
-                acc_fch[c] += f_in
-                acc_fexh[c] += f_ex
-                acc_fleak[c] += f_lk
+                h = _enthalpy_flow(f_in, temp[1], temp[j])
+                energy_in[1] -= h
+                energy_in[j] += h
+                energy_in[j] -= _enthalpy_flow(f_ex + f_lk, temp[j], t_wall)
+                out_fch[n_out, c] += f_in
+                out_fexh[n_out, c] += f_ex
+                out_fleak[n_out, c] += f_lk
                 cum[CM_EXHAUST] += f_ex * dt
                 cum[CM_LEAK] += f_lk * dt
             cum[CM_REG] += f_reg * dt
@@ -584,6 +646,8 @@ def run_cycle(
                     mv_t0[i, 3] = 1.0
                 vdot[ca] = cp[2 * i, CP_AREA] * (x_new - x[i]) / dt
                 vdot[cb] = -cp[2 * i + 1, CP_AREA] * (x_new - x[i]) / dt
+                if x_new != x[i]:
+                    x_moved = True
                 x[i] = x_new
                 v[i] = v_new
             # ----- mass and energy update (eq. 4.7-4.9), heat exchange to the wall
@@ -603,6 +667,7 @@ def run_cycle(
                 m[j] = m_new
                 temp[j] = t_new
                 vol[j] = v_new_j
+                p[j] = chamber_pressure_kernel(m_new, t_new, v_new_j)
             # vacuum level (first order towards full vacuum while the ejector blows)
             if has_vac:
                 if vac_on:
@@ -614,21 +679,21 @@ def run_cycle(
                 else:
                     ss[SS_VAC] -= dt * ss[SS_VAC] / sp[SP_VAC_TAU_OFF]
         # ----------------------------------------- finish the 1 ms sample
-        for c in range(nc):
-            out_fch[n_out, c] = acc_fch[c] / nsub
-            out_fexh[n_out, c] = acc_fexh[c] / nsub
-            out_fleak[n_out, c] = acc_fleak[c] / nsub
-        for q in range(4):
-            out_fr[n_out, q] = acc_fr[q] / nsub
+        if nsub > 1:  # sums of the sub-steps -> mean flows over the sample
+            for q in range(n_aw):
+                c = aw[q]
+                out_fch[n_out, c] /= nsub
+                out_fexh[n_out, c] /= nsub
+                out_fleak[n_out, c] /= nsub
+            for q in range(4):
+                out_fr[n_out, q] /= nsub
         dp_max = 0.0
-        for c in range(nc):
-            if awake[c] == 1:
-                d = abs(
-                    chamber_pressure_kernel(m[2 + c], temp[2 + c], vol[2 + c]) - out_p[n_out, 2 + c]
-                )
-                if d > dp_max:
-                    dp_max = d
-        d = abs(chamber_pressure_kernel(m[1], temp[1], vol[1]) - p_start_m)
+        for q in range(n_aw):
+            c = aw[q]
+            d = abs(p[2 + c] - out_p[n_out, 2 + c])
+            if d > dp_max:
+                dp_max = d
+        d = abs(p[1] - p_start_m)
         if d > dp_max:
             dp_max = d
         dp_prev = dp_max

@@ -38,6 +38,12 @@ SIMULATOR_VERSION = f"pneufdd.sim {__version__} (twin model 1)"
 ANALOG_RATE_HZ = 1000.0
 DIGITAL_RATE_HZ = 100.0
 _DIGITAL_EVERY = round(ANALOG_RATE_HZ / DIGITAL_RATE_HZ)
+BUFFER_START_S = 20.0
+"""Cycle length the output buffers first hold [s]. A longer cycle is simulated again
+from the state it started in, with buffers for ``max_cycle_s``, so the results do not
+depend on it (a stalled machine is detected after 20 s + ``max_cycle_s`` of simulated
+time instead of ``max_cycle_s``); buffers sized for ``max_cycle_s`` (120 s) from the
+start cost about 3-6 ms of page faults per run (measured, issue 13)."""
 RUN_END_IDLE_S = 0.3
 """Idle time recorded after the last cycle's last step [s]: the PLC stops in cycle-stop
 mode and the DAQ runs on briefly, as on the rig, so the last cycle's final switch
@@ -52,20 +58,29 @@ class MachineStalledError(PneufddError):
 
 
 class _Buffers:
+    """Output buffers of the kernel, reused by every cycle of a run.
+
+    The per-sample arrays are left uninitialised (``np.empty``): the kernel writes
+    every column of every row it reports, and only those rows are read. Zeroing them
+    (``np.zeros``) cost about 5 ms per run for the 120 s default (``max_cycle_s``):
+    after the first run the C library serves these sizes from its heap, where calloc
+    must clear the memory.
+    """
+
     def __init__(self, n: int, nn: int, na: int, ns: int, nsw: int, nsteps: int) -> None:
         nc = 2 * na
-        self.p = np.zeros((n, nn))
-        self.x = np.zeros((n, na))
-        self.vac = np.zeros(n)
-        self.fch = np.zeros((n, nc))
-        self.fexh = np.zeros((n, nc))
-        self.fleak = np.zeros((n, nc))
-        self.fr = np.zeros((n, lay.FR_SIZE))
-        self.cum = np.zeros((n, lay.CM_SIZE))
-        self.mass = np.zeros(n)
-        self.cmd = np.zeros((n, ns), dtype=np.uint8)
-        self.sw = np.zeros((n, nsw), dtype=np.uint8)
-        self.step = np.zeros(n, dtype=np.int64)
+        self.p = np.empty((n, nn))
+        self.x = np.empty((n, na))
+        self.vac = np.empty(n)
+        self.fch = np.empty((n, nc))
+        self.fexh = np.empty((n, nc))
+        self.fleak = np.empty((n, nc))
+        self.fr = np.empty((n, lay.FR_SIZE))
+        self.cum = np.empty((n, lay.CM_SIZE))
+        self.mass = np.empty(n)
+        self.cmd = np.empty((n, ns), dtype=np.uint8)
+        self.sw = np.empty((n, nsw), dtype=np.uint8)
+        self.step = np.empty(n, dtype=np.int64)
         self.step_t = np.zeros(nsteps)
         n_ev = 8 * nsteps + 8 * na
         self.ev_act = np.zeros(n_ev, dtype=np.int64)
@@ -167,7 +182,8 @@ def run_simulation(
     na = len(desc.actuators)
     nn = 2 + 2 * na
     nsteps = len(desc.steps)
-    n_buf = int(max_cycle_s / SAMPLE_DT) + 2
+    n_max = int(max_cycle_s / SAMPLE_DT) + 2
+    n_buf = min(n_max, int(BUFFER_START_S / SAMPLE_DT) + 2)
     buf = _Buffers(n_buf, nn, na, plant.n_solenoids, plant.n_switches, nsteps)
     n_ou = int(max_cycle_s / 0.1) + 4
     ou_now = rng.normal(0.0, plant.sp[lay.SP_DRIFT_STD]) if plant.sp[lay.SP_DRIFT_STD] > 0 else 0.0
@@ -187,9 +203,17 @@ def run_simulation(
         k_start = int(state["istate"][lay.IS_SAMPLE])
         if schedule is not None:
             timeline += _apply_schedule(plant, desc, specs, schedule, t_start, cyc)
-        n, status, n_ev, nsub = run_cycle(
-            params, program, CycleDraws(jitter, fric, ou), records_state, outputs
-        )
+        draws = CycleDraws(jitter, fric, ou)
+        start_state = {name: arr.copy() for name, arr in state.items()}
+        n, status, n_ev, nsub = run_cycle(params, program, draws, records_state, outputs)
+        while status != 0 and n_buf < n_max:
+            # buffers full before max_cycle_s: same cycle again, from the same state
+            for name, arr in start_state.items():
+                state[name][...] = arr
+            n_buf = n_max
+            buf = _Buffers(n_buf, nn, na, plant.n_solenoids, plant.n_switches, nsteps)
+            outputs = Outputs(*(getattr(buf, name) for name in Outputs._fields))
+            n, status, n_ev, nsub = run_cycle(params, program, draws, records_state, outputs)
         total_sub += nsub
         if status != 0:
             step_now = int(state["istate"][lay.IS_STEP])
