@@ -24,6 +24,7 @@ caller chooses among them with the same rules as for the signature fits.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
@@ -163,6 +164,12 @@ def refine_by_simulation(
     return best
 
 
+def _pair_rss(fits: Mapping[Subset, tuple[FloatArray, float]], a: int, b: int) -> float:
+    """Signature-model residual of the pair ``a, b`` (inf when it was not fitted) [-]."""
+    fit = fits.get((min(a, b), max(a, b)))
+    return math.inf if fit is None else fit[1]
+
+
 def verify_explanations(
     target: FloatArray,
     model_fits: Mapping[Subset, tuple[FloatArray, float]],
@@ -175,12 +182,14 @@ def verify_explanations(
     partners: int = 3,
     probe: float = 8.6e-4,
     max_iterations: int = 3,
+    probes: int = 0,
 ) -> dict[Subset, SimulatedFit]:
     """Simulate and size the most promising explanations of one or two leaks.
 
     1. The ``top_singles`` best single leaks of the signature model, sized by
        simulation.
-    2. Next to the best of them, every other location is *probed*: simulated at size
+    2. Next to the best of them, the other locations are *probed* (the ``probes``
+       whose signature-model pair with it fits best, or all): simulated at size
        ``probe`` beside it, which gives its effect in the presence of the first leak
        (the interaction included); a bounded linear fit of both sizes to the data
        ranks the second leaks, and the ``partners`` best pairs are sized by
@@ -209,6 +218,8 @@ def verify_explanations(
         Size at which second leaks are probed (40 SLPM by default) [kg/s].
     max_iterations : int
         Gauss-Newton steps per explanation at most [-].
+    probes : int
+        Second leaks probed in step 2 (0: every location) [-].
 
     Returns
     -------
@@ -261,9 +272,12 @@ def verify_explanations(
         if base is not None:
             rest = target - base
             ranked = []
-            for other in range(n_locations):
-                if other == first:
-                    continue
+            others = [o for o in range(n_locations) if o != first]
+            if 0 < probes < len(others):
+                # the signature model's best partners of the first leak
+                others.sort(key=lambda o: _pair_rss(model_fits, first, o))
+                others = others[:probes]
+            for other in others:
                 probed = simulate({first: float(size[0]), other: probe})
                 if probed is None:
                     continue
