@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pneufdd.calibration.calibrate import calibrate_machine
+from pneufdd.calibration.calibrate import (
+    calibrate_machine,
+    machine_parameters,
+    measure_evidence,
+    volume_start,
+)
+from pneufdd.calibration.draft import DRAFT_MODEL
 from pneufdd.cli.app import main
 from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.recording.plc_export import write_plc_csv
@@ -89,3 +96,30 @@ def test_from_a_plc_export_to_a_located_leak(plant, tmp_path: Path, capsys) -> N
     assert "EJECT_B" in [first["location"], *first["ambiguity_group"]]
     assert first["flow_slpm"] == pytest.approx(60.0, rel=0.25)
     assert "calibrated to free1.csv, free2.csv" in html.read_text()
+
+
+def test_volume_start_reads_air_per_step() -> None:
+    # a drafted FEED cylinder (geometry assumed) at 1.5 x the real bore: 2.25 x the
+    # swept volume, dead volumes and tube alike, so the real air per stroke is between
+    # 1 / 2.25 and 1 of the description's. The supply air per step, fitted linearly in
+    # each actuator's volume factor, starts FEED there and leaves the others near 1
+    truth = load_machine("press-fit-cell")
+    raw = copy.deepcopy(truth.raw)
+    for table in raw["actuator"]:
+        if table["id"] == "FEED":
+            table["bore_mm"] *= 1.5
+            table["rod_mm"] *= 1.5
+            table["model"] = DRAFT_MODEL
+    wrong = load_machine(raw)
+    rec = as_exported(simulate(truth, cycles=4, seed=SEED + 5))
+    params = machine_parameters(wrong)
+    start = volume_start(wrong, params, measure_evidence([rec], wrong))
+    factors = {
+        p.name: float(np.exp(z * p.prior_sigma))
+        for p, z in zip(params, start, strict=True)
+        if p.name.endswith(".volume")
+    }
+    assert 1 / 2.25 <= factors["FEED.volume"] <= 0.65
+    for name in ("CLAMP.volume", "PRESS.volume", "EJECT.volume"):
+        assert factors[name] == pytest.approx(1.0, rel=0.15)
+    assert all(z == 0.0 for p, z in zip(params, start, strict=True) if "volume" not in p.name)
