@@ -454,9 +454,9 @@ def volume_start(
     other consumers plus each actuator's simulated air times its volume factor:
     a bounded linear least-squares fit (:func:`scipy.optimize.lsq_linear`, steps
     weighted as in the calibration, with the calibration's prior linearised and
-    factors within two prior standard deviations) gives those factors. A drafted description assumes one bore for all actuators
-    (a festo-dsd DNC drafted at 20 mm is 32 mm); started there, the twin-in-the-loop
-    fit stayed in a local minimum (DNC x 1.02, supply air 16 % off per step).
+    factors within two prior standard deviations) gives those factors. A drafted
+    description assumes one bore for all actuators (a festo-dsd DNC drafted at 20 mm
+    is 32 mm); started there, the twin-in-the-loop fit left DNC at x 1.02.
     Parameters other than volumes start at 0 (the description); so do all without
     a supply flow meter.
     """
