@@ -306,7 +306,10 @@ def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path, tag_reference):
     rec = _as_plc_tags(leak_run())
     analog, digital = needed_channels(model)
     port = _free_port()
-    toml = ["lateness_s = 1.0", 'end = "ns=2;s=ReplayDone"']
+    # lateness is in the data's time: the replay runs SPEED x real time, so SPEED s of
+    # data time is the 1 s of wall time a live PLC gets (1 s of data time, 0.125 s of
+    # wall time, lost late samples and with them two cycles on a loaded 2-core machine)
+    toml = [f"lateness_s = {SPEED:g}", 'end = "ns=2;s=ReplayDone"']
     for name in (*analog, *digital):
         rate = ANALOG_HZ if name in analog else 100.0
         toml += [f"[channels.{name}]", f'node = "ns=2;s={name}"', f"rate_hz = {rate}"]
