@@ -64,12 +64,18 @@ SIG_SIZES_SLPM = (30.0, 55.0)
 
 
 @pytest.fixture(scope="module")
-def signatures():
-    """Simulated signatures of a supply and a DNC_B leak at 30 and 55 SLPM (Q_In only)."""
+def q_in_features():
+    """festo-dsd's PLC sequence and the names of its Q_In step features."""
     rec = simulate("festo-dsd", cycles=3, seed=SEED + 2)
     seq = machine_sequence(load_machine("festo-dsd"))
     cycles, _, _ = segment_cycles(rec, seq)
-    names = step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
+    return seq, step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
+
+
+@pytest.fixture(scope="module")
+def signatures(q_in_features):
+    """Simulated signatures of a supply and a DNC_B leak at 30 and 55 SLPM (Q_In only)."""
+    seq, names = q_in_features
     sig = compute_signatures(
         load_machine("festo-dsd"),
         names,
@@ -156,15 +162,12 @@ def test_rod_side_leak_next_to_a_supply_leak(signatures):
     assert avg_line < sig.average_flow(1, line)
 
 
-def test_signature_ladder_ends_below_the_stall_limit():
+def test_signature_ladder_ends_below_the_stall_limit(q_in_features):
     # a ladder size the machine cannot run with (a DNC_B leak of 3000 SLPM keeps the
     # DNC from retracting) is replaced by the largest size found to run below it, and
     # later sizes are searched below the smallest that stalled: increasing knots
     # instead of an error (issue 10, drafted machines with weak valves)
-    seq = machine_sequence(load_machine("festo-dsd"))
-    rec = simulate("festo-dsd", cycles=3, seed=SEED + 2)
-    cycles, _, _ = segment_cycles(rec, seq)
-    names = step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
+    seq, names = q_in_features
     with pytest.raises(MachineStalledError):
         simulate("festo-dsd", cycles=1, leaks={"DNC_B": "3000slpm"}, seed=SEED, max_cycle_s=30.0)
     sig = compute_signatures(
