@@ -72,21 +72,26 @@ def q_in_features():
     return seq, step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
 
 
-@pytest.fixture(scope="module")
-def signatures(q_in_features):
-    """Simulated signatures of a supply and a DNC_B leak at 30 and 55 SLPM (Q_In only)."""
+def _q_in_signatures(q_in_features, sizes_slpm, locations):
+    """festo-dsd's Q_In leak signatures at ``sizes_slpm`` [SLPM], one simulated cycle."""
     seq, names = q_in_features
-    sig = compute_signatures(
+    return compute_signatures(
         load_machine("festo-dsd"),
         names,
         seq,
         cycles=1,
         channels=["Q_In"],
-        sizes_slpm=SIG_SIZES_SLPM,
-        locations=(SUPPLY, Location("DNC", "B")),
+        sizes_slpm=sizes_slpm,
+        locations=locations,
         workers=1,
     )
-    return sig, len(seq)
+
+
+@pytest.fixture(scope="module")
+def signatures(q_in_features):
+    """Simulated signatures of a supply and a DNC_B leak at 30 and 55 SLPM (Q_In only)."""
+    sig = _q_in_signatures(q_in_features, SIG_SIZES_SLPM, (SUPPLY, Location("DNC", "B")))
+    return sig, len(q_in_features[0])
 
 
 def test_supply_leak_signature_is_a_constant_flow_offset(signatures):
@@ -167,19 +172,9 @@ def test_signature_ladder_ends_below_the_stall_limit(q_in_features):
     # DNC from retracting) is replaced by the largest size found to run below it, and
     # later sizes are searched below the smallest that stalled: increasing knots
     # instead of an error (issue 10, drafted machines with weak valves)
-    seq, names = q_in_features
     with pytest.raises(MachineStalledError):
         simulate("festo-dsd", cycles=1, leaks={"DNC_B": "3000slpm"}, seed=SEED, max_cycle_s=30.0)
-    sig = compute_signatures(
-        load_machine("festo-dsd"),
-        names,
-        seq,
-        cycles=1,
-        channels=["Q_In"],
-        sizes_slpm=(30.0, 3000.0, 4000.0),
-        locations=(Location("DNC", "B"),),
-        workers=1,
-    )
+    sig = _q_in_signatures(q_in_features, (30.0, 3000.0, 4000.0), (Location("DNC", "B"),))
     knots = sig.sizes[0]
     assert knots[0] == pytest.approx(slpm_to_kg_s(30.0), rel=1e-6)
     assert np.all(np.diff(knots) > 0.0)
