@@ -37,7 +37,13 @@ from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import segment, sequence_from_machine
 from pneufdd.sim import MachineDescription, load_machine
-from pneufdd.sim.simulate import RUN_END_IDLE_S, MachineStalledError, run_simulation
+from pneufdd.sim.result import SimulationResult
+from pneufdd.sim.simulate import (
+    ANALOG_RATE_HZ,
+    RUN_END_IDLE_S,
+    MachineStalledError,
+    run_simulation,
+)
 
 __all__ = [
     "CalibrationResult",
@@ -318,12 +324,18 @@ def simulate_evidence(
 ) -> Evidence:
     """The twin's evidence: exact step times of ``cycles`` cycles, the first left out."""
     result = run_simulation(machine, cycles=cycles, seed=seed, keep_outputs=False)
+    return _evidence_from_windows([result.recording], [_step_windows(result)], line_channels)
+
+
+def _step_windows(result: SimulationResult) -> tuple[FloatArray, FloatArray]:
+    """Start and end of every step of a twin run [s], cycles x steps, the first cycle
+    (started from rest) left out when there are more."""
     starts = result.step_start
-    flat = starts.ravel()
-    ends = np.r_[flat[1:], result.recording.duration - RUN_END_IDLE_S].reshape(starts.shape)
-    skip = 1 if cycles > 1 else 0
-    window = (starts[skip:], ends[skip:])
-    return _evidence_from_windows([result.recording], [window], line_channels)
+    ends = np.r_[starts.ravel()[1:], result.recording.duration - RUN_END_IDLE_S].reshape(
+        starts.shape
+    )
+    skip = 1 if starts.shape[0] > 1 else 0
+    return starts[skip:], ends[skip:]
 
 
 @dataclass(frozen=True)
@@ -398,12 +410,19 @@ class CalibrationResult:
         return out
 
 
+def _air_scale(air: FloatArray) -> FloatArray:
+    """Uncertainty of each step's air [kg]: :data:`AIR_REL_SIGMA` of it, with a floor of
+    :data:`AIR_ABS_SIGMA_FRACTION` of the mean step's."""
+    out: FloatArray = AIR_REL_SIGMA * np.abs(air) + AIR_ABS_SIGMA_FRACTION * float(
+        np.mean(np.abs(air))
+    )
+    return out
+
+
 def _residuals(measured: Evidence, sim: Evidence) -> FloatArray:
     parts = []
     if np.all(np.isfinite(measured.supply_air_kg)):
-        scale = AIR_REL_SIGMA * np.abs(measured.supply_air_kg) + AIR_ABS_SIGMA_FRACTION * float(
-            np.mean(np.abs(measured.supply_air_kg))
-        )
+        scale = _air_scale(measured.supply_air_kg)
         parts.append((sim.supply_air_kg - measured.supply_air_kg) / scale)
     parts.append((sim.duration_s - measured.duration_s) / DURATION_SIGMA_S)
     if np.all(np.isfinite(measured.supply_pressure_pa)):
@@ -425,18 +444,12 @@ def _air_per_actuator(machine: MachineDescription, seed: int) -> tuple[FloatArra
     through its valve (``mdot_in`` of both lines), averaged over the same cycles.
     """
     result = run_simulation(machine, cycles=SIM_CYCLES, seed=seed, keep_outputs=True)
-    starts = result.step_start
-    ends = np.r_[starts.ravel()[1:], result.recording.duration - RUN_END_IDLE_S].reshape(
-        starts.shape
-    )
-    skip = 1 if SIM_CYCLES > 1 else 0
-    window = (starts[skip:], ends[skip:])
+    window = _step_windows(result)
     supply = _evidence_from_windows([result.recording], [window], ()).supply_air_kg
-    rate = 1.0 / float(result.time[1] - result.time[0])
     shares = []
     for a in machine.actuators:
         inflow = result.outputs[f"mdot_in_{a.id}_A"] + result.outputs[f"mdot_in_{a.id}_B"]
-        total, _ = _window_sums(float(result.time[0]), rate, inflow, *window)
+        total, _ = _window_sums(float(result.time[0]), ANALOG_RATE_HZ, inflow, *window)
         shares.append(np.mean(total, axis=0))
     return supply, np.stack(shares, axis=1)
 
@@ -474,9 +487,7 @@ def volume_start(
     if not used:
         return start
     sigma = np.array([params[k].prior_sigma for _, k in used])
-    scale = AIR_REL_SIGMA * np.abs(measured.supply_air_kg) + AIR_ABS_SIGMA_FRACTION * float(
-        np.mean(np.abs(measured.supply_air_kg))
-    )
+    scale = _air_scale(measured.supply_air_kg)
     share = shares[:, [i for i, _ in used]]
     rest = supply - share.sum(axis=1)
     # the calibration's prior, linearised: (factor - 1) / sigma ~ N(0, 1)
