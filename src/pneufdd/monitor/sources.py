@@ -21,7 +21,8 @@ alive), with ``rates_hz`` (grid rate of each channel) and ``lateness_s``.
     An OPC UA client (asyncua) subscribing to the tags of the tag map; the time of a
     sample is the server's source timestamp. After a lost connection it reconnects
     every second and says so. An optional ``end`` tag in the tag map ends the stream
-    when it becomes true.
+    when it becomes true. ``OpcUaSource(watchdog_s=10)``: the server must answer a
+    state probe within this time [s] before the connection is taken as lost.
 
 The tag map (``--tags tags.toml``) names each channel's tag and grid rate::
 
@@ -388,6 +389,7 @@ class OpcUaSource:
         channels: Sequence[str],
         log: Log = _quiet,
         publish_ms: float = 50.0,
+        watchdog_s: float = 10.0,
     ) -> None:
         self.url = url
         self.tags = tags
@@ -396,6 +398,7 @@ class OpcUaSource:
         self.lateness_s = tags.lateness_s
         self.log = log
         self.publish_ms = publish_ms
+        self.watchdog_s = watchdog_s
         self._queue: queue.Queue[SampleBatch | BaseException | None] = queue.Queue()
         self._stop = threading.Event()
 
@@ -455,7 +458,11 @@ class OpcUaSource:
 
         attempt = 0
         while not self._stop.is_set():
-            client = Client(self.url, timeout=4)
+            # the client probes the server's state every watchdog_s and gives it as long
+            # to answer: a diagnosis that keeps this process busy for seconds must not
+            # count as a lost connection (asyncua's 1 s default dropped the subscription,
+            # and the samples of the reconnection gap with it, on a loaded machine)
+            client = Client(self.url, timeout=self.watchdog_s, watchdog_intervall=self.watchdog_s)
             try:
                 await client.connect()
             except (TimeoutError, OSError, UaError) as exc:
