@@ -88,6 +88,11 @@ class DetectionSettings:
         (:class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`): the median, so
         that a few odd leak-free cycles do not flag a run. References saved before this
         setting existed read ``"mean"``.
+    run_correlation : bool
+        Let the run threshold count a run's cycles as correlated, by the intra-class
+        correlation of the reference's held-out statistics within a recording
+        (:class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`). References saved
+        before this setting existed read ``False``.
     """
 
     n_nuisance: int = 2
@@ -96,6 +101,7 @@ class DetectionSettings:
     band_alarm_fraction: float = 0.05
     startup_cycles: int = 1
     run_statistic: str = "median"
+    run_correlation: bool = True
 
     def __post_init__(self) -> None:
         if self.run_statistic not in RUN_STATISTICS:
@@ -116,6 +122,7 @@ class DetectionSettings:
             "band_alarm_fraction": self.band_alarm_fraction,
             "startup_cycles": self.startup_cycles,
             "run_statistic": self.run_statistic,
+            "run_correlation": self.run_correlation,
         }
 
     @classmethod
@@ -128,6 +135,7 @@ class DetectionSettings:
             band_alarm_fraction=float(data["band_alarm_fraction"]),
             startup_cycles=int(data.get("startup_cycles", 0)),
             run_statistic=str(data.get("run_statistic", "mean")),
+            run_correlation=bool(data.get("run_correlation", False)),
         )
 
 
@@ -374,6 +382,7 @@ class ReferenceModel:
             false_alarm_rate=self.settings.false_alarm_rate,
             scale_floor=floor,
             run_statistic=self.settings.run_statistic,
+            run_correlation=self.settings.run_correlation,
         ).fit(self.features, groups=self.cycle_recording)
 
     def band_detector(self, channel: str | None = None) -> BandDetector | None:

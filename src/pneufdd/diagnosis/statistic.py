@@ -43,6 +43,22 @@ incomplete beta function; David & Nagaraja, 2003, eq. 2.1.5), so the run thresho
 former rule, the run *mean* against :math:`(g/m) \\chi^2_{m h}`, is kept as
 ``run_statistic="mean"`` (references saved before the median existed use it).
 
+The cycles of one run are not independent either: they share the run's conditions,
+the same that made the cross-validation leave whole recordings out. With the held-out
+statistics grouped by recording, their intra-class correlation :math:`\\rho` is
+estimated by one-way analysis of variance (the unbalanced-design estimator,
+Searle et al., 1992, section 3.6, truncated at 0), and a run of ``m`` cycles counts as
+:math:`m_{eff} = m / (1 + (m - 1) \\rho)` independent ones (Kish's design effect,
+1965, section 5.4): the run mean's law becomes :math:`(g/m_{eff}) \\chi^2_{m_{eff} h}`,
+and the median's order-statistic law :math:`B(k, m - k + 1)` becomes
+:math:`B(1 + (k - 1) s, 1 + (m - k) s)` with :math:`s = (m_{eff} - 1) / (m - 1)`: the
+same law at :math:`\\rho = 0`, one cycle's (uniform) at :math:`\\rho = 1`, and in
+between a variance of :math:`\\mu (1 - \\mu) / (m_{eff} + 2)` instead of
+:math:`\\mu (1 - \\mu) / (m + 2)` (the design effect). The correction only raises
+the run threshold; with fewer than
+:data:`MIN_GROUPS_FOR_GROUPED_CV` recordings, or ``run_correlation=False``,
+:math:`\\rho = 0` and the rule is the independent one above.
+
 References
 ----------
 .. [1] Box, G. E. P. (1954). Some theorems on quadratic forms applied in the study
@@ -53,6 +69,9 @@ References
 .. [4] Roberts, D. R. et al. (2017). Cross-validation strategies for data with
    temporal, spatial, hierarchical, or phylogenetic structure. Ecography 40(8),
    913-929.
+.. [5] Searle, S. R., Casella, G., McCulloch, C. E. (1992). Variance Components.
+   Wiley.
+.. [6] Kish, L. (1965). Survey Sampling. Wiley.
 """
 
 from __future__ import annotations
@@ -71,6 +90,7 @@ __all__ = [
     "CycleDistanceDetector",
     "cross_validation_folds",
     "median_order",
+    "recording_correlation",
     "scaled_chi2_fit",
 ]
 
@@ -127,6 +147,41 @@ def median_order(n_cycles: int) -> int:
     [1, 2, 2, 6, 6]
     """
     return int(n_cycles) // 2 + 1
+
+
+def recording_correlation(values: npt.ArrayLike, groups: npt.ArrayLike) -> float:
+    """Intra-class correlation of ``values`` within their groups (recordings) [-].
+
+    One-way analysis of variance with unequal group sizes (Searle et al., 1992,
+    section 3.6): between- and within-group mean squares ``MSB``, ``MSW`` and the
+    effective group size :math:`n_0 = (N - \\sum n_i^2 / N) / (k - 1)` give
+    :math:`\\sigma_b^2 = (MSB - MSW) / n_0`, and :math:`\\rho = \\sigma_b^2 /
+    (\\sigma_b^2 + MSW)`, truncated at 0 (a negative estimate is sampling noise).
+
+    Examples
+    --------
+    >>> recording_correlation([1.0, 1.1, 0.9, 3.0, 3.1, 2.9], [0, 0, 0, 1, 1, 1]) > 0.9
+    True
+    >>> recording_correlation([1.0, 3.0, 2.0, 1.0, 3.0, 2.0], [0, 0, 0, 1, 1, 1])
+    0.0
+    """
+    x = np.asarray(values, dtype=np.float64).ravel()
+    labels, index = np.unique(np.asarray(groups).ravel(), return_inverse=True)
+    if index.size != x.size:
+        raise ValueError(
+            f"groups: received {index.size} labels for {x.size} values; allowed: one per value"
+        )
+    k, n = labels.size, x.size
+    if k < 2 or n <= k:
+        return 0.0
+    sizes = np.bincount(index, minlength=k).astype(np.float64)
+    means = np.bincount(index, weights=x, minlength=k) / sizes
+    msb = float(np.sum(sizes * (means - x.mean()) ** 2) / (k - 1))
+    msw = float(np.sum((x - means[index]) ** 2) / (n - k))
+    n0 = (n - float(np.sum(sizes**2)) / n) / (k - 1)
+    between = max((msb - msw) / n0, 0.0)
+    total = between + msw
+    return float(between / total) if total > 0 else 0.0
 
 
 def cross_validation_folds(
@@ -219,6 +274,9 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
         statistic (leave-one-out when there are no more cycles than folds) [-].
     run_statistic : {"median", "mean"}
         How a run's cycle statistics are combined (module docstring).
+    run_correlation : bool
+        Let the run threshold account for the correlation of one recording's cycles
+        (module docstring); needs ``groups`` in :meth:`fit`.
 
     Attributes
     ----------
@@ -232,6 +290,9 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
         Cross-validated statistic of each reference cycle.
     grouped_cv_ : bool
         True when the cross-validation left out one recording at a time.
+    recording_correlation_ : float
+        Intra-class correlation of the held-out statistics within a recording, used by
+        the run threshold (0 without grouped cross-validation or ``run_correlation``).
     chi2_scale_, chi2_dof_ : float
         Box fit ``g``, ``h`` of the leak-free distribution.
     threshold_ : float
@@ -260,12 +321,14 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
         scale_floor: float | npt.ArrayLike = 0.0,
         n_folds: int = 20,
         run_statistic: str = "median",
+        run_correlation: bool = True,
     ):
         self.n_nuisance = n_nuisance
         self.false_alarm_rate = false_alarm_rate
         self.scale_floor = scale_floor
         self.n_folds = n_folds
         self.run_statistic = run_statistic
+        self.run_correlation = run_correlation
 
     def _floor(self, n_features: int) -> FloatArray:
         floor = np.asarray(self.scale_floor, dtype=np.float64)
@@ -328,6 +391,11 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
             mean, scale, comps = _fit_space(data[~test], floor, int(self.n_nuisance))
             scores[test] = _residual_stat((data[test] - mean) / scale, comps)
         self.reference_scores_ = scores
+        self.recording_correlation_ = (
+            recording_correlation(scores, fold_of)
+            if by_recording is not None and self.run_correlation
+            else 0.0
+        )
         self.chi2_scale_, self.chi2_dof_ = scaled_chi2_fit(scores)
         self.threshold_ = self.run_threshold(1)
         self.reference_false_alarm_rate_ = float(np.mean(scores > self.threshold_))
@@ -372,26 +440,41 @@ class CycleDistanceDetector(BaseEstimator):  # type: ignore[misc]
             return float(np.mean(s))
         return float(s[median_order(s.size) - 1])
 
+    def effective_cycles(self, n_cycles: int) -> float:
+        """Independent cycles a run of ``n_cycles`` is worth: ``m / (1 + (m-1) rho)`` [-]."""
+        check_is_fitted(self, ["recording_correlation_"])
+        m = max(int(n_cycles), 1)
+        return m / (1.0 + (m - 1) * self.recording_correlation_)
+
+    def _median_law(self, n_cycles: int) -> tuple[float, float]:
+        """Beta parameters of the median's quantile level F(median) (module docstring)."""
+        m = max(int(n_cycles), 1)
+        k = median_order(m)
+        if m == 1:
+            return 1.0, 1.0
+        shrink = (self.effective_cycles(m) - 1.0) / (m - 1)
+        return 1.0 + (k - 1) * shrink, 1.0 + (m - k) * shrink
+
     def run_threshold(self, n_cycles: int) -> float:
         """Threshold of the run statistic of a run of ``n_cycles`` cycles [-]."""
         check_is_fitted(self, ["chi2_scale_", "chi2_dof_"])
-        m = max(int(n_cycles), 1)
         g, h, alpha = self.chi2_scale_, self.chi2_dof_, self.false_alarm_rate
         if self.run_statistic == "mean":
-            return float(g / m * stats.chi2.ppf(1.0 - alpha, m * h))
-        k = median_order(m)
-        return float(g * stats.chi2.ppf(stats.beta.ppf(1.0 - alpha, k, m - k + 1), h))
+            m_eff = self.effective_cycles(n_cycles)
+            return float(g / m_eff * stats.chi2.ppf(1.0 - alpha, m_eff * h))
+        a, b = self._median_law(n_cycles)
+        return float(g * stats.chi2.ppf(stats.beta.ppf(1.0 - alpha, a, b), h))
 
     def run_p_value(self, X: npt.ArrayLike) -> float:
         """Probability of a leak-free run scoring at least this run's statistic [-]."""
         scores = self.score_samples(X)
-        m = scores.size
         g, h = self.chi2_scale_, self.chi2_dof_
         value = self.run_score(scores)
         if self.run_statistic == "mean":
-            return float(stats.chi2.sf(value * m / g, m * h))
-        k = median_order(m)
-        return float(stats.beta.sf(stats.chi2.cdf(value / g, h), k, m - k + 1))
+            m_eff = self.effective_cycles(scores.size)
+            return float(stats.chi2.sf(value * m_eff / g, m_eff * h))
+        a, b = self._median_law(scores.size)
+        return float(stats.beta.sf(stats.chi2.cdf(value / g, h), a, b))
 
     def predict_run(self, X: npt.ArrayLike) -> bool:
         """True when the run statistic of the run's cycles exceeds the run threshold."""
