@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+from pathlib import Path
 
 import pytest
 
 from pneufdd.cli.app import main
+from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.errors import InputError
 from pneufdd.evaluation import CampaignDesign, RunOutcome, Tally, rescore, run_campaign
 from pneufdd.evaluation.scoring import ReportedLeak
@@ -126,6 +129,29 @@ def test_a_tiny_campaign_judges_a_plant(tmp_path):
     assert again.tallies[("press-fit-cell", 1.0, "full")].figures() == tally.figures()
     with pytest.raises(InputError, match="holds a campaign"):
         run_campaign(TINY, tmp_path / "c", workers=1)
+
+
+def test_a_calibrated_campaign_takes_each_plants_signatures_from_its_calibrated_twin(tmp_path):
+    design = dataclasses.replace(
+        TINY, sensor_sets=("supply-only",), plant_scales=(2.0,), pairs=0, leak_free_runs=1
+    )
+    design = dataclasses.replace(design, calibrate=True)
+    result = run_campaign(design, tmp_path / "c", workers=1)
+    manifest = json.loads((tmp_path / "c" / "manifest.json").read_text())
+    (plant,) = manifest["machines"][0]["plants"]
+    calibration = plant["calibration"]
+    # the twin was brought to the plant: per-step supply air and step durations fit
+    # better after than before (medians over steps)
+    fit = calibration["fit"]
+    assert fit["air_error_pct_median_after"] < fit["air_error_pct_median_before"]
+    assert fit["duration_error_ms_median_after"] < fit["duration_error_ms_median_before"]
+    text = Path(calibration["file"]).read_text()
+    assert "calibrated to 2 leak-free recordings of the plant" in text
+    reference = load_reference(plant["references"]["supply-only"])
+    assert "calibrated" in reference.description.title
+    tally = result.tallies[("press-fit-cell", 2.0, "supply-only")]
+    assert tally.leak_runs == 9
+    assert tally.detected == 9
 
 
 def test_campaign_command(tmp_path, capsys):

@@ -68,6 +68,14 @@ def campaign(
             "never used while developing.",
         ),
     ] = 100_000_000,
+    calibrate: Annotated[
+        bool,
+        typer.Option(
+            "--calibrate",
+            help="Calibrate the description to each plant's leak-free reference recordings "
+            "and take that plant's signatures from the calibrated twin.",
+        ),
+    ] = False,
     workers: Annotated[
         int | None,
         typer.Option(
@@ -104,6 +112,7 @@ def campaign(
         reference_recordings=reference_recordings,
         uncertainty_plants=uncertainty_plants,
         seed_offset=seed_offset,
+        calibrate=calibrate,
     )
     console = Console()
     with progress_bars() as progress:

@@ -136,6 +136,12 @@ class CampaignDesign:
         Plausible plants measuring the signatures' model uncertainty (0: none) [-].
     seed_offset : int
         First seed; the campaign uses ``[seed_offset, seed_offset + 10,000,000)``.
+    calibrate : bool
+        Calibrate the description to each plant's leak-free reference recordings
+        (:func:`~pneufdd.calibration.calibrate.calibrate_machine`, issue 10) and compute
+        that plant's signatures from the calibrated description, as
+        ``pneufdd reference build --calibrate`` does; otherwise the signatures come
+        once per machine from the description as written.
     """
 
     machines: tuple[str, ...]
@@ -152,6 +158,7 @@ class CampaignDesign:
     signature_cycles: int = 2
     uncertainty_plants: int = UNCERTAINTY_PLANTS
     seed_offset: int = 100_000_000
+    calibrate: bool = False
 
     def __post_init__(self) -> None:
         if not self.machines:
@@ -309,8 +316,28 @@ def _signatures(
     )
 
 
+def _calibrated_twin(
+    machine: MachineDescription,
+    recordings: Sequence[Recording],
+    plant_file: Path,
+    seed: int,
+    say: Callable[[str], None],
+) -> tuple[MachineDescription, dict[str, Any]]:
+    """The description calibrated to a plant's leak-free recordings, saved beside it."""
+    from pneufdd.calibration.calibrate import calibrate_machine
+
+    t0 = time.perf_counter()
+    result = calibrate_machine(machine, recordings, seed=seed)
+    twin = result.calibrated_description(f"{len(recordings)} leak-free recordings of the plant")
+    path = plant_file.with_name(f"{plant_file.stem}-calibrated.toml")
+    path.write_text(machine_to_toml(twin, str(twin.raw["machine"]["title"])), "utf-8")
+    fit = result.fit_summary()
+    seconds = time.perf_counter() - t0
+    say(f"{machine.name}: {plant_file.stem} calibrated in {seconds:.0f} s; {result.fit_line()}")
+    return twin, {"file": str(path), "seconds": seconds, "fit": fit}
+
+
 def _reference(
-    plant: MachineDescription,
     machine: MachineDescription,
     channels: tuple[str, ...],
     recordings: Sequence[Recording],
@@ -530,12 +557,14 @@ def _run_campaign(
                 )
             )
         all_channels = max(sets.values(), key=len)
-        t0 = time.perf_counter()
-        signatures = _signatures(machine, all_channels, design, progress, workers, pool)
-        say(
-            f"{machine.name}: signatures of {len(signatures.locations)} locations from the "
-            f"description in {time.perf_counter() - t0:.0f} s; sensor sets {list(sets)}"
-        )
+        signatures: SignatureSet | None = None
+        if not design.calibrate:
+            t0 = time.perf_counter()
+            signatures = _signatures(machine, all_channels, design, progress, workers, pool)
+            say(
+                f"{machine.name}: signatures of {len(signatures.locations)} locations from "
+                f"the description in {time.perf_counter() - t0:.0f} s; sensor sets {list(sets)}"
+            )
         nominal = float(psig_to_pa(machine.nominal_supply_psig))
         entry: dict[str, Any] = {"machine": machine.name, "source": str(name), "plants": []}
         per_recording = -(-design.reference_cycles // design.reference_recordings)
@@ -558,14 +587,21 @@ def _run_campaign(
                     as_exported(simulate(plant, cycles=per_recording + 2, seed=seed))
                     for seed in ref_seeds
                 ]
+                twin, plant_signatures, calibration = machine, signatures, None
+                if plant_signatures is None:
+                    twin, calibration = _calibrated_twin(
+                        machine, recordings, plant_file, plant_seed, say
+                    )
+                    plant_signatures = _signatures(
+                        twin, all_channels, design, progress, workers, pool
+                    )
                 references = {}
                 for sensors, channels in sets.items():
                     model = _reference(
-                        plant,
-                        machine,
+                        twin,
                         channels,
                         recordings,
-                        signatures.select(feature_names(channels, len(machine.steps))),
+                        plant_signatures.select(feature_names(channels, len(machine.steps))),
                     )
                     path = folder / "references" / f"{plant_file.stem}-{sensors}.pnref"
                     save_reference(model, path, overwrite=True)
@@ -579,6 +615,7 @@ def _run_campaign(
                         "plant_file": str(plant_file),
                         "reference_seeds": ref_seeds,
                         "references": references,
+                        **({"calibration": calibration} if calibration else {}),
                         "runs": [
                             {"kind": kind, "leaks": leaks, "seed": seed}
                             for kind, leaks, seed in runs
