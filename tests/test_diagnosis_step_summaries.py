@@ -181,3 +181,28 @@ def test_signature_ladder_ends_below_the_stall_limit(q_in_features):
     assert knots[-1] < slpm_to_kg_s(3000.0)
     # the effect grows with the leak all the way up
     assert np.all(np.diff(sig.mean_flow[0]) > 0.0)
+
+
+def test_a_plausible_plant_that_cannot_run_leak_free_is_left_out():
+    # Found by a calibrated campaign: a plausible plant drawn around a calibrated
+    # description stalled without any leak, and the whole reference build stopped.
+    # Such a plant says nothing about leak effects: it is left out (None), not an error.
+    import copy
+
+    from pneufdd.diagnosis.step_summaries import machine_sequence
+    from pneufdd.diagnosis.twin_effects import _plant_effects
+
+    machine = load_machine("press-fit-cell")
+    raw = copy.deepcopy(machine.raw)
+    raw["supply"]["regulator_set_psig"] = 10.0  # too weak to return the feed
+    weak = load_machine(raw)
+    with pytest.raises(MachineStalledError):
+        simulate(weak, cycles=1, seed=SEED)
+    sequence = tuple(machine_sequence(machine) or ())
+    job = (weak, (SUPPLY,), (1.0,), 1, SEED, sequence, ("P_In", "Q_In"), np.arange(4))
+    assert _plant_effects(job) is None
+    job = (machine, (SUPPLY,), (1.0,), 1, SEED, sequence, ("P_In", "Q_In"), np.arange(4))
+    effects = _plant_effects(job)
+    assert effects is not None
+    assert effects.shape == (1, 1, 4)
+    assert np.all(np.isfinite(effects))

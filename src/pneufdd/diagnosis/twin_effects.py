@@ -487,14 +487,17 @@ SpreadJob = tuple[
 ]
 
 
-def _plant_effects(job: SpreadJob) -> npt.NDArray[np.float64]:
+def _plant_effects(job: SpreadJob) -> npt.NDArray[np.float64] | None:
     """Leak effects on one plant: (n_locations, n_sizes, n_features); NaN where it stalls.
 
     Sizes are orifice diameters [mm], so the plant leaks through the same hole as the
-    twin whatever its own supply pressure.
+    twin whatever its own supply pressure. None when the plant cannot run leak-free.
     """
     plant, locations, diameters, cycles, seed, sequence, channels, cols = job
-    base, _, _, _ = _mean_features(plant, {}, cycles, seed, sequence, channels, False)
+    try:
+        base, _, _, _ = _mean_features(plant, {}, cycles, seed, sequence, channels, False)
+    except MACHINE_CANNOT_RUN:
+        return None
     out = np.full((len(locations), len(diameters), cols.size), np.nan)
     for i, loc in enumerate(locations):
         for k, mm in enumerate(diameters):
@@ -582,7 +585,9 @@ def signature_spread(
     deviations : ndarray, shape (plants, n_locations, n_sizes, n_features)
         Plant effect minus signature effect [feature unit], rounded to float32
         precision (as the ``.pnref`` stores them); a plant that cannot run with a leak
-        contributes zero there.
+        contributes zero there, and a plant that cannot run even without a leak (a
+        description near its stall limit: a low calibrated supply, a heavy load) is
+        left out, so there may be fewer than ``plants`` rows.
     sizes : ndarray, shape (n_sizes,)
         The sizes [kg/s].
     """
@@ -623,10 +628,20 @@ def signature_spread(
     deviations = []
     try:
         for effects in pool.map(_plant_effects, jobs) if pool else map(_plant_effects, jobs):
-            deviations.append(np.where(np.isfinite(effects), effects - twin, 0.0))
+            if effects is not None:
+                deviations.append(np.where(np.isfinite(effects), effects - twin, 0.0))
             advance()
     finally:
         if own and pool is not None:
             pool.shutdown()
+    if not deviations:
+        raise InputError(
+            describe(
+                f"plausible plants around {machine.name!r} (scale {scale:g})",
+                f"{plants} drawn, none runs leak-free",
+                "at least one that completes its cycles: check the description's supply "
+                "pressure, valves and loads, or build without model uncertainty",
+            )
+        )
     stacked = np.stack(deviations).astype(np.float32).astype(np.float64)
     return stacked, flows
