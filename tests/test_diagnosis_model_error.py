@@ -219,3 +219,68 @@ def test_references_saved_before_the_imitation_check_read_it_off():
     del data["imitation_z"]
     assert LocalisationSettings.from_dict(data).imitation_z == 0.0
     assert LocalisationSettings().imitation_z == 3.0
+
+
+@pytest.mark.parametrize("margin", [1e-6, -1e-6])
+def test_a_second_leak_less_likely_than_its_threshold_is_an_alternative(margin):
+    from pneufdd.diagnosis.engine import _drop_unconfident_second_leak, run_whitener
+
+    ref = ReferenceModel.build(synth_table(60, seed=100), signatures=synth_signatures())
+    effects = ref.leak_effects()
+    observed = effects.effect(1, 2e-3) + effects.effect(3, 3e-4)
+    settings = replace(ref.localisation, simulate_explanations=False)
+    whiten = run_whitener(ref, effects, observed, 10, settings)
+    two = locate(observed, effects, whiten, settings)
+    assert len(two.leaks) == 2
+    weakest = min(leak.confidence for leak in two.leaks)
+    settings = replace(settings, min_leak_confidence=weakest + margin)
+    notes: list[str] = []
+    result = _drop_unconfident_second_leak(observed, effects, whiten, settings, two, notes)
+    if margin < 0:
+        assert result is two
+        assert not notes
+        return
+    (leak,) = result.leaks
+    assert leak.location == two.leaks[0].location
+    assert result.alternatives[0].locations == tuple(x.location for x in two.leaks)
+    assert result.alternatives[0].mass_flows == tuple(x.mass_flow for x in two.leaks)
+    assert f"({weakest:.2f}) is below" in notes[0]
+
+
+def test_references_saved_before_the_confidence_check_read_it_off():
+    data = LocalisationSettings().to_dict()
+    del data["min_leak_confidence"]
+    assert LocalisationSettings.from_dict(data).min_leak_confidence == 0.0
+    assert LocalisationSettings().min_leak_confidence == 0.5
+
+
+def test_a_detected_run_is_located_at_its_best_leak_even_when_that_explains_little():
+    # a leak at Y_A plus a larger deviation no leak explains (another fault): the best
+    # single leak lowers the residual by far less than min_relative_gain
+    rng = np.random.default_rng(8)
+    matrix = np.abs(rng.normal(size=(5, 50)))
+    sig = SignatureSet(
+        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
+        np.full((5, 1), 10.0),
+        10.0 * matrix[:, None, :],
+        tuple(f"f{j}" for j in range(50)),
+        np.full(5, 6e5),
+    )
+    other = rng.normal(size=50)
+    other -= matrix.T @ np.linalg.lstsq(matrix.T, other, rcond=None)[0]  # no leak's
+    observed = 1.0 * matrix[3] + 2.0 * np.linalg.norm(matrix[3]) * other / np.linalg.norm(other)
+    effects = LeakEffectModel(sig)
+
+    def whiten(d):
+        return np.atleast_2d(d) * 50.0
+
+    (leak,) = locate(observed, effects, whiten, LocalisationSettings(max_leaks=1)).leaks
+    assert str(leak.location) == "Y_A"
+    assert leak.mass_flow == pytest.approx(1.0, rel=0.05)
+    assert leak.confidence < 0.25  # it explains about a fifth of the deviation
+    for gain in (0.25, 1.0):
+        strict = LocalisationSettings(max_leaks=1, first_leak_gain=gain)
+        assert locate(observed, effects, whiten, strict).leaks == ()
+    data = LocalisationSettings().to_dict()
+    del data["first_leak_gain"]
+    assert LocalisationSettings.from_dict(data).first_leak_gain == 1.0  # saved before: off

@@ -457,20 +457,72 @@ def _drop_imitated_second_leak(
     )
     if imitated is None or small.mass_flow > settings.imitation_z * imitated:
         return localisation
+    return _one_leak_instead(
+        observed,
+        effects,
+        whiten,
+        settings,
+        localisation,
+        notes,
+        f"a second leak at {small.location} of {kg_s_to_slpm(small.mass_flow):.1f} SLPM "
+        f"would lower the residual, but the model error of the leak at {large.location} "
+        f"alone imitates one of {kg_s_to_slpm(imitated):.1f} SLPM there (RMS over plausible "
+        "plants): one leak is reported and the pair is listed as an alternative",
+    )
+
+
+def _drop_unconfident_second_leak(
+    observed: FloatArray,
+    effects: LeakEffectModel,
+    whiten: Whitener,
+    settings: LocalisationSettings,
+    localisation: Localisation,
+    notes: list[str],
+) -> Localisation:
+    """One leak instead of two when either is less likely than not to lie in its
+    ambiguity group (:attr:`LocalisationSettings.min_leak_confidence`): the residual
+    chose two leaks, but the one-leak explanations compete with the second for the
+    weight of eq. 5.3's kind; the pair becomes an alternative."""
+    found = localisation.leaks
+    if len(found) != 2:
+        return localisation
+    weakest = min(found, key=lambda leak: leak.confidence)
+    if weakest.confidence >= settings.min_leak_confidence:
+        return localisation
+    return _one_leak_instead(
+        observed,
+        effects,
+        whiten,
+        settings,
+        localisation,
+        notes,
+        f"a second leak at {weakest.location} of {kg_s_to_slpm(weakest.mass_flow):.1f} SLPM "
+        f"would lower the residual, but its confidence ({weakest.confidence:.2f}) is below "
+        f"{settings.min_leak_confidence:.2f}: one leak is reported and the pair is listed "
+        "as an alternative",
+    )
+
+
+def _one_leak_instead(
+    observed: FloatArray,
+    effects: LeakEffectModel,
+    whiten: Whitener,
+    settings: LocalisationSettings,
+    localisation: Localisation,
+    notes: list[str],
+    why: str,
+) -> Localisation:
+    """The one-leak localisation, with the two leaks of ``localisation`` as its first
+    alternative; ``localisation`` itself when no single leak explains the run."""
     single = locate(observed, effects, whiten, replace(settings, max_leaks=1))
     if len(single.leaks) != 1:
         return localisation
     pair = Explanation(
-        (large.location, small.location),
-        (large.mass_flow, small.mass_flow),
+        tuple(leak.location for leak in localisation.leaks),
+        tuple(leak.mass_flow for leak in localisation.leaks),
         localisation.rss,
     )
-    notes.append(
-        f"a second leak at {small.location} of {kg_s_to_slpm(small.mass_flow):.1f} SLPM "
-        f"would lower the residual, but the model error of the leak at {large.location} "
-        f"alone imitates one of {kg_s_to_slpm(imitated):.1f} SLPM there (RMS over plausible "
-        "plants): one leak is reported and the pair is listed as an alternative"
-    )
+    notes.append(why)
     others = tuple(a for a in single.alternatives if set(a.locations) != set(pair.locations))
     return replace(single, alternatives=(pair, *others)[: max(settings.max_alternatives, 1)])
 
@@ -497,6 +549,9 @@ def _locate_and_cost(
     localisation = locate(observed, effects, whiten, localisation_settings)
     localisation = _drop_imitated_second_leak(
         reference, effects, observed, n_cycles, whiten, localisation_settings, localisation, notes
+    )
+    localisation = _drop_unconfident_second_leak(
+        observed, effects, whiten, localisation_settings, localisation, notes
     )
     if not localisation.leaks:
         notes.append("leak detected but no combination of leak signatures explains it")

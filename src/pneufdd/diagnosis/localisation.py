@@ -74,6 +74,14 @@ class LocalisationSettings:
         fraction: on development plants (seeds 7,800,000+, model error weighted), a
         spurious second leak lowered it by at most 32 % and most true second leaks by
         more than 26 %; 0.25 removed nearly all spurious ones and few true ones [-].
+    first_leak_gain : float
+        When no model passes ``min_relative_gain``, the best single leak is still
+        reported if it passes the information criterion and lowers the residual by
+        this fraction (:func:`~pneufdd.diagnosis.model_choice.choose_leak_count`); its
+        confidence is then low. 0: on a scale-2 press-fit-cell plant of acceptance
+        campaign 390M, a 230 SLPM PRESS_A leak was detected, and PRESS_A fitted best,
+        but it explained 20 % of the deviation and nothing was located. 1 turns the
+        fallback off (references saved before) [-].
     group_ratio : float
         Alternatives whose Akaike-type weight is at least this fraction of the best
         join the ambiguity group [-].
@@ -142,6 +150,12 @@ class LocalisationSettings:
         Below it, the two-leak explanation is listed as an alternative. 3: three
         standard deviations, as the band of eq. 5.3; 0 turns the check off (references
         saved before it existed) [-].
+    min_leak_confidence : float
+        Of two leaks, each must be at least this likely to lie in its ambiguity group
+        to be reported; otherwise one leak is reported and the pair is listed as an
+        alternative. 0.5: a reported leak is more likely there than not (a scale-2
+        carton-sorter run of acceptance campaign 390M reported a 5 SLPM second leak at
+        confidence 0.00005); 0 turns the check off (references saved before it) [-].
 
     Examples
     --------
@@ -151,6 +165,7 @@ class LocalisationSettings:
 
     max_leaks: int = 2
     min_relative_gain: float = 0.25
+    first_leak_gain: float = 0.0
     group_ratio: float = 0.05
     collinear_cos: float = 0.995
     min_flow: float = 4.3e-5
@@ -167,6 +182,7 @@ class LocalisationSettings:
     model_error_floor: float = 0.02
     imitation_z: float = 3.0
     probes: int = 6
+    min_leak_confidence: float = 0.5
 
     def __post_init__(self) -> None:
         if isinstance(self.max_leaks, bool) or self.max_leaks not in (1, 2):
@@ -199,7 +215,13 @@ class LocalisationSettings:
             raise InputError(describe("localisation settings", unknown, sorted(known)))
         # settings added later take, for references saved before, the behaviour
         # those references were built with
-        before = {"imitation_z": 0.0, "probes": 0, "group_checks": 3}
+        before = {
+            "imitation_z": 0.0,
+            "probes": 0,
+            "group_checks": 3,
+            "min_leak_confidence": 0.0,
+            "first_leak_gain": 1.0,
+        }
         return cls(**{**before, **data})  # type: ignore[arg-type]
 
 
@@ -354,7 +376,9 @@ def _check_by_simulation(
     gain = settings.min_relative_gain
     if chosen <= 1:
         gain = max(gain, settings.added_leak_gain)
-    count = choose_leak_count(sim_best, dof, min(settings.max_leaks, n_loc), gain)
+    count = choose_leak_count(
+        sim_best, dof, min(settings.max_leaks, n_loc), gain, settings.first_leak_gain
+    )
     return sim_fits, sim_best, count
 
 
@@ -530,7 +554,11 @@ def locate(
     fits, best = _signature_fits(model, n_loc, settings.max_leaks, settings.min_flow, rss_null)
     _refit_pairs_with_interaction(effects, model, whiten, fits, best, settings)
     chosen = choose_leak_count(
-        best, dof, min(settings.max_leaks, n_loc), settings.min_relative_gain
+        best,
+        dof,
+        min(settings.max_leaks, n_loc),
+        settings.min_relative_gain,
+        settings.first_leak_gain,
     )
     simulate: SimulatedEffect | None = None
     if settings.simulate_explanations and effects.can_simulate:

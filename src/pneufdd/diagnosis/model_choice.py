@@ -82,7 +82,13 @@ class Group:
     weight: float
 
 
-def choose_leak_count(best: Best, dof: int, max_leaks: int, min_relative_gain: float) -> int:
+def choose_leak_count(
+    best: Best,
+    dof: int,
+    max_leaks: int,
+    min_relative_gain: float,
+    first_leak_gain: float | None = None,
+) -> int:
     """Number of leaks: more only when the residual drops by the penalty and the gain.
 
     Against the model chosen so far (at first: no leak), a model with ``k`` leaks is
@@ -93,6 +99,12 @@ def choose_leak_count(best: Best, dof: int, max_leaks: int, min_relative_gain: f
     interact, or one alone leaves most of the other's misfit) are not missed because no
     single leak did.
 
+    When that chooses no leak, one leak is still taken if it passes the information
+    criterion and lowers the residual by ``first_leak_gain`` (None: no such
+    fallback): on a run the detector has flagged, "no leak" is already rejected, and
+    the location that explains the deviation best is worth reporting with the low
+    confidence its small share of the deviation gives it.
+
     Examples
     --------
     >>> best = {0: ((), np.zeros(0), 500.0), 1: ((0,), np.ones(1), 60.0),
@@ -102,17 +114,24 @@ def choose_leak_count(best: Best, dof: int, max_leaks: int, min_relative_gain: f
     >>> choose_leak_count({0: ((), np.zeros(0), 500.0), 1: ((0,), np.ones(1), 490.0),
     ...                    2: ((0, 1), np.ones(2), 60.0)}, 50, 2, 0.1)
     2
+    >>> weak = {0: ((), np.zeros(0), 500.0), 1: ((0,), np.ones(1), 420.0)}
+    >>> choose_leak_count(weak, 50, 1, 0.25), choose_leak_count(weak, 50, 1, 0.25, 0.0)
+    (0, 1)
     """
-    chosen = 0
-    for k in range(1, max_leaks + 1):
-        if k not in best:
-            continue
-        rss_prev = best[chosen][2]
+
+    def better(k: int, than: int, gain: float) -> bool:
+        rss_prev = best[than][2]
         rss_k = best[k][2]
         s2 = max(1.0, rss_k / max(dof - k, 1))
-        penalty = 2.0 * np.log(max(dof, 2)) * s2 * (k - chosen)
-        if rss_prev - rss_k > penalty and rss_k < (1.0 - min_relative_gain) * rss_prev:
+        penalty = 2.0 * np.log(max(dof, 2)) * s2 * (k - than)
+        return bool(rss_prev - rss_k > penalty and rss_k < (1.0 - gain) * rss_prev)
+
+    chosen = 0
+    for k in range(1, max_leaks + 1):
+        if k in best and better(k, chosen, min_relative_gain):
             chosen = k
+    if chosen == 0 and first_leak_gain is not None and 1 in best and max_leaks >= 1:
+        chosen = int(better(1, 0, first_leak_gain))
     return chosen
 
 
