@@ -13,6 +13,7 @@ from pneufdd.calibration.calibrate import (
     calibrate_machine,
     machine_parameters,
     measure_evidence,
+    simulate_evidence,
     volume_start,
 )
 from pneufdd.calibration.draft import DRAFT_MODEL
@@ -123,3 +124,35 @@ def test_volume_start_reads_air_per_step() -> None:
     for name in ("CLAMP.volume", "PRESS.volume", "EJECT.volume"):
         assert factors[name] == pytest.approx(1.0, rel=0.15)
     assert all(z == 0.0 for p, z in zip(params, start, strict=True) if "volume" not in p.name)
+
+
+def test_a_drafted_actuator_is_sized_by_its_cross_section() -> None:
+    # carton-sorter's lane pusher drafted at a quarter of its cross-section (every
+    # area, friction and flow capacity / 4): the size factor 4 restores the
+    # description exactly, and the small one draws about a quarter of the air per
+    # stroke in about the same stroke time (the drafted geometry only has to be
+    # similar, not right)
+    truth = load_machine("carton-sorter")
+    raw = copy.deepcopy(truth.raw)
+    table = next(t for t in raw["actuator"] if t["id"] == "PUSH_L")
+    table["model"] = DRAFT_MODEL
+    size = next(p for p in machine_parameters(load_machine(raw)) if p.name == "PUSH_L.volume")
+    small = copy.deepcopy(raw)
+    size.apply(small, -np.log(4.0))
+    restored = copy.deepcopy(small)
+    size.apply(restored, np.log(4.0))
+    back = next(t for t in restored["actuator"] if t["id"] == "PUSH_L")
+    assert {k: back[k] for k in table if k != "valve"} == pytest.approx(
+        {k: v for k, v in table.items() if k != "valve"}
+    )
+    assert back["valve"]["cv"] == pytest.approx(table["valve"]["cv"])
+    pusher = next(t for t in small["actuator"] if t["id"] == "PUSH_L")
+    assert pusher["bore_mm"] == pytest.approx(table["bore_mm"] / 2)
+    assert pusher["stroke_mm"] == table["stroke_mm"]
+    assert pusher["tube_length_m"] == table["tube_length_m"]
+    assert pusher["valve"]["cv"] == pytest.approx(table["valve"]["cv"] / 4)
+    full, quarter = (simulate_evidence(r, (), SEED) for r in (raw, small))
+    strokes = [3, 4]  # the pusher's extend and return steps (steps 4 and 5)
+    air = quarter.supply_air_kg[strokes] / full.supply_air_kg[strokes]
+    assert np.all((air > 0.2) & (air < 0.3))
+    assert np.all(np.abs(quarter.duration_s[strokes] / full.duration_s[strokes] - 1) < 0.15)

@@ -14,6 +14,7 @@ from pneufdd.diagnosis.step_summaries import (
     trace_offsets,
 )
 from pneufdd.diagnosis.twin_effects import compute_signatures
+from pneufdd.errors import InputError
 from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.sim import MachineStalledError, load_machine, run_simulation, simulate
@@ -206,3 +207,35 @@ def test_a_plausible_plant_that_cannot_run_leak_free_is_left_out():
     assert effects is not None
     assert effects.shape == (1, 1, 4)
     assert np.all(np.isfinite(effects))
+
+
+def test_a_ladder_that_stalls_just_above_a_size_that_ran_is_rescaled(monkeypatch):
+    # a machine that runs with a 100 SLPM supply leak and stalls at anything above
+    # 100.05 SLPM: the search below 150 SLPM never finds a size that runs (a drafted
+    # festo-dsd handling axis, seeds 430M, stalled at 122 SLPM after running at 120).
+    # The twin cannot be made to stall that sharply on demand, so its feature
+    # function stands in for it here; the ladder is then scaled to end at 100 SLPM
+    import pneufdd.diagnosis.twin_effects as twin_effects
+
+    def features(machine, leaks, cycles, seed, sequence, channels, leak_flows=True):
+        (slpm,) = leaks.values()
+        if slpm > 100.05:
+            raise MachineStalledError(f"stalls at {slpm} SLPM")
+        flow = slpm_to_kg_s(slpm)
+        truth = [{"mass_flow_kg_s": flow, "at_pressure_pa": 7e5}]
+        return np.array([slpm, -2.0 * slpm]), truth, ("f1", "f2"), {SUPPLY: 0.9 * flow}
+
+    monkeypatch.setattr(twin_effects, "_mean_features", features)
+    job = (load_machine("festo-dsd"), SUPPLY, (30.0, 100.0, 150.0), 1, 0, (), ())
+    sizes, means, pressure, _, leaked, _ = twin_effects._location_ladder(job)
+    assert sizes == pytest.approx(slpm_to_kg_s(np.array([20.0, 200.0 / 3.0, 100.0])))
+    assert means[:, 0] == pytest.approx([20.0, 200.0 / 3.0, 100.0])
+    assert leaked == pytest.approx(0.9 * sizes)
+    assert pressure == 7e5
+
+    def never(machine, leaks, cycles, seed, sequence, channels, leak_flows=True):
+        raise MachineStalledError("stalls at any size")
+
+    monkeypatch.setattr(twin_effects, "_mean_features", never)
+    with pytest.raises(InputError, match=r"leak signature of machine .festo-dsd. at supply"):
+        twin_effects._location_ladder(job)

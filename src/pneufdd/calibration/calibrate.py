@@ -140,6 +140,34 @@ def _volume(ident: str) -> Callable[[dict[str, Any], float], None]:
     return apply
 
 
+def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
+    """A drafted actuator's cross-section: every area of its air path by one factor.
+
+    Bore, rod and tube bore scale by its square root; the dead volumes, the seal
+    friction (proportional to the piston area, as the built-in descriptions estimate
+    it: 0.040 N/mm^2 of area) and the valve's and throttles' flow capacities by the
+    factor itself; stroke, tube length and moving mass stay. Air per stroke then grows
+    with the factor while the stroke time stays about the same (a cylinder, its
+    tubing and its valve sized together for one piston speed). Scaling the tube length instead, as
+    :func:`_volume` does, also scales the tube's resistance: on a drafted carton-sorter
+    lane pusher that made the strokes slow long before the air was matched.
+    """
+
+    def apply(raw: dict[str, Any], value: float) -> None:
+        table = _actuator_table(raw, ident)
+        f = math.exp(value)
+        _scale_keys(table, ("bore_mm", "rod_mm", "tube_inner_diameter_mm"), math.sqrt(f))
+        _scale_keys(table, ("dead_volume_a_cm3", "dead_volume_b_cm3"), f)
+        _scale_keys(table, ("static_friction_n", "coulomb_friction_n", "viscous_friction_n_s_m"), f)
+        valve = table["valve"]
+        valve["cv"] = min(float(valve["cv"]) * f, 50.0)
+        for key in ("meter_out_cv", "meter_out_cv_a", "meter_out_cv_b"):
+            if key in table and float(table[key]) < 50.0:
+                table[key] = min(float(table[key]) * f, 50.0)
+
+    return apply
+
+
 def _valve_cv(ident: str) -> Callable[[dict[str, Any], float], None]:
     def apply(raw: dict[str, Any], value: float) -> None:
         valve = _actuator_table(raw, ident)["valve"]
@@ -199,7 +227,10 @@ def machine_parameters(
     ]
     for a in machine.actuators:
         drafted = a.model == DRAFT_MODEL
-        params.append(Parameter(f"{a.id}.volume", 1.0 if drafted else 0.2, _volume(a.id)))
+        if drafted:
+            params.append(Parameter(f"{a.id}.volume", 1.0, _size(a.id)))
+        else:
+            params.append(Parameter(f"{a.id}.volume", 0.2, _volume(a.id)))
         params.append(Parameter(f"{a.id}.valve_cv", 0.7 if drafted else 0.3, _valve_cv(a.id)))
         for side, value in (("A", a.meter_out_cv_a), ("B", a.meter_out_cv_b)):
             if value < 50.0:  # a throttle on that line (none: free exhaust)

@@ -194,6 +194,63 @@ LadderJob = tuple[
 ]
 
 
+class _LadderStalledError(Exception):
+    """The machine stalled at every size tried for one ladder point."""
+
+    def __init__(self, error: InputError, largest_run: float) -> None:
+        super().__init__(str(error))
+        self.error = error
+        self.largest_run = largest_run
+
+
+def _ladder_points(
+    machine: MachineDescription,
+    loc: Location,
+    ladder: Sequence[float],
+    cycles: int,
+    seed: int,
+    sequence: Sequence[StepSpec],
+    channels: Sequence[str],
+) -> tuple[npt.NDArray[np.float64], list[npt.NDArray[np.float64]], float, npt.NDArray[np.float64]]:
+    """Sizes [kg/s], mean features, nominal pressure [Pa] and leaked flows [kg/s] of
+    one location's ladder; raises :class:`_LadderStalledError` (with the largest size that
+    ran [SLPM]) when no size on the way down to the last one that ran runs."""
+    sizes = np.zeros(len(ladder))
+    leaked = np.zeros(len(ladder))
+    means: list[npt.NDArray[np.float64]] = []
+    pressure = float("nan")
+    previous = 0.0
+    ceiling = math.inf  # smallest size found to stall the machine [SLPM]
+    for k, slpm in enumerate(ladder):
+        # a size at or above one that stalled is searched for below that one
+        trial = float(slpm) if slpm < ceiling else previous + 0.6 * (ceiling - previous)
+        for _ in range(_LADDER_TRIES):
+            try:
+                mean, truth, _, flows = _mean_features(
+                    machine, {loc: trial}, cycles, seed, sequence, channels
+                )
+                leaked[k] = flows[loc]
+                break
+            except MACHINE_CANNOT_RUN:
+                ceiling = min(ceiling, trial)
+                trial = previous + 0.6 * (trial - previous)
+        else:
+            error = InputError(
+                describe(
+                    f"leak signature of machine {machine.name!r} at {loc}",
+                    f"{slpm:.4g} SLPM",
+                    "a size the machine runs with (it stalls even at "
+                    f"{ceiling:.3g} SLPM; give smaller --signature-sizes)",
+                )
+            )
+            raise _LadderStalledError(error, previous)
+        sizes[k] = float(truth[0]["mass_flow_kg_s"])
+        pressure = float(truth[0]["at_pressure_pa"])
+        means.append(mean)
+        previous = trial
+    return sizes, means, pressure, leaked
+
+
 def _location_ladder(
     job: LadderJob,
 ) -> tuple[
@@ -219,38 +276,28 @@ def _location_ladder(
     festo-dsd stalled at 154 SLPM on DNC_B where the default ladder asks 230 SLPM).
     """
     machine, loc, ladder, cycles, seed, sequence, channels = job
-    sizes = np.zeros(len(ladder))
-    leaked = np.zeros(len(ladder))
-    means: list[npt.NDArray[np.float64]] = []
-    pressure = float("nan")
-    previous = 0.0
-    ceiling = math.inf  # smallest size found to stall the machine [SLPM]
-    for k, slpm in enumerate(ladder):
-        # a size at or above one that stalled is searched for below that one
-        trial = float(slpm) if slpm < ceiling else previous + 0.6 * (ceiling - previous)
-        for _ in range(_LADDER_TRIES):
-            try:
-                mean, truth, _, flows = _mean_features(
-                    machine, {loc: trial}, cycles, seed, sequence, channels
-                )
-                leaked[k] = flows[loc]
-                break
-            except MACHINE_CANNOT_RUN:
-                ceiling = min(ceiling, trial)
-                trial = previous + 0.6 * (trial - previous)
-        else:
-            raise InputError(
-                describe(
-                    f"leak signature of machine {machine.name!r} at {loc}",
-                    f"{slpm} SLPM",
-                    "a size the machine runs with (it stalls even at "
-                    f"{ceiling:.3g} SLPM; give smaller --signature-sizes)",
-                )
+    try:
+        sizes, means, pressure, leaked = _ladder_points(
+            machine, loc, ladder, cycles, seed, sequence, channels
+        )
+    except _LadderStalledError as stalled:
+        if stalled.largest_run <= 0.0:
+            raise stalled.error from None
+        # the machine stalls just above a size that ran, with ladder points left:
+        # the whole ladder, scaled to end at the largest size that ran
+        scale = stalled.largest_run / float(ladder[-1])
+        try:
+            sizes, means, pressure, leaked = _ladder_points(
+                machine,
+                loc,
+                tuple(scale * float(x) for x in ladder),
+                cycles,
+                seed,
+                sequence,
+                channels,
             )
-        sizes[k] = float(truth[0]["mass_flow_kg_s"])
-        pressure = float(truth[0]["at_pressure_pa"])
-        means.append(mean)
-        previous = trial
+        except _LadderStalledError as again:
+            raise again.error from None
     pair = np.full_like(means[0], np.nan)
     pair_flows = np.full(3, np.nan)
     if not loc.is_supply:
