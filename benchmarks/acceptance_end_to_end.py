@@ -10,11 +10,12 @@ then the user's commands::
         --calibrate --uncertainty-plants 1 --signature-cycles 1 --out ref.pnref
     pneufdd diagnose run.csv --map tags.toml --reference ref.pnref --json d.json
 
-with a 60 SLPM leak at one line location (and one supply-leak run), and prints where
-and how large each leak was found.
+with a 60 SLPM leak at one line location (and one supply-leak run), or with
+``--every-location`` at every location of the machine, and prints where and how large
+each leak was found, then per machine the share located in group and the size errors.
 
     python benchmarks/acceptance_end_to_end.py OUT_DIR [--seed S] [--machines a,b]
-        [--signature-sizes 3,8,...]
+        [--signature-sizes 3,8,...] [--every-location]
 
 Seeds: plant ``S + 1000 k`` (k: the machine's place in ``LEAKS``), its runs following
 (S >= 290,000,000 for acceptance numbers: never used while developing).
@@ -27,6 +28,8 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+
 LEAKS = {
     "festo-dsd": ("DNC_B", "supply"),
     "press-fit-cell": ("EJECT_B", "supply"),
@@ -34,8 +37,11 @@ LEAKS = {
 }
 
 
-def _one(machine: str, seed: int, out: Path, ladder: str | None) -> list[dict[str, object]]:
+def _one(
+    machine: str, seed: int, out: Path, ladder: str | None, every: bool
+) -> list[dict[str, object]]:
     from pneufdd.cli.app import main
+    from pneufdd.location import locations_of
     from pneufdd.recording.plc_export import write_plc_csv
     from pneufdd.sim import load_machine, simulate, vary_machine
 
@@ -65,7 +71,8 @@ def _one(machine: str, seed: int, out: Path, ladder: str | None) -> list[dict[st
             return [{"machine": machine, "failed": args[0], "exit": code}]
     built = time.perf_counter() - began
     rows: list[dict[str, object]] = []
-    for j, location in enumerate(LEAKS[machine]):
+    where = [str(x) for x in locations_of(plant.actuator_ids)] if every else LEAKS[machine]
+    for j, location in enumerate(where):
         run = out / f"run-{location}.csv"
         leaky = simulate(plant, cycles=10, leaks={location: "60slpm"}, seed=seed + 10 + j)
         write_plc_csv(leaky, run, tags, overwrite=True)
@@ -84,6 +91,15 @@ def _one(machine: str, seed: int, out: Path, ladder: str | None) -> list[dict[st
                     (leak["location"], leak["ambiguity_group"], round(leak["flow_slpm"], 1))
                     for leak in found
                 ],
+                "in_group": any(location in leak["ambiguity_group"] for leak in found),
+                "size_error": next(
+                    (
+                        abs(leak["flow_slpm"] / 60.0 - 1.0)  # the leak's reported flow
+                        for leak in found
+                        if location in leak["ambiguity_group"]
+                    ),
+                    None,
+                ),
                 "reference_build_s": round(built, 1),
             }
         )
@@ -96,11 +112,28 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=290_000_000)
     parser.add_argument("--machines", default=",".join(LEAKS))
     parser.add_argument("--signature-sizes", default=None, help="passed to reference build")
+    parser.add_argument("--every-location", action="store_true", help="a leak at each location")
     args = parser.parse_args()
     for machine in args.machines.split(","):
         seed = args.seed + 1000 * list(LEAKS).index(machine)
-        for row in _one(machine, seed, args.out / machine, args.signature_sizes):
+        rows = _one(machine, seed, args.out / machine, args.signature_sizes, args.every_location)
+        for row in rows:
             print(json.dumps(row), flush=True)
+        judged = [r for r in rows if "in_group" in r]
+        errors = [float(str(r["size_error"])) for r in judged if r["size_error"] is not None]
+        if judged:
+            print(
+                json.dumps(
+                    {
+                        "machine": machine,
+                        "runs": len(judged),
+                        "in_group": sum(bool(r["in_group"]) for r in judged) / len(judged),
+                        "size_error_median": float(np.median(errors)) if errors else None,
+                        "size_error_p90": float(np.percentile(errors, 90)) if errors else None,
+                    }
+                ),
+                flush=True,
+            )
 
 
 if __name__ == "__main__":
