@@ -118,16 +118,21 @@ def test_two_lines_standing_for_a_supply_leak_lower_its_confidence():
     assert distinct.leaks[0].confidence > 0.95
 
 
-def test_supply_beside_a_line_leak_may_be_the_other_line():
-    rng = np.random.default_rng(24)
+def _linear_signatures(rng: np.random.Generator) -> tuple[np.ndarray, SignatureSet]:
+    """Random positive effects of five locations, linear in size (one ladder point)."""
     matrix = np.abs(rng.normal(size=(5, 50)))
-    sig = SignatureSet(
+    return matrix, SignatureSet(
         ("supply", "X_A", "X_B", "Y_A", "Y_B"),
         np.full((5, 1), 10.0),
         10.0 * matrix[:, None, :],
         tuple(f"f{j}" for j in range(50)),
         np.full(5, 6e5),
     )
+
+
+def test_supply_beside_a_line_leak_may_be_the_other_line():
+    rng = np.random.default_rng(24)
+    matrix, sig = _linear_signatures(rng)
     observed = 3.0 * matrix[2] + 1.0 * matrix[0]  # X_B and a supply leak
     result = locate(observed, LeakEffectModel(sig), lambda d: np.atleast_2d(d) * 50.0)
     groups = {str(leak.location): [str(x) for x in leak.ambiguity_group] for leak in result.leaks}
@@ -258,14 +263,7 @@ def test_a_detected_run_is_located_at_its_best_leak_even_when_that_explains_litt
     # a leak at Y_A plus a larger deviation no leak explains (another fault): the best
     # single leak lowers the residual by far less than min_relative_gain
     rng = np.random.default_rng(8)
-    matrix = np.abs(rng.normal(size=(5, 50)))
-    sig = SignatureSet(
-        ("supply", "X_A", "X_B", "Y_A", "Y_B"),
-        np.full((5, 1), 10.0),
-        10.0 * matrix[:, None, :],
-        tuple(f"f{j}" for j in range(50)),
-        np.full(5, 6e5),
-    )
+    matrix, sig = _linear_signatures(rng)
     other = rng.normal(size=50)
     other -= matrix.T @ np.linalg.lstsq(matrix.T, other, rcond=None)[0]  # no leak's
     observed = 1.0 * matrix[3] + 2.0 * np.linalg.norm(matrix[3]) * other / np.linalg.norm(other)
