@@ -193,7 +193,7 @@ def test_imitated_size_is_the_rms_of_the_deviations_projected_on_the_second_leak
 def test_a_second_leak_the_first_leaks_model_error_imitates_is_an_alternative(
     scale, other, expected
 ):
-    from pneufdd.diagnosis.engine import _drop_imitated_second_leak, run_whitener
+    from pneufdd.diagnosis.engine import _drop_doubtful_second_leak, run_whitener
 
     ref, sizes = _imitating_reference(
         np.array([scale, -scale, 0.5 * scale]), large=1, small=3, small_size=3e-4, other=other
@@ -205,7 +205,8 @@ def test_a_second_leak_the_first_leaks_model_error_imitates_is_an_alternative(
     two = locate(observed, effects, whiten, settings)
     assert len(two.leaks) == 2
     notes: list[str] = []
-    result = _drop_imitated_second_leak(ref, effects, observed, 10, whiten, settings, two, notes)
+    settings = replace(settings, min_leak_confidence=0.0)  # the imitation check alone
+    result = _drop_doubtful_second_leak(ref, effects, observed, 10, whiten, settings, two, notes)
     assert len(result.leaks) == expected
     if expected == 1:
         assert str(result.leaks[0].location) == str(effects.locations[1])
@@ -228,7 +229,7 @@ def test_references_saved_before_the_imitation_check_read_it_off():
 
 @pytest.mark.parametrize("margin", [1e-6, -1e-6])
 def test_a_second_leak_less_likely_than_its_threshold_is_an_alternative(margin):
-    from pneufdd.diagnosis.engine import _drop_unconfident_second_leak, run_whitener
+    from pneufdd.diagnosis.engine import _drop_doubtful_second_leak, run_whitener
 
     ref = ReferenceModel.build(synth_table(60, seed=100), signatures=synth_signatures())
     effects = ref.leak_effects()
@@ -240,7 +241,7 @@ def test_a_second_leak_less_likely_than_its_threshold_is_an_alternative(margin):
     weakest = min(leak.confidence for leak in two.leaks)
     settings = replace(settings, min_leak_confidence=weakest + margin)
     notes: list[str] = []
-    result = _drop_unconfident_second_leak(observed, effects, whiten, settings, two, notes)
+    result = _drop_doubtful_second_leak(ref, effects, observed, 10, whiten, settings, two, notes)
     if margin < 0:
         assert result is two
         assert not notes

@@ -431,21 +431,18 @@ def imitated_size(
     return float(np.sqrt(np.mean(sizes**2)))
 
 
-def _drop_imitated_second_leak(
+def _imitated_second_leak(
     reference: ReferenceModel,
     effects: LeakEffectModel,
-    observed: FloatArray,
     n_cycles: int,
-    whiten: Whitener,
     settings: LocalisationSettings,
     localisation: Localisation,
-    notes: list[str],
-) -> Localisation:
-    """One leak instead of two when the second is no larger than the first's model error
-    imitates (:attr:`LocalisationSettings.imitation_z`); the pair becomes an alternative."""
+) -> str | None:
+    """Why the second of two leaks is not reported, when it is no larger than the first's
+    model error imitates (:attr:`LocalisationSettings.imitation_z`); else None."""
     found = localisation.leaks
     if len(found) != 2 or settings.imitation_z <= 0.0 or localisation.simulated:
-        return localisation
+        return None
     index = effects.locations.index
     large, small = sorted(found, key=lambda leak: -leak.mass_flow)
     imitated = imitated_size(
@@ -456,51 +453,54 @@ def _drop_imitated_second_leak(
         (index(small.location), small.mass_flow),
     )
     if imitated is None or small.mass_flow > settings.imitation_z * imitated:
-        return localisation
-    return _one_leak_instead(
-        observed,
-        effects,
-        whiten,
-        settings,
-        localisation,
-        notes,
+        return None
+    return (
         f"a second leak at {small.location} of {kg_s_to_slpm(small.mass_flow):.1f} SLPM "
         f"would lower the residual, but the model error of the leak at {large.location} "
         f"alone imitates one of {kg_s_to_slpm(imitated):.1f} SLPM there (RMS over plausible "
-        "plants): one leak is reported and the pair is listed as an alternative",
+        "plants): one leak is reported and the pair is listed as an alternative"
     )
 
 
-def _drop_unconfident_second_leak(
-    observed: FloatArray,
+def _unconfident_second_leak(
+    settings: LocalisationSettings, localisation: Localisation
+) -> str | None:
+    """Why one of two leaks is not reported, when it is less likely than
+    :attr:`LocalisationSettings.min_leak_confidence` to lie in its ambiguity group (the
+    residual chose two leaks, but the one-leak explanations hold the weight); else None."""
+    found = localisation.leaks
+    if len(found) != 2:
+        return None
+    weakest = min(found, key=lambda leak: leak.confidence)
+    if weakest.confidence >= settings.min_leak_confidence:
+        return None
+    return (
+        f"a second leak at {weakest.location} of {kg_s_to_slpm(weakest.mass_flow):.1f} SLPM "
+        f"would lower the residual, but its confidence ({weakest.confidence:.2f}) is below "
+        f"{settings.min_leak_confidence:.2f}: one leak is reported and the pair is listed "
+        "as an alternative"
+    )
+
+
+def _drop_doubtful_second_leak(
+    reference: ReferenceModel,
     effects: LeakEffectModel,
+    observed: FloatArray,
+    n_cycles: int,
     whiten: Whitener,
     settings: LocalisationSettings,
     localisation: Localisation,
     notes: list[str],
 ) -> Localisation:
-    """One leak instead of two when either is less likely than not to lie in its
-    ambiguity group (:attr:`LocalisationSettings.min_leak_confidence`): the residual
-    chose two leaks, but the one-leak explanations compete with the second for the
-    weight of eq. 5.3's kind; the pair becomes an alternative."""
-    found = localisation.leaks
-    if len(found) != 2:
+    """One leak instead of two when the second is what the first's model error imitates,
+    or less likely than not; the pair becomes the first alternative and ``notes`` say
+    why. ``localisation`` itself otherwise."""
+    why = _imitated_second_leak(
+        reference, effects, n_cycles, settings, localisation
+    ) or _unconfident_second_leak(settings, localisation)
+    if why is None:
         return localisation
-    weakest = min(found, key=lambda leak: leak.confidence)
-    if weakest.confidence >= settings.min_leak_confidence:
-        return localisation
-    return _one_leak_instead(
-        observed,
-        effects,
-        whiten,
-        settings,
-        localisation,
-        notes,
-        f"a second leak at {weakest.location} of {kg_s_to_slpm(weakest.mass_flow):.1f} SLPM "
-        f"would lower the residual, but its confidence ({weakest.confidence:.2f}) is below "
-        f"{settings.min_leak_confidence:.2f}: one leak is reported and the pair is listed "
-        "as an alternative",
-    )
+    return _one_leak_instead(observed, effects, whiten, settings, localisation, notes, why)
 
 
 def _one_leak_instead(
@@ -547,11 +547,8 @@ def _locate_and_cost(
     sig = effects.signatures
     whiten = run_whitener(reference, effects, observed, n_cycles, localisation_settings)
     localisation = locate(observed, effects, whiten, localisation_settings)
-    localisation = _drop_imitated_second_leak(
+    localisation = _drop_doubtful_second_leak(
         reference, effects, observed, n_cycles, whiten, localisation_settings, localisation, notes
-    )
-    localisation = _drop_unconfident_second_leak(
-        observed, effects, whiten, localisation_settings, localisation, notes
     )
     if not localisation.leaks:
         notes.append("leak detected but no combination of leak signatures explains it")
