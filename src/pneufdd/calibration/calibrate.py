@@ -148,10 +148,12 @@ def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
     it: 0.040 N/mm^2 of area) and the valve's and throttles' flow capacities by the
     factor itself; stroke, tube length and moving mass stay. Air per stroke then grows
     with the factor while the stroke time stays about the same (a cylinder, its
-    tubing and its valve sized together for one piston speed). Scaling the tube length instead, as
-    :func:`_volume` does, also scales the tube's resistance: on a drafted carton-sorter
-    lane pusher that made the strokes slow long before the air was matched.
+    tubing and its valve sized together for one piston speed). Scaling the tube
+    length instead, as :func:`_volume` does, also scales the tube's resistance: on a
+    drafted carton-sorter lane pusher that made the strokes slow long before the air
+    was matched.
     """
+    valve_cv = _valve_cv(ident)
 
     def apply(raw: dict[str, Any], value: float) -> None:
         table = _actuator_table(raw, ident)
@@ -159,8 +161,8 @@ def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
         _scale_keys(table, ("bore_mm", "rod_mm", "tube_inner_diameter_mm"), math.sqrt(f))
         _scale_keys(table, ("dead_volume_a_cm3", "dead_volume_b_cm3"), f)
         _scale_keys(table, ("static_friction_n", "coulomb_friction_n", "viscous_friction_n_s_m"), f)
-        valve = table["valve"]
-        valve["cv"] = min(float(valve["cv"]) * f, 50.0)
+        valve_cv(raw, value)
+        # throttles present (a Cv of 50 or none is a free exhaust: left free)
         for key in ("meter_out_cv", "meter_out_cv_a", "meter_out_cv_b"):
             if key in table and float(table[key]) < 50.0:
                 table[key] = min(float(table[key]) * f, 50.0)
