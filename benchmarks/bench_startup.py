@@ -3,7 +3,10 @@
 ``pneufdd --help`` and ``pneufdd machines`` (target: <= 0.3 s each) and ``import
 pneufdd``, each the median wall time of 5 fresh processes, against the same
 interpreter doing nothing (``python -c pass``) and importing numpy, measured in the
-same run.
+same run; and ``pneufdd simulate --machine festo-dsd --cycles 4`` as a whole
+process (target: >= 100 x real time), against the libraries it cannot do without
+(numba with one cached compiled function, pyarrow and pandas, which pyarrow imports
+to build arrays).
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -38,6 +42,37 @@ def median_times(argv: list[str], repeat: int = REPEAT) -> tuple[float, float]:
     return statistics.median(walls), statistics.median(cpus)
 
 
+_FLOOR = (
+    "import numpy, pyarrow.parquet, pandas\n"
+    "from pneufdd.sim.sensors import first_order_recursion\n"
+    "first_order_recursion(numpy.ones(3), 1.0, 0.5)\n"
+)
+
+
+def simulate_process() -> list[BenchResult]:
+    """``pneufdd simulate --cycles 4`` as whole processes: wall time and real-time factor."""
+    from pneufdd.recording import read_parquet
+
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "run.parquet"
+        argv = [PNEUFDD, "simulate", "--machine", "festo-dsd", "--cycles", "4"]
+        argv += ["--out", str(out), "--overwrite"]
+        subprocess.run(argv, check=True, capture_output=True)  # warm numba's cache
+        wall, cpu = median_times(argv)
+        recording = read_parquet(out)
+        simulated = recording.duration
+        floor_wall, floor_cpu = median_times([PYTHON, "-c", _FLOOR], repeat=REPEAT)
+    name = "pneufdd simulate --cycles 4"
+    libraries = "python: import numba, pyarrow, pandas; one call of a cached numba function"
+    return [
+        BenchResult(f"{name} (wall)", wall, "s", libraries, floor_wall),
+        BenchResult(f"{name} (cpu)", cpu, "s", libraries, floor_cpu),
+        BenchResult(
+            f"{name}: simulated time (ratio = x real time)", simulated, "s", "its wall time", wall
+        ),
+    ]
+
+
 def run() -> list[BenchResult]:
     base_wall, _ = median_times([PYTHON, "-c", "pass"])
     numpy_wall, numpy_cpu = median_times([PYTHON, "-c", "import numpy"])
@@ -51,7 +86,7 @@ def run() -> list[BenchResult]:
         out.append(BenchResult(f"{name} (wall)", wall, "s", "python -c pass", base_wall))
         out.append(BenchResult(f"{name} (wall)", wall, "s", "python -c 'import numpy'", numpy_wall))
         out.append(BenchResult(f"{name} (cpu)", cpu, "s", "python -c 'import numpy'", numpy_cpu))
-    return out
+    return out + simulate_process()
 
 
 if __name__ == "__main__":

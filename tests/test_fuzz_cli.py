@@ -11,6 +11,7 @@ import functools
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 import typer.main
@@ -196,3 +197,23 @@ def test_machines_command_imports_no_numerics() -> None:
         [sys.executable, "-c", script], capture_output=True, text=True, check=True
     )
     assert proc.stdout.splitlines()[-1] == "[]"
+
+
+def test_simulate_command_imports_only_what_a_simulation_needs(tmp_path: Path) -> None:
+    """`pneufdd simulate` needs numba and pyarrow, not scipy.signal (0.5 s) or the learners."""
+    out = tmp_path / "run.parquet"
+    script = (
+        "import sys, io, contextlib\n"
+        "from pneufdd.cli.app import main\n"
+        "quiet = io.StringIO()\n"
+        "with contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):\n"
+        f"    code = main(['simulate', '--machine', 'press-fit-cell', '--out', {str(out)!r}])\n"
+        "assert code == 0, quiet.getvalue()\n"
+        "heavy = ('scipy.signal', 'scipy.stats', 'sklearn', 'matplotlib', 'pywt')\n"
+        "print(sorted(m for m in heavy if m in sys.modules))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True
+    )
+    assert proc.stdout.splitlines()[-1] == "[]"
+    assert out.stat().st_size > 0

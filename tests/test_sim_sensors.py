@@ -6,10 +6,11 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from scipy.signal import lfilter
 
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.sim.description import Sensor
-from pneufdd.sim.sensors import apply_sensor
+from pneufdd.sim.sensors import apply_sensor, first_order_recursion
 
 FLOW = Sensor("Q", "flow", "supply", 0.0, 200.0, 0.4, 12, 0.015, "forward")
 PRESSURE = Sensor("P", "pressure", "supply", 0.0, 10.0, 0.006, 12, 0.0, "forward")
@@ -36,3 +37,22 @@ def test_pressure_sensor_clips_to_0_10_bar_gauge(truth: np.ndarray, seed: int) -
     inside = ((truth - 101_325.0) / 1e5 > 0.1) & ((truth - 101_325.0) / 1e5 < 9.9)
     # noise 0.006 bar + half a 2.44 mbar step: 8 sigma bound
     assert np.all(np.abs(gauge[inside] - (truth[inside] - 101_325.0) / 1e5) < 0.05)
+
+
+@given(
+    arrays(np.float64, st.integers(1, 300), elements=st.floats(-1e6, 1e6)),
+    st.floats(0.0, 2.0),
+    st.floats(-0.999, 0.999),
+)
+def test_first_order_recursion_is_scipy_lfilter(x: np.ndarray, gain: float, pole: float) -> None:
+    """The compiled sensor lag and drift recursion against scipy.signal.lfilter, bit for bit."""
+    expected = lfilter([gain], [1.0, -pole], x)
+    np.testing.assert_array_equal(first_order_recursion(x, gain, pole), expected)
+
+
+def test_first_order_lag_settles_to_its_input_with_time_constant_tau() -> None:
+    """A 15 ms lag sampled at 1 kHz reaches 1 - 1/e of a unit step after 15 samples."""
+    pole = float(np.exp(-1.0 / (1000.0 * 0.015)))
+    y = first_order_recursion(np.ones(200), 1.0 - pole, pole)
+    np.testing.assert_allclose(y[14], 1.0 - np.exp(-1.0), rtol=1e-12)
+    np.testing.assert_allclose(y[-1], 1.0, atol=1e-5)

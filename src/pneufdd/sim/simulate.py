@@ -10,7 +10,6 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import lfilter
 
 from pneufdd import __version__
 from pneufdd.errors import InputError, PneufddError, describe
@@ -24,7 +23,7 @@ from pneufdd.sim.loading import load_machine
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulationResult, Stroke
 from pneufdd.sim.schedule import LeakSchedule
-from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor
+from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor, first_order_recursion
 
 __all__ = [
     "SIMULATOR_VERSION",
@@ -96,7 +95,7 @@ def _ou_grid(rng: np.random.Generator, start: float, std: float, tau: float, n: 
     drive = np.empty(n)
     drive[0] = start
     drive[1:] = rng.standard_normal(n - 1) * b
-    return lfilter([1.0], [1.0, -a], drive)
+    return first_order_recursion(drive, 1.0, a)
 
 
 def _stall_message(
