@@ -21,6 +21,7 @@ from pneufdd.cli.app import main
 from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.recording.plc_export import write_plc_csv
 from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
+from pneufdd.sim.compile import tube_cv
 from pneufdd.sim.variation import write_machine
 
 SEED = 51_000  # this file's seeds: SEED + k (development seeds, not acceptance)
@@ -126,12 +127,12 @@ def test_volume_start_reads_air_per_step() -> None:
     assert all(z == 0.0 for p, z in zip(params, start, strict=True) if "volume" not in p.name)
 
 
-def test_a_drafted_actuator_is_sized_by_its_cross_section() -> None:
-    # carton-sorter's lane pusher drafted at a quarter of its cross-section (every
-    # area, friction and flow capacity / 4): the size factor 4 restores the
-    # description exactly, and the small one draws about a quarter of the air per
-    # stroke in about the same stroke time (the drafted geometry only has to be
-    # similar, not right)
+def test_a_drafted_actuator_is_sized_by_the_air_its_lines_hold() -> None:
+    # carton-sorter's lane pusher drafted at a quarter of its volumes: the size
+    # factor 4 restores the description, the valve and the tube's flow capacity stay
+    # (a line leak draws through them), and the small one draws about a quarter of
+    # the air per stroke, its throttled return at about the same speed, its extend
+    # (fed by the same valve into a quarter of the volume) somewhat faster
     truth = load_machine("carton-sorter")
     raw = copy.deepcopy(truth.raw)
     table = next(t for t in raw["actuator"] if t["id"] == "PUSH_L")
@@ -145,14 +146,22 @@ def test_a_drafted_actuator_is_sized_by_its_cross_section() -> None:
     assert {k: back[k] for k in table if k != "valve"} == pytest.approx(
         {k: v for k, v in table.items() if k != "valve"}
     )
-    assert back["valve"]["cv"] == pytest.approx(table["valve"]["cv"])
     pusher = next(t for t in small["actuator"] if t["id"] == "PUSH_L")
+    assert pusher["valve"] == table["valve"]
     assert pusher["bore_mm"] == pytest.approx(table["bore_mm"] / 2)
     assert pusher["stroke_mm"] == table["stroke_mm"]
-    assert pusher["tube_length_m"] == table["tube_length_m"]
-    assert pusher["valve"]["cv"] == pytest.approx(table["valve"]["cv"] / 4)
+    assert pusher["meter_out_cv"] == pytest.approx(table["meter_out_cv"] / 4)
+
+    def tube(t: dict[str, float]) -> tuple[float, float]:
+        volume = t["tube_length_m"] * t["tube_inner_diameter_mm"] ** 2
+        return volume, tube_cv(t["tube_length_m"], t["tube_inner_diameter_mm"])
+
+    (v_full, cv_full), (v_small, cv_small) = tube(table), tube(pusher)
+    assert v_small / v_full == pytest.approx(0.25)
+    assert cv_small / cv_full == pytest.approx(1.0, abs=0.06)  # the entry loss does not scale
     full, quarter = (simulate_evidence(r, (), SEED) for r in (raw, small))
     strokes = [3, 4]  # the pusher's extend and return steps (steps 4 and 5)
     air = quarter.supply_air_kg[strokes] / full.supply_air_kg[strokes]
     assert np.all((air > 0.2) & (air < 0.3))
-    assert np.all(np.abs(quarter.duration_s[strokes] / full.duration_s[strokes] - 1) < 0.15)
+    speed_up = quarter.duration_s[strokes] / full.duration_s[strokes]
+    assert np.all((speed_up > 0.8) & (speed_up <= 1.0))

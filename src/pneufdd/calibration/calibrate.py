@@ -141,27 +141,37 @@ def _volume(ident: str) -> Callable[[dict[str, Any], float], None]:
 
 
 def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
-    """A drafted actuator's cross-section: every area of its air path by one factor.
+    """A drafted actuator's size: the air its lines hold, at the flow capacity they had.
 
-    Bore, rod and tube bore scale by its square root; the dead volumes, the seal
-    friction (proportional to the piston area, as the built-in descriptions estimate
-    it: 0.040 N/mm^2 of area) and the valve's and throttles' flow capacities by the
-    factor itself; stroke, tube length and moving mass stay. Air per stroke then grows
-    with the factor while the stroke time stays about the same (a cylinder, its
-    tubing and its valve sized together for one piston speed). Scaling the tube
-    length instead, as :func:`_volume` does, also scales the tube's resistance: on a
-    drafted carton-sorter lane pusher that made the strokes slow long before the air
-    was matched.
+    The supply air per stroke is the evidence (issue 10): it fixes the volume of the
+    cylinder, its dead volumes and its tubes, not the valve or the tube bore that
+    feed them. So the factor scales every volume of the air path: bore and rod by
+    its square root, the dead volumes by the factor; the tube's volume by the factor
+    too, at about the same flow capacity (for a long tube ``Cv ~ d^2.5 / L^0.5``, the
+    Crane formula of :func:`pneufdd.sim.compile.tube_cv`, and ``V ~ d^2 L``: bore
+    x f^(1/7), length x f^(5/7)); the seal friction (proportional to the piston
+    area, as the built-in descriptions estimate it: 0.040 N/mm^2) and the meter-out
+    throttles by the factor, so a throttled stroke keeps its speed (its exhaust flow
+    is area x speed). The valve's Cv stays: it is its own parameter, informed by the
+    step durations or left at its prior; a valve terminal's valves are one size
+    whatever the cylinder. Stroke and moving mass stay.
+
+    Why not the valve and the tube bore with the cross-section (stop 22): a leak
+    draws its air through them, so their capacity sets how much a line leak blows
+    and how far it pulls the line down. Scaled with a small fitted cross-section
+    (a 6 mm gripper drafted as a 50 mm cylinder: factor 0.4) they choked a 60 SLPM
+    leak to two thirds of its flow in the twin, and every line leak of such an
+    actuator was sized a third too large.
     """
-    valve_cv = _valve_cv(ident)
 
     def apply(raw: dict[str, Any], value: float) -> None:
         table = _actuator_table(raw, ident)
         f = math.exp(value)
-        _scale_keys(table, ("bore_mm", "rod_mm", "tube_inner_diameter_mm"), math.sqrt(f))
+        _scale_keys(table, ("bore_mm", "rod_mm"), math.sqrt(f))
         _scale_keys(table, ("dead_volume_a_cm3", "dead_volume_b_cm3"), f)
+        _scale_keys(table, ("tube_inner_diameter_mm",), f ** (1.0 / 7.0))
+        _scale_keys(table, ("tube_length_m",), f ** (5.0 / 7.0))
         _scale_keys(table, ("static_friction_n", "coulomb_friction_n", "viscous_friction_n_s_m"), f)
-        valve_cv(raw, value)
         # throttles present (a Cv of 50 or none is a free exhaust: left free)
         for key in ("meter_out_cv", "meter_out_cv_a", "meter_out_cv_b"):
             if key in table and float(table[key]) < 50.0:
