@@ -32,7 +32,6 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares, lsq_linear
 
-from pneufdd.calibration.draft import DRAFT_MODEL
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import segment, sequence_from_machine
@@ -152,17 +151,19 @@ def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
     x f^(1/7), length x f^(5/7)); the seal friction (proportional to the piston
     area, as the built-in descriptions estimate it: 0.040 N/mm^2) and the meter-out
     throttles by the factor, so a throttled stroke keeps its speed (its exhaust flow
-    is area x speed). The valve's Cv stays: it is its own parameter, informed by the
-    step durations or left at its prior; a valve terminal's valves are one size
-    whatever the cylinder. Stroke and moving mass stay.
+    is area x speed). The valve grows with a cylinder larger than the drafted one
+    (valves are sized to the cylinder) but never shrinks below the drafted valve, a
+    small valve-terminal valve (the smallest valves in use are not much smaller
+    whatever the cylinder). Stroke and moving mass stay.
 
-    Why not the valve and the tube bore with the cross-section (stop 22): a leak
-    draws its air through them, so their capacity sets how much a line leak blows
-    and how far it pulls the line down. Scaled with a small fitted cross-section
-    (a 6 mm gripper drafted as a 50 mm cylinder: factor 0.4) they choked a 60 SLPM
-    leak to two thirds of its flow in the twin, and every line leak of such an
-    actuator was sized a third too large.
+    Why not the valve and the tube bore with the cross-section both ways (stop 22):
+    a leak draws its air through them, so their capacity sets how much a line leak
+    blows and how far it pulls the line down. Scaled down with a small fitted
+    cross-section (a 6 mm stroke gripper drafted as a 50 mm cylinder: factor 0.4)
+    they choked a 60 SLPM leak to two thirds of its flow in the twin, and every line
+    leak of such an actuator was sized a third too large.
     """
+    valve_cv = _valve_cv(ident)
 
     def apply(raw: dict[str, Any], value: float) -> None:
         table = _actuator_table(raw, ident)
@@ -172,6 +173,7 @@ def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
         _scale_keys(table, ("tube_inner_diameter_mm",), f ** (1.0 / 7.0))
         _scale_keys(table, ("tube_length_m",), f ** (5.0 / 7.0))
         _scale_keys(table, ("static_friction_n", "coulomb_friction_n", "viscous_friction_n_s_m"), f)
+        valve_cv(raw, math.log(max(f, 1.0)))
         # throttles present (a Cv of 50 or none is a free exhaust: left free)
         for key in ("meter_out_cv", "meter_out_cv_a", "meter_out_cv_b"):
             if key in table and float(table[key]) < 50.0:
@@ -231,19 +233,25 @@ def machine_parameters(
     ``docs/plant-variation.md`` (a badly documented machine): volume 0.2 (dead
     volumes, tubes cut on site), valve Cv 0.3 (ISO 6358 tolerance x 2), throttle 0.8
     (needle valves set by hand), friction 0.5, line Cv 0.4, set point 5 psi, nozzle
-    0.1. A drafted actuator (geometry assumed) gets volume 1.0, valve 0.7, throttle 1.0.
+    0.1. A drafted actuator (geometry assumed) gets a size (:func:`_size`) of prior
+    1.0 and throttles of prior 1.0, and no valve parameter of its own: with its stroke
+    and mass assumed, its step durations cannot tell a small valve from a tight
+    throttle, and a valve fitted small to slow a drafted stroke chokes every leak on
+    its lines in the twin (on a press-fit-cell plant: Cv 0.041 where the plant's
+    valve had 0.46). Speed is set by the throttles, as on most machines.
     """
     params = [
         Parameter("supply.regulator_set_psig", 5.0, _set_point, "psi"),
         Parameter("supply.line_cv", 0.4, _line_cv),
     ]
     for a in machine.actuators:
-        drafted = a.model == DRAFT_MODEL
+        drafted = a.drafted
         if drafted:
             params.append(Parameter(f"{a.id}.volume", 1.0, _size(a.id)))
         else:
             params.append(Parameter(f"{a.id}.volume", 0.2, _volume(a.id)))
-        params.append(Parameter(f"{a.id}.valve_cv", 0.7 if drafted else 0.3, _valve_cv(a.id)))
+        if not drafted:
+            params.append(Parameter(f"{a.id}.valve_cv", 0.3, _valve_cv(a.id)))
         for side, value in (("A", a.meter_out_cv_a), ("B", a.meter_out_cv_b)):
             if value < 50.0:  # a throttle on that line (none: free exhaust)
                 params.append(
