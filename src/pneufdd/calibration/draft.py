@@ -46,14 +46,13 @@ from pneufdd.signals.segmentation import (
     learn_sequence,
     segment,
 )
+from pneufdd.sim.description import DRAFT_MODEL
 
 __all__ = ["DEFAULTS", "DraftedMachine", "draft_machine"]
 
 FloatArray = npt.NDArray[np.float64]
 
 ASSUMED = "assumed"
-DRAFT_MODEL = "unknown (drafted from the PLC signals; geometry assumed)"
-"""The ``model`` of every drafted actuator: calibration widens its priors on seeing it."""
 
 DEFAULTS: dict[str, Any] = {
     "actuator": {

@@ -24,6 +24,7 @@ leak by eq. 1.1 (:mod:`pneufdd.diagnosis.cost`) without extra simulations.
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -41,7 +42,13 @@ from pneufdd.location import SUPPLY, Location, locations_of
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.progress import Progress, counter
 from pneufdd.signals.segmentation import StepSpec
-from pneufdd.sim import MachineDescription, MachineStalledError, run_simulation
+from pneufdd.sim import (
+    MachineDescription,
+    MachineStalledError,
+    load_machine,
+    run_simulation,
+    vary_machine,
+)
 
 __all__ = [
     "SIGNATURE_SEED",
@@ -78,11 +85,43 @@ UNCERTAINTY_PLANTS = 12
 UNCERTAINTY_SCALE = 1.0
 """Their variation scale: a plausible real machine (``docs/plant-variation.md``) [-]."""
 
+DRAFTED_UNCERTAINTY_SCALE = 3.0
+"""Variation scale of a *drafted* actuator's parameters in the plausible plants [-].
+
+A drafted actuator's mass, friction, dead volumes, tube, valve and the split of its
+air between them are assumed defaults; calibration fits only its size and throttles
+to the supply air and the step durations (``docs/calibration.md``). They are known no
+better than a factor ``(1 + T)^3`` of the plant tolerances ``T``: mass +-33 %,
+friction x/÷ 2.2, dead volumes and tube x/÷ 1.7, throttles x/÷ 3.4, valve +-52 %."""
+
 UNCERTAINTY_SIZES_SLPM: tuple[float, ...] = (8.0, 30.0, 80.0, 200.0)
 """Leak sizes at which the plants' effects are compared with the signatures [SLPM]."""
 
 UNCERTAINTY_PLANT_SEED = 5_300_100
 """Plant ``k`` of the uncertainty ensemble is varied with seed ``5_300_101 + k``."""
+
+
+def plausible_plant(machine: MachineDescription, scale: float, seed: int) -> MachineDescription:
+    """A plant drawn around ``machine``: :func:`pneufdd.sim.vary_machine` at ``scale``,
+    its drafted actuators at :data:`DRAFTED_UNCERTAINTY_SCALE` (the same draws, further).
+
+    Examples
+    --------
+    >>> from pneufdd.sim import load_machine
+    >>> press = load_machine("press-fit-cell")
+    >>> plausible_plant(press, 1.0, 7).raw == vary_machine(press, 1.0, 7).raw
+    True
+    """
+    plant = vary_machine(machine, scale, seed)
+    drafted = {a.id for a in machine.actuators if a.drafted}
+    if not drafted or scale >= DRAFTED_UNCERTAINTY_SCALE:
+        return plant
+    wide = {
+        t["id"]: t for t in vary_machine(machine, DRAFTED_UNCERTAINTY_SCALE, seed).raw["actuator"]
+    }
+    raw = copy.deepcopy(plant.raw)
+    raw["actuator"] = [wide[t["id"]] if t["id"] in drafted else t for t in raw["actuator"]]
+    return load_machine(raw)
 
 
 def candidate_locations(machine: MachineDescription) -> tuple[Location, ...]:
@@ -585,8 +624,8 @@ def signature_spread(
     15 % of ISO 6358, friction, throttle settings, volumes, sensor calibration:
     ``docs/plant-variation.md``), so its leak effects differ from the twin's. This
     samples how: ``plants`` plants are drawn around the description at ``scale``
-    (:func:`pneufdd.sim.vary_machine`, seeds independent of any plant a campaign
-    judges), single leaks of the same orifice are simulated on each at every location
+    (:func:`plausible_plant`, drafted actuators further; seeds independent of any
+    plant a campaign judges), single leaks of the same orifice are simulated on each at every location
     and at ``sizes_slpm``, and each plant's effect :math:`e^{(k)}` minus the
     signature's :math:`e` is returned. The deviations of one plant are coherent
     across features (a stiffer supply makes every pressure drop of a leak smaller,
@@ -640,7 +679,6 @@ def signature_spread(
     """
     from pneufdd.physics.leaks import SHARP_EDGE_CD, leak_area
     from pneufdd.physics.units import psig_to_pa
-    from pneufdd.sim.variation import vary_machine
 
     if plants < 1:
         raise InputError(describe("uncertainty plants", plants, ">= 1"))
@@ -657,7 +695,7 @@ def signature_spread(
     cols = np.array([index[n] for n in signatures.feature_names], dtype=np.int64)
     jobs: list[SpreadJob] = [
         (
-            vary_machine(machine, scale, UNCERTAINTY_PLANT_SEED + 1 + k),
+            plausible_plant(machine, scale, UNCERTAINTY_PLANT_SEED + 1 + k),
             locations,
             diameters,
             cycles,

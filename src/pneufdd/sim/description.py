@@ -16,6 +16,7 @@ from pneufdd.errors import MachineError, describe
 
 __all__ = [
     "ACTUATOR_KINDS",
+    "DRAFT_MODEL",
     "SENSOR_KINDS",
     "VALVE_KINDS",
     "Action",
@@ -29,6 +30,10 @@ __all__ = [
     "parse_description",
     "solenoid_slots",
 ]
+
+DRAFT_MODEL = "unknown (drafted from the PLC signals; geometry assumed)"
+"""The ``model`` of every drafted actuator (``pneufdd machine draft``): calibration
+widens its priors and the signatures' model uncertainty varies it more on seeing it."""
 
 ACTUATOR_KINDS = ("linear", "rodless", "slide", "rotary", "gripper")
 VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre")
@@ -184,6 +189,11 @@ class Actuator:
     meter_out_cv_b: float
     initial: str
     valve: Valve
+
+    @property
+    def drafted(self) -> bool:
+        """Whether the actuator was drafted from PLC signals (its geometry assumed)."""
+        return self.model == DRAFT_MODEL
 
 
 @dataclass(frozen=True)
