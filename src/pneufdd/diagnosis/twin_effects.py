@@ -625,8 +625,8 @@ def signature_spread(
     ``docs/plant-variation.md``), so its leak effects differ from the twin's. This
     samples how: ``plants`` plants are drawn around the description at ``scale``
     (:func:`plausible_plant`, drafted actuators further; seeds independent of any
-    plant a campaign judges), single leaks of the same orifice are simulated on each at every location
-    and at ``sizes_slpm``, and each plant's effect :math:`e^{(k)}` minus the
+    plant a campaign judges), single leaks of the same orifice are simulated on each
+    at every location and at ``sizes_slpm``, and each plant's effect :math:`e^{(k)}` minus the
     signature's :math:`e` is returned. The deviations of one plant are coherent
     across features (a stiffer supply makes every pressure drop of a leak smaller,
     in every step), so their sample covariance
