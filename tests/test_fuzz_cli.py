@@ -7,6 +7,7 @@ CLI starts without the heavy subsystems.
 
 from __future__ import annotations
 
+import ast
 import functools
 import os
 import subprocess
@@ -185,35 +186,32 @@ def test_import_pneufdd_and_the_cli_stay_light() -> None:
     assert proc.stdout.splitlines()[-1] == "[]"
 
 
-def test_machines_command_imports_no_numerics() -> None:
-    script = (
-        "import sys, io, contextlib\n"
-        "from pneufdd.cli.app import main\n"
-        "with contextlib.redirect_stdout(io.StringIO()):\n"
-        "    assert main(['machines']) == 0\n"
-        "print(sorted(m for m in ('numpy', 'numba', 'pydantic') if m in sys.modules))\n"
-    )
-    proc = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, check=True
-    )
-    assert proc.stdout.splitlines()[-1] == "[]"
-
-
-def test_simulate_command_imports_only_what_a_simulation_needs(tmp_path: Path) -> None:
-    """`pneufdd simulate` needs numba and pyarrow, not scipy.signal (0.5 s) or the learners."""
-    out = tmp_path / "run.parquet"
+def _loaded_after(args: list[str], modules: tuple[str, ...]) -> list[str]:
+    """Which of ``modules`` a fresh interpreter holds after ``pneufdd ARGS`` (exit 0)."""
     script = (
         "import sys, io, contextlib\n"
         "from pneufdd.cli.app import main\n"
         "quiet = io.StringIO()\n"
         "with contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):\n"
-        f"    code = main(['simulate', '--machine', 'press-fit-cell', '--out', {str(out)!r}])\n"
+        f"    code = main({args!r})\n"
         "assert code == 0, quiet.getvalue()\n"
-        "heavy = ('scipy.signal', 'scipy.stats', 'sklearn', 'matplotlib', 'pywt')\n"
-        "print(sorted(m for m in heavy if m in sys.modules))\n"
+        f"print(sorted(m for m in {modules!r} if m in sys.modules))\n"
     )
     proc = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, check=True
     )
-    assert proc.stdout.splitlines()[-1] == "[]"
+    loaded: list[str] = ast.literal_eval(proc.stdout.splitlines()[-1])
+    return loaded
+
+
+def test_machines_command_imports_no_numerics() -> None:
+    assert _loaded_after(["machines"], ("numpy", "numba", "pydantic")) == []
+
+
+def test_simulate_command_imports_only_what_a_simulation_needs(tmp_path: Path) -> None:
+    """`pneufdd simulate` needs numba and pyarrow, not scipy.signal (0.5 s) or the learners."""
+    out = tmp_path / "run.parquet"
+    heavy = ("scipy.signal", "scipy.stats", "sklearn", "matplotlib", "pywt")
+    args = ["simulate", "--machine", "press-fit-cell", "--out", str(out)]
+    assert _loaded_after(args, heavy) == []
     assert out.stat().st_size > 0
