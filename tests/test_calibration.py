@@ -128,39 +128,38 @@ def test_volume_start_reads_air_per_step() -> None:
 
 
 def test_a_drafted_actuator_is_sized_by_the_air_its_lines_hold() -> None:
-    # carton-sorter's lane pusher drafted at a quarter of its volumes: the size
-    # factor 4 restores the description but for the valve (it grows with a larger
-    # cylinder), the valve and the tube's flow capacity stay for a smaller one
-    # (a line leak draws through them), and the small one draws about a quarter of
-    # the air per stroke, its throttled return at about the same speed, its extend
-    # (fed by the same valve into a quarter of the volume) somewhat faster
+    # carton-sorter's lane pusher drafted at a quarter and at four times its volumes:
+    # every volume of the air path follows the factor; the valve and the tube grow
+    # with the larger cylinder and keep their flow capacity with the smaller one (a
+    # line leak draws through them); the small one draws about a quarter of the air
+    # per stroke, its throttled return at about the same speed, its extend (fed by the
+    # same valve into a quarter of the volume) somewhat faster
     truth = load_machine("carton-sorter")
     raw = copy.deepcopy(truth.raw)
     table = next(t for t in raw["actuator"] if t["id"] == "PUSH_L")
     table["model"] = DRAFT_MODEL
     size = next(p for p in machine_parameters(load_machine(raw)) if p.name == "PUSH_L.volume")
-    small = copy.deepcopy(raw)
+    small, large = copy.deepcopy(raw), copy.deepcopy(raw)
     size.apply(small, -np.log(4.0))
-    restored = copy.deepcopy(small)
-    size.apply(restored, np.log(4.0))
-    back = next(t for t in restored["actuator"] if t["id"] == "PUSH_L")
-    assert {k: back[k] for k in table if k != "valve"} == pytest.approx(
-        {k: v for k, v in table.items() if k != "valve"}
-    )
-    pusher = next(t for t in small["actuator"] if t["id"] == "PUSH_L")
-    assert pusher["valve"] == table["valve"]  # never below the drafted valve
-    assert back["valve"]["cv"] == pytest.approx(4 * table["valve"]["cv"])  # grows with it
-    assert pusher["bore_mm"] == pytest.approx(table["bore_mm"] / 2)
-    assert pusher["stroke_mm"] == table["stroke_mm"]
-    assert pusher["meter_out_cv"] == pytest.approx(table["meter_out_cv"] / 4)
+    size.apply(large, np.log(4.0))
+    pusher, big = (next(t for t in r["actuator"] if t["id"] == "PUSH_L") for r in (small, large))
 
     def tube(t: dict[str, float]) -> tuple[float, float]:
         volume = t["tube_length_m"] * t["tube_inner_diameter_mm"] ** 2
         return volume, tube_cv(t["tube_length_m"], t["tube_inner_diameter_mm"])
 
-    (v_full, cv_full), (v_small, cv_small) = tube(table), tube(pusher)
+    (v_full, cv_full), (v_small, cv_small), (v_big, cv_big) = map(tube, (table, pusher, big))
+    for drafted, factor in ((pusher, 0.25), (big, 4.0)):
+        assert drafted["bore_mm"] == pytest.approx(table["bore_mm"] * np.sqrt(factor))
+        assert drafted["dead_volume_a_cm3"] == pytest.approx(table["dead_volume_a_cm3"] * factor)
+        assert drafted["meter_out_cv"] == pytest.approx(table["meter_out_cv"] * factor)
+        assert drafted["stroke_mm"] == table["stroke_mm"]
     assert v_small / v_full == pytest.approx(0.25)
+    assert v_big / v_full == pytest.approx(4.0)
+    assert pusher["valve"] == table["valve"]  # never below the drafted valve
     assert cv_small / cv_full == pytest.approx(1.0, abs=0.06)  # the entry loss does not scale
+    assert big["valve"]["cv"] == pytest.approx(4 * table["valve"]["cv"])  # grows with it
+    assert cv_big > 4 * cv_full
     full, quarter = (simulate_evidence(r, (), SEED) for r in (raw, small))
     strokes = [3, 4]  # the pusher's extend and return steps (steps 4 and 5)
     air = quarter.supply_air_kg[strokes] / full.supply_air_kg[strokes]

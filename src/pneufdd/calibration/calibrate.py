@@ -145,16 +145,17 @@ def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
     The supply air per stroke is the evidence (issue 10): it fixes the volume of the
     cylinder, its dead volumes and its tubes, not the valve or the tube bore that
     feed them. So the factor scales every volume of the air path: bore and rod by
-    its square root, the dead volumes by the factor; the tube's volume by the factor
-    too, at about the same flow capacity (for a long tube ``Cv ~ d^2.5 / L^0.5``, the
-    Crane formula of :func:`pneufdd.sim.compile.tube_cv`, and ``V ~ d^2 L``: bore
-    x f^(1/7), length x f^(5/7)); the seal friction (proportional to the piston
-    area, as the built-in descriptions estimate it: 0.040 N/mm^2) and the meter-out
-    throttles by the factor, so a throttled stroke keeps its speed (its exhaust flow
-    is area x speed). The valve grows with a cylinder larger than the drafted one
-    (valves are sized to the cylinder) but never shrinks below the drafted valve, a
-    small valve-terminal valve (the smallest valves in use are not much smaller
-    whatever the cylinder). Stroke and moving mass stay.
+    its square root, the dead volumes by the factor, and the tube's volume by the
+    factor; the seal friction (proportional to the piston area, as the built-in
+    descriptions estimate it: 0.040 N/mm^2) and the meter-out throttles by the
+    factor too, so a throttled stroke keeps its speed (its exhaust flow is area x
+    speed). The valve and the tube grow with a cylinder larger than the drafted one
+    (they are sized to their cylinder: valve Cv x f, tube bore x sqrt f) but do not
+    lose flow capacity with a smaller one: the valve stays (the smallest valves in
+    use are not much smaller whatever the cylinder) and the tube gets shorter at
+    about the same capacity (for a long tube ``Cv ~ d^2.5 / L^0.5``, the Crane
+    formula of :func:`pneufdd.sim.compile.tube_cv`, and ``V ~ d^2 L``: bore
+    x f^(1/7), length x f^(5/7)). Stroke and moving mass stay.
 
     Why not the valve and the tube bore with the cross-section both ways (stop 22):
     a leak draws its air through them, so their capacity sets how much a line leak
@@ -170,8 +171,11 @@ def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
         f = math.exp(value)
         _scale_keys(table, ("bore_mm", "rod_mm"), math.sqrt(f))
         _scale_keys(table, ("dead_volume_a_cm3", "dead_volume_b_cm3"), f)
-        _scale_keys(table, ("tube_inner_diameter_mm",), f ** (1.0 / 7.0))
-        _scale_keys(table, ("tube_length_m",), f ** (5.0 / 7.0))
+        if f >= 1.0:  # a larger tube with a larger cylinder: volume and capacity grow
+            _scale_keys(table, ("tube_inner_diameter_mm",), math.sqrt(f))
+        else:  # a shorter, slightly narrower one: the volume shrinks, the capacity stays
+            _scale_keys(table, ("tube_inner_diameter_mm",), f ** (1.0 / 7.0))
+            _scale_keys(table, ("tube_length_m",), f ** (5.0 / 7.0))
         _scale_keys(table, ("static_friction_n", "coulomb_friction_n", "viscous_friction_n_s_m"), f)
         valve_cv(raw, math.log(max(f, 1.0)))
         # throttles present (a Cv of 50 or none is a free exhaust: left free)
