@@ -140,7 +140,7 @@ def _volume(ident: str) -> Callable[[dict[str, Any], float], None]:
 
 
 def _size(ident: str) -> Callable[[dict[str, Any], float], None]:
-    """A drafted actuator's size: the air its lines hold, at the flow capacity they had.
+    """A drafted actuator's size: the air its lines hold, fed as a cylinder that size is.
 
     The supply air per stroke is the evidence (issue 10): it fixes the volume of the
     cylinder, its dead volumes and its tubes, not the valve or the tube bore that
