@@ -250,11 +250,10 @@ def machine_parameters(
     ]
     for a in machine.actuators:
         drafted = a.drafted
-        if drafted:
+        if drafted:  # its valve follows its size (_size)
             params.append(Parameter(f"{a.id}.volume", 1.0, _size(a.id)))
         else:
             params.append(Parameter(f"{a.id}.volume", 0.2, _volume(a.id)))
-        if not drafted:
             params.append(Parameter(f"{a.id}.valve_cv", 0.3, _valve_cv(a.id)))
         for side, value in (("A", a.meter_out_cv_a), ("B", a.meter_out_cv_b)):
             if value < 50.0:  # a throttle on that line (none: free exhaust)

@@ -87,7 +87,7 @@ def choose_leak_count(
     dof: int,
     max_leaks: int,
     min_relative_gain: float,
-    first_leak_gain: float | None = None,
+    first_leak_gain: float = 1.0,
 ) -> int:
     """Number of leaks: more only when the residual drops by the penalty and the gain.
 
@@ -100,10 +100,10 @@ def choose_leak_count(
     single leak did.
 
     When that chooses no leak, one leak is still taken if it passes the information
-    criterion and lowers the residual by ``first_leak_gain`` (None: no such
-    fallback): on a run the detector has flagged, "no leak" is already rejected, and
-    the location that explains the deviation best is worth reporting with the low
-    confidence its small share of the deviation gives it.
+    criterion and lowers the residual by ``first_leak_gain`` (1: no such fallback,
+    the residual cannot fall below zero): on a run the detector has flagged, "no
+    leak" is already rejected, and the location that explains the deviation best is
+    worth reporting with the low confidence its small share of the deviation gives it.
 
     Examples
     --------
@@ -130,7 +130,7 @@ def choose_leak_count(
     for k in range(1, max_leaks + 1):
         if k in best and better(k, chosen, min_relative_gain):
             chosen = k
-    if chosen == 0 and first_leak_gain is not None and 1 in best and max_leaks >= 1:
+    if chosen == 0 and 1 in best and max_leaks >= 1:
         chosen = int(better(1, 0, first_leak_gain))
     return chosen
 

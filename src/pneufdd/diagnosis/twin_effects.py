@@ -233,6 +233,12 @@ LadderJob = tuple[
 ]
 
 
+LadderPoints = tuple[
+    npt.NDArray[np.float64], list[npt.NDArray[np.float64]], float, npt.NDArray[np.float64]
+]
+"""One ladder's sizes [kg/s], mean features, nominal pressure [Pa] and leaked flows [kg/s]."""
+
+
 class _LadderStalledError(Exception):
     """The machine stalled at every size tried for one ladder point."""
 
@@ -250,7 +256,7 @@ def _ladder_points(
     seed: int,
     sequence: Sequence[StepSpec],
     channels: Sequence[str],
-) -> tuple[npt.NDArray[np.float64], list[npt.NDArray[np.float64]], float, npt.NDArray[np.float64]]:
+) -> LadderPoints:
     """Sizes [kg/s], mean features, nominal pressure [Pa] and leaked flows [kg/s] of
     one location's ladder; raises :class:`_LadderStalledError` (with the largest size that
     ran [SLPM]) when no size on the way down to the last one that ran runs."""
@@ -315,10 +321,12 @@ def _location_ladder(
     festo-dsd stalled at 154 SLPM on DNC_B where the default ladder asks 230 SLPM).
     """
     machine, loc, ladder, cycles, seed, sequence, channels = job
+
+    def points(slpm: Sequence[float]) -> LadderPoints:
+        return _ladder_points(machine, loc, slpm, cycles, seed, sequence, channels)
+
     try:
-        sizes, means, pressure, leaked = _ladder_points(
-            machine, loc, ladder, cycles, seed, sequence, channels
-        )
+        sizes, means, pressure, leaked = points(ladder)
     except _LadderStalledError as stalled:
         if stalled.largest_run <= 0.0:
             raise stalled.error from None
@@ -326,15 +334,7 @@ def _location_ladder(
         # the whole ladder, scaled to end at the largest size that ran
         scale = stalled.largest_run / float(ladder[-1])
         try:
-            sizes, means, pressure, leaked = _ladder_points(
-                machine,
-                loc,
-                tuple(scale * float(x) for x in ladder),
-                cycles,
-                seed,
-                sequence,
-                channels,
-            )
+            sizes, means, pressure, leaked = points(tuple(scale * float(x) for x in ladder))
         except _LadderStalledError as again:
             raise again.error from None
     pair = np.full_like(means[0], np.nan)
