@@ -443,11 +443,11 @@ def run_job(job: Job) -> list[dict[str, Any]]:
 
 def _run_jobs(
     jobs: Sequence[Job], pool: Executor | None, progress: Progress | None
-) -> Iterator[list[dict[str, Any]]]:
-    """The records of every job, as each finishes (on ``pool`` when given)."""
+) -> Iterator[tuple[int, list[dict[str, Any]]]]:
+    """(job index, records) of every job, as each finishes (on ``pool`` when given)."""
     advance = counter(progress, "diagnosing campaign runs", len(jobs))
-    for _, records in map_unordered(run_job, jobs, pool):
-        yield records
+    for index, records in map_unordered(run_job, jobs, pool):
+        yield index, records
         advance()
 
 
@@ -499,7 +499,8 @@ def run_campaign(
     out : str or Path
         Output folder (created); ``manifest.json`` (design and every seed),
         ``plants/*.toml``, ``references/*.pnref``, ``runs.jsonl`` (one record per run
-        and sensor set) and ``summary.json``. An existing ``runs.jsonl`` is never
+        and sensor set, in the order runs finish; ``run`` is its place in the plan)
+        and ``summary.json``. An existing ``runs.jsonl`` is never
         overwritten: pick a new folder.
     workers : int, optional
         Worker processes of the local Dask cluster the campaign runs on (default: one
@@ -645,16 +646,23 @@ def _run_campaign(
     (folder / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n", "utf-8")
     say(f"{len(jobs)} runs on {where}")
     result = CampaignResult(out=folder)
+    finished: dict[int, list[dict[str, Any]]] = {}
     with open(folder / "runs.jsonl", "x", encoding="utf-8") as handle:
-        for records in _run_jobs(jobs, pool, progress):
-            for record in records:
+        for index, records in _run_jobs(jobs, pool, progress):
+            for record in records:  # saved as each run finishes: nothing lost on a crash
+                record["run"] = index  # its place in the plan (rescore tallies in it)
                 handle.write(json.dumps(record) + "\n")
                 handle.flush()
-                if record.get("stalled"):
-                    result.stalled.append(_stall_entry(record))
-                    continue
-                key = (record["machine"], float(record["scale"]), record["sensors"])
-                result.tallies.setdefault(key, Tally()).add(outcome_from_record(record))
+            finished[index] = records
+    # tallied in the planned order, not the order runs finished: a float sum depends
+    # on its order, and a cluster must give the serial path's figures to the last bit
+    for index in sorted(finished):
+        for record in finished[index]:
+            if record.get("stalled"):
+                result.stalled.append(_stall_entry(record))
+                continue
+            key = (record["machine"], float(record["scale"]), record["sensors"])
+            result.tallies.setdefault(key, Tally()).add(outcome_from_record(record))
     result.seconds = time.perf_counter() - start
     summary = {
         f"{machine} | scale {scale:g} | {sensors}": {
@@ -674,8 +682,11 @@ def rescore(folder: str | Path) -> CampaignResult:
         raise InputError(describe("campaign runs file", str(path), "an existing runs.jsonl"))
     result = CampaignResult(out=Path(folder))
     outcomes: dict[tuple[str, float, str], list[RunOutcome]] = {}
-    for line in path.read_text("utf-8").splitlines():
-        record = json.loads(line)
+    records = [json.loads(line) for line in path.read_text("utf-8").splitlines()]
+    # in the planned order, as run_campaign tallies (files written before the "run"
+    # field keep their line order)
+    records.sort(key=lambda r: int(r.get("run", 0)))
+    for record in records:
         if record.get("stalled"):
             result.stalled.append(_stall_entry(record))
             continue
