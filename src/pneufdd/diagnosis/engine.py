@@ -374,23 +374,42 @@ def run_whitener(
     """The weighting of one run's change, with the model error of the leaks behind it.
 
     Without plausible-plant deviations in the signatures: noise only. With them, the
-    model error belongs to the leaks behind the change: first the best explanation
-    under noise-only weights, then the weighting with the model error of those leaks
-    (what plausible plants do differently from the twin) and a floor relative to the
-    larger of the predicted and the observed change (a feature the twin expects to
-    move but the plant barely moves is model error too, not evidence at noise level).
+    model error belongs to the leaks that may be behind the change: first the best
+    explanation under noise-only weights, then the weighting with the model error of
+    every location in its ambiguity groups, each at the size it would need (what
+    plausible plants do differently from the twin), and a floor relative to the larger
+    of the predicted and the observed change (a feature the twin expects to move but
+    the plant barely moves is model error too, not evidence at noise level).
+
+    The whole group's model error, not only the chosen leak's: were it the chosen
+    leak's alone, a competitor would be judged against the twin's error of another
+    location. A leak on a line held pressurised all but one step (a 5/2 monostable
+    valve's B line) differs from a supply leak only in that step, where a drafted
+    cylinder's dynamics are least known; weighted with the supply leak's model error,
+    that step decided against the line (docs/assumptions.md). References saved
+    before keep the chosen leaks' model error
+    (:attr:`LocalisationSettings.group_model_error`).
     """
     whiten = whitener(reference, n_cycles)
     if not effects.signatures.n_plants:
         return whiten
     first = locate(observed, effects, whiten, replace(settings, simulate_explanations=False))
     leaks = [(effects.locations.index(leak.location), leak.mass_flow) for leak in first.leaks]
+    contenders = (
+        [
+            (effects.locations.index(member), size)
+            for leak in first.leaks
+            for member, size in zip(leak.ambiguity_group, leak.group_mass_flows, strict=True)
+        ]
+        if settings.group_model_error
+        else leaks
+    )
     predicted = effects.change(dict(leaks)) if leaks else np.zeros_like(observed)
     return whitener(
         reference,
         n_cycles,
         np.maximum(np.abs(observed), np.abs(predicted)),
-        leaks,
+        contenders,
         settings.model_error_floor,
     )
 
