@@ -283,3 +283,56 @@ def test_a_detected_run_is_located_at_its_best_leak_even_when_that_explains_litt
     data = LocalisationSettings().to_dict()
     del data["first_leak_gain"]
     assert LocalisationSettings.from_dict(data).first_leak_gain == 1.0  # saved before: off
+
+
+def _line_held_all_but_one_step(seed: int):
+    """A reference where X_B's signature is the supply's but in one step (its line is
+    vented there), the twin does not know what X_B draws in that step, and every leak's
+    signature shares the plausible plants' common error. Returns the reference and a
+    run's change: an X_B leak whose plant draws in that step like a supply leak."""
+    base = synth_signatures()
+    held = np.array([n.startswith("Q_In") and n.endswith("@3") for n in base.feature_names])
+    sup, xb = 0, 2
+    deltas = np.array(base.deltas)
+    deltas[xb] = deltas[sup] * ~held
+    sig = replace(base, deltas=deltas)
+    sizes = sig.sizes[0, [0, -1]]
+    rng = np.random.default_rng(seed)
+    supply = np.stack([sig.effect(sup, s) for s in sizes])
+    common = 0.3 * rng.normal(size=(8, sig.n_features)) * (np.abs(supply[-1]) + 1e-12)
+    deviations = common[:, None, None, :] * (sizes / sizes[-1])[None, None, :, None]
+    deviations = np.repeat(deviations, len(sig.locations), axis=1)
+    deviations[:, xb] += rng.normal(size=8)[:, None, None] * supply[None] * held
+    sig = sig.with_plant_deviations(deviations, sizes)
+    ref = ReferenceModel.build(synth_table(60, seed=100), signatures=sig)
+    size = 8e-4
+    observed = sig.effect(xb, size) + sig.effect(sup, size) * held + common[0] * size / sizes[-1]
+    return ref, observed
+
+
+@pytest.mark.parametrize("seed", [1, 2, 4])
+def test_a_line_that_differs_from_the_supply_where_the_twin_is_unsure_stays_in_the_group(seed):
+    from pneufdd.diagnosis.engine import run_whitener
+
+    ref, observed = _line_held_all_but_one_step(seed)
+    effects = ref.leak_effects()
+    groups = {}
+    for flag in (False, True):
+        settings = replace(ref.localisation, simulate_explanations=False, group_model_error=flag)
+        whiten = run_whitener(ref, effects, observed, 10, settings)
+        (leak,) = locate(observed, effects, whiten, settings).leaks
+        assert leak.mass_flow == pytest.approx(8e-4, rel=0.01)
+        groups[flag] = {str(x) for x in leak.ambiguity_group}
+    # weighted with the supply leak's model error alone, the one step rules X_B out;
+    # with the model error of every contender, the run cannot tell them apart
+    assert groups[False] == {"supply"}
+    assert groups[True] == {"supply", "X_B"}
+
+
+def test_references_saved_before_the_group_model_error_keep_the_chosen_leaks():
+    data = LocalisationSettings().to_dict()
+    del data["group_model_error"]
+    assert LocalisationSettings.from_dict(data).group_model_error is False
+    assert LocalisationSettings().group_model_error is True
+    with pytest.raises(InputError, match="group_model_error"):
+        LocalisationSettings(group_model_error=1)  # type: ignore[arg-type]
