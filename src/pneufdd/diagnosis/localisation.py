@@ -166,8 +166,10 @@ class LocalisationSettings:
         (:func:`pneufdd.diagnosis.engine.run_whitener`). A line held pressurised all
         but one step (a 5/2 monostable valve's B line) differs from the supply only in
         that step, where the twin of a drafted cylinder is least sure; weighted with
-        the supply leak's model error alone, that step ruled the line out. False:
-        references saved before [-].
+        the supply leak's model error alone, that step ruled the line out. When that
+        weighting finds one leak, the run is located again with the chosen leaks'
+        model error, and two leaks found so are kept unless both lie in the one
+        leak's group (``engine._locate_weighted``). False: references saved before [-].
 
     Examples
     --------
