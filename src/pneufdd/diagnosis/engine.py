@@ -389,7 +389,8 @@ def run_whitener(
     step, where a drafted cylinder's dynamics are least known; weighted with the supply
     leak's model error, that step decided against the line (docs/diagnosis.md).
     """
-    return _weightings(reference, effects, observed, n_cycles, settings)[settings.group_model_error]
+    chosen, grouped = _weightings(reference, effects, observed, n_cycles, settings)
+    return grouped if settings.group_model_error else chosen
 
 
 def _weightings(
