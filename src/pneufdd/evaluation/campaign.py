@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -46,7 +46,7 @@ from pneufdd.diagnosis.twin_effects import (
     signature_spread,
 )
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
-from pneufdd.evaluation.scoring import RunOutcome, Tally, outcome_from_record
+from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.location import locations_of
 from pneufdd.parallel import executor, map_unordered, resolve_workers
 from pneufdd.physics.leaks import leak_mass_flow
@@ -369,7 +369,7 @@ def _cached_plant(path: str) -> MachineDescription:
     return _PLANTS[path]
 
 
-def _stall_entry(record: dict[str, Any]) -> dict[str, Any]:
+def _stall_entry(record: Mapping[str, Any]) -> dict[str, Any]:
     """What the campaign prints of a run it could not judge."""
     entry = {k: record[k] for k in ("machine", "leaks", "seed")}
     if "reason" in record:
@@ -656,13 +656,7 @@ def _run_campaign(
             finished[index] = records
     # tallied in the planned order, not the order runs finished: a float sum depends
     # on its order, and a cluster must give the serial path's figures to the last bit
-    for index in sorted(finished):
-        for record in finished[index]:
-            if record.get("stalled"):
-                result.stalled.append(_stall_entry(record))
-                continue
-            key = (record["machine"], float(record["scale"]), record["sensors"])
-            result.tallies.setdefault(key, Tally()).add(outcome_from_record(record))
+    _tally((record for index in sorted(finished) for record in finished[index]), result)
     result.seconds = time.perf_counter() - start
     summary = {
         f"{machine} | scale {scale:g} | {sensors}": {
@@ -681,20 +675,20 @@ def rescore(folder: str | Path) -> CampaignResult:
     if not path.is_file():
         raise InputError(describe("campaign runs file", str(path), "an existing runs.jsonl"))
     result = CampaignResult(out=Path(folder))
-    outcomes: dict[tuple[str, float, str], list[RunOutcome]] = {}
     records = [json.loads(line) for line in path.read_text("utf-8").splitlines()]
     # in the planned order, as run_campaign tallies (files written before the "run"
     # field keep their line order)
     records.sort(key=lambda r: int(r.get("run", 0)))
+    _tally(records, result)
+    return result
+
+
+def _tally(records: Iterable[Mapping[str, Any]], result: CampaignResult) -> None:
+    """Count ``records`` in the order given into ``result``'s tallies per (machine,
+    scale, sensor set); runs where the plant stalled are listed apart."""
     for record in records:
         if record.get("stalled"):
             result.stalled.append(_stall_entry(record))
             continue
         key = (record["machine"], float(record["scale"]), record["sensors"])
-        outcomes.setdefault(key, []).append(outcome_from_record(record))
-    for key, runs in outcomes.items():
-        t = Tally()
-        for run in runs:
-            t.add(run)
-        result.tallies[key] = t
-    return result
+        result.tallies.setdefault(key, Tally()).add(outcome_from_record(record))
