@@ -209,9 +209,10 @@ def test_machines_command_imports_no_numerics() -> None:
 
 
 def test_simulate_command_imports_only_what_a_simulation_needs(tmp_path: Path) -> None:
-    """`pneufdd simulate` needs numba and pyarrow, not scipy.signal (0.5 s) or the learners."""
+    """`pneufdd simulate` needs numba and pyarrow, not scipy.signal (0.5 s), the learners,
+    or pandas (0.3 s, which ``pyarrow.array`` would import to check its argument)."""
     out = tmp_path / "run.parquet"
-    heavy = ("scipy.signal", "scipy.stats", "sklearn", "matplotlib", "pywt")
+    heavy = ("scipy.signal", "scipy.stats", "sklearn", "matplotlib", "pywt", "pandas")
     args = ["simulate", "--machine", "press-fit-cell", "--out", str(out)]
     assert _loaded_after(args, heavy) == []
     assert out.stat().st_size > 0
