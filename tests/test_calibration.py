@@ -49,6 +49,20 @@ def test_calibration_explains_a_plant_at_scale_2(plant) -> None:
     assert informed
     assert all(np.isfinite(e.std) and e.std > 0 for e in informed)
     assert all(e.value == 0.0 for e in result.estimates if not e.informed)
+    # the ram's friction comes from its strokes (eqs. 4.15-4.16), not from the fit
+    (press,) = result.friction
+    assert press.actuator == "PRESS"
+    assert "PRESS.friction" not in [e.name for e in result.estimates]
+    truth = next(a for a in plant.actuators if a.id == "PRESS")
+    assert press.static_friction_n == pytest.approx(truth.static_friction_n, rel=0.10)
+    # its strokes all run at 0.29-0.32 m/s: they tell the sliding friction at that
+    # speed (Fcf + Cvf v), not Fcf and Cvf apart (the description's ratio is kept)
+    assert not press.viscous_fitted
+    found = press.coulomb_friction_n + press.viscous_friction_n_s_m * 0.3
+    true = truth.coulomb_friction_n + truth.viscous_friction_n_s_m * 0.3
+    assert found == pytest.approx(true, rel=0.05)
+    ram = next(a for a in result.after.actuators if a.id == "PRESS")
+    assert ram.static_friction_n == press.static_friction_n
 
 
 def test_calibrate_cli_writes_description_and_report(plant, tmp_path: Path) -> None:

@@ -111,6 +111,29 @@ def test_dnc_friction_within_10_percent() -> None:
         fit_sliding_friction(strokes[:1], area_a, area_b, 0.59, min_speed=0.3)
 
 
+def test_a_constant_force_is_fitted_apart_from_friction() -> None:
+    """A +0.5 bar zero error of the A-line sensor (a 40 N push on a 32 mm piston) moves
+    neither Fsf (each direction weighs half) nor Fcf, Cvf when F0 is fitted."""
+    strokes, area_a, area_b = _dnc_strokes(seed=22)
+    shifted = [
+        Stroke(s.time, np.asarray(s.pressure_a) + 5e4, s.pressure_b, s.position) for s in strokes
+    ]
+    sliding = fit_sliding_friction(shifted, area_a, area_b, 0.59, offset=True)
+    assert sliding.offset_force_n == pytest.approx(5e4 * area_a, rel=0.10)
+    assert sliding.coulomb_friction_n == pytest.approx(FCF_DNC, rel=0.10)
+    assert sliding.viscous_friction_n_s_m == pytest.approx(CVF_DNC, rel=0.10)
+    breakaway = fit_breakaway_friction(shifted, area_a, area_b, noise_m=1.2e-3)
+    assert breakaway.static_friction_n == pytest.approx(FSF_DNC, rel=0.10)
+    # Cvf / Fcf known: one factor from strokes at one speed
+    ratio = fit_sliding_friction(
+        strokes, area_a, area_b, 0.59, viscous_ratio_s_m=CVF_DNC / FCF_DNC, offset=True
+    )
+    assert ratio.coulomb_friction_n == pytest.approx(FCF_DNC, rel=0.10)
+    assert ratio.viscous_friction_n_s_m / ratio.coulomb_friction_n == pytest.approx(
+        CVF_DNC / FCF_DNC
+    )
+
+
 def test_supply_path_set_point_and_droop() -> None:
     rng = np.random.default_rng(31)
     q = rng.uniform(0.0, slpm_to_kg_s(200.0), 400)

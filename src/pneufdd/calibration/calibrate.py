@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares, lsq_linear
 
+from pneufdd.calibration.friction import FrictionIdentification, identify_friction
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import segment, sequence_from_machine
@@ -229,7 +230,9 @@ def _nozzle(raw: dict[str, Any], value: float) -> None:
 
 
 def machine_parameters(
-    machine: MachineDescription, line_channels: Sequence[str] = ()
+    machine: MachineDescription,
+    line_channels: Sequence[str] = (),
+    friction_known: Sequence[str] = (),
 ) -> list[Parameter]:
     """The parameters the recordings can inform, with their priors.
 
@@ -243,6 +246,10 @@ def machine_parameters(
     throttle, and a valve fitted small to slow a drafted stroke chokes every leak on
     its lines in the twin (on a press-fit-cell plant: Cv 0.041 where the plant's
     valve had 0.46). Speed is set by the throttles, as on most machines.
+
+    Friction is fitted only for an actuator with a line pressure sensor whose
+    friction was not identified from its strokes (``friction_known``,
+    :mod:`pneufdd.calibration.friction`).
     """
     params = [
         Parameter("supply.regulator_set_psig", 5.0, _set_point, "psi"),
@@ -264,7 +271,9 @@ def machine_parameters(
                         _meter_out(a.id, side),
                     )
                 )
-        if any(c in line_channels for c in (f"P_{a.id}_A", f"P_{a.id}_B")):
+        if a.id not in friction_known and any(
+            c in line_channels for c in (f"P_{a.id}_A", f"P_{a.id}_B")
+        ):
             params.append(Parameter(f"{a.id}.friction", 0.5, _friction(a.id)))
     if machine.vacuum is not None:
         params.append(Parameter("vacuum.nozzle_diameter_mm", 0.1, _nozzle))
@@ -425,6 +434,7 @@ class CalibrationResult:
     evaluations: int
     cost_before: float
     cost_after: float
+    friction: tuple[FrictionIdentification, ...] = ()
 
     def fit_line(self) -> str:
         """One line: the median misfits before and after."""
@@ -582,7 +592,10 @@ def calibrate_machine(
     recordings : sequence of Recording
         Leak-free recordings of the plant (channels as the description names them).
     fit_line_pressures : bool
-        Use the line pressure sensors' per-step means (and fit friction).
+        Use the line pressure sensors' per-step means and fit friction: identified
+        from the strokes where a position is recorded as well
+        (:func:`pneufdd.calibration.friction.identify_friction`, eqs. 4.15-4.16),
+        else with the twin in the loop.
     informed_ratio : float
         A parameter whose posterior standard deviation exceeds this fraction of its
         prior's is not informed by the data and is left at its prior [-].
@@ -608,9 +621,15 @@ def calibrate_machine(
         and all(s.channel in r.channels for r in recordings)
     )
     measured = measure_evidence(recordings, before, lines)
-    params = machine_parameters(before, lines)
+    identified = identify_friction(before, recordings) if fit_line_pressures else {}
+    params = machine_parameters(before, lines, tuple(identified))
     sigma = np.array([p.prior_sigma for p in params])
     base = copy.deepcopy(before.raw)
+    for ident, found in identified.items():
+        table = _actuator_table(base, ident)
+        table["static_friction_n"] = found.static_friction_n
+        table["coulomb_friction_n"] = found.coulomb_friction_n
+        table["viscous_friction_n_s_m"] = found.viscous_friction_n_s_m
     evaluations = 0
     cache: dict[bytes, FloatArray] = {}
 
@@ -700,4 +719,5 @@ def calibrate_machine(
         evaluations=evaluations,
         cost_before=float(np.dot(r0, r0)),
         cost_after=float(np.dot(r1, r1)),
+        friction=tuple(identified.values()),
     )

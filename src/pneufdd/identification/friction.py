@@ -11,6 +11,7 @@ atmosphere's push on the rod is in the balance
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -63,13 +64,15 @@ class BreakawayFit:
 
 @dataclass(frozen=True)
 class SlidingFrictionFit:
-    """Result of :func:`fit_sliding_friction`: Fcf [N], Cvf [N s/m], standard errors."""
+    """Result of :func:`fit_sliding_friction`: Fcf [N], Cvf [N s/m], standard errors,
+    and the constant force F0 [N] when fitted (else 0)."""
 
     coulomb_friction_n: float
     coulomb_friction_std_n: float
     viscous_friction_n_s_m: float
     viscous_friction_std_n_s_m: float
     samples: int
+    offset_force_n: float = 0.0
 
 
 def _window(rate: float, seconds: float) -> int:
@@ -107,7 +110,8 @@ def fit_breakaway_friction(
     ``sqrt(|x - x0|)`` is a straight line in time whose root is ``t2`` (robust to
     position noise that hides the first micrometres). Fsf is the mean over strokes
     of the net force at ``t2`` (the dissertation assumes one value for both
-    directions).
+    directions); with strokes both ways each direction weighs half, so a constant
+    force (a vertical load's weight, a pressure sensor's zero error) cancels.
 
     Parameters
     ----------
@@ -126,7 +130,7 @@ def fit_breakaway_friction(
     """
     if not strokes:
         raise InputError(describe("strokes", 0, "at least one"))
-    forces, onsets = [], []
+    forces, onsets, directions = [], [], []
     for k, s in enumerate(strokes):
         t = np.asarray(s.time, dtype=np.float64)
         x = np.asarray(s.position, dtype=np.float64)
@@ -155,15 +159,21 @@ def fit_breakaway_friction(
         force = float(piston_force(pa, pb, area_a, area_b))
         direction = np.sign(x[end] - x0)
         forces.append(force * direction)
+        directions.append(direction)
         onsets.append(t2)
     values = np.asarray(forces)
-    return BreakawayFit(
-        static_friction_n=float(np.mean(values)),
-        static_friction_std_n=float(np.std(values, ddof=1) / np.sqrt(values.size))
-        if values.size > 1
-        else float("nan"),
-        onsets_s=tuple(onsets),
-    )
+    ways = np.asarray(directions)
+    groups = [values[ways == d] for d in (1.0, -1.0) if np.any(ways == d)]
+    if len(groups) == 2:  # each direction weighs half: a constant force cancels
+        mean = 0.5 * float(np.mean(groups[0]) + np.mean(groups[1]))
+        var = sum(float(np.var(g, ddof=1)) / g.size if g.size > 1 else np.nan for g in groups)
+        std = 0.5 * math.sqrt(var) if np.isfinite(var) else float("nan")
+    else:
+        mean = float(np.mean(values))
+        std = float("nan")
+        if values.size > 1:
+            std = float(np.std(values, ddof=1) / np.sqrt(values.size))
+    return BreakawayFit(static_friction_n=mean, static_friction_std_n=std, onsets_s=tuple(onsets))
 
 
 def fit_sliding_friction(
@@ -174,6 +184,8 @@ def fit_sliding_friction(
     smooth_s: float = 0.05,
     min_speed: float = 0.02,
     end_fraction: float = 0.1,
+    viscous_ratio_s_m: float | None = None,
+    offset: bool = False,
 ) -> SlidingFrictionFit:
     """Coulomb force Fcf and viscous coefficient Cvf from strokes in motion, eq. 4.16.
 
@@ -202,6 +214,14 @@ def fit_sliding_friction(
         Slowest sample used [m/s].
     end_fraction : float
         Part of the stroke excluded at each end [-].
+    viscous_ratio_s_m : float, optional
+        A known ratio Cvf / Fcf [s/m] (strokes all at about one speed cannot separate
+        the two): then one factor is fitted, ``Fcf (sign(v) + r v)``, and Cvf is
+        ``r Fcf``, with standard errors in the same ratio.
+    offset : bool
+        Also fit a constant force ``F0`` towards +x on the right side (the weight of
+        a vertical load, a line pressure sensor's zero error: ``dP A``), from strokes
+        in both directions; it is reported, not counted as friction.
 
     Returns
     -------
@@ -222,26 +242,42 @@ def fit_sliding_friction(
     target = np.concatenate(rhs) if rhs else np.zeros(0)
     if design.shape[0] < 10:
         raise InputError(describe("moving samples", design.shape[0], ">= 10"))
-    speeds = np.abs(design[:, 1])
     both_ways = bool(np.any(design[:, 0] > 0) and np.any(design[:, 0] < 0))
-    if not both_ways and np.ptp(speeds) < 0.5 * float(np.mean(speeds)):
+    if offset and not both_ways:
         raise InputError(
-            describe(
-                "spread of stroke speeds",
-                f"{np.ptp(speeds):.3g} m/s",
-                "strokes at different speeds or in both directions (else Fcf and Cvf "
-                "are inseparable)",
-            )
+            describe("stroke directions", "one", "extend and retract (to fit a constant force)")
         )
-    coef, *_ = np.linalg.lstsq(design, target, rcond=None)
-    res = target - design @ coef
-    sigma2 = float(np.dot(res, res)) / max(target.size - 2, 1)
-    cov = np.linalg.pinv(design.T @ design) * sigma2
+    if viscous_ratio_s_m is None:
+        speeds = np.abs(design[:, 1])
+        narrow = np.ptp(speeds) < 0.5 * float(np.mean(speeds))
+        if narrow and (offset or not both_ways):
+            raise InputError(
+                describe(
+                    "spread of stroke speeds",
+                    f"{np.ptp(speeds):.3g} m/s",
+                    "strokes at different speeds (else Fcf and Cvf are inseparable)",
+                )
+            )
+        columns = [design[:, 0], design[:, 1]]
+    else:
+        columns = [design[:, 0] + viscous_ratio_s_m * design[:, 1]]
+    if offset:
+        columns.append(np.ones(target.size))
+    matrix = np.stack(columns, axis=1)
+    coef, *_ = np.linalg.lstsq(matrix, target, rcond=None)
+    res = target - matrix @ coef
+    sigma2 = float(np.dot(res, res)) / max(target.size - matrix.shape[1], 1)
+    cov = np.linalg.pinv(matrix.T @ matrix) * sigma2
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    if viscous_ratio_s_m is None:
+        cvf, cvf_std = float(coef[1]), float(std[1])
+    else:
+        cvf, cvf_std = viscous_ratio_s_m * float(coef[0]), viscous_ratio_s_m * float(std[0])
     return SlidingFrictionFit(
         coulomb_friction_n=float(coef[0]),
         coulomb_friction_std_n=float(std[0]),
-        viscous_friction_n_s_m=float(coef[1]),
-        viscous_friction_std_n_s_m=float(std[1]),
+        viscous_friction_n_s_m=cvf,
+        viscous_friction_std_n_s_m=cvf_std,
         samples=int(target.size),
+        offset_force_n=float(coef[-1]) if offset else 0.0,
     )
