@@ -17,11 +17,12 @@ from pneufdd.calibration.calibrate import (
     volume_start,
 )
 from pneufdd.calibration.draft import DRAFT_MODEL
+from pneufdd.calibration.valve import identify_paths
 from pneufdd.cli.app import main
 from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.recording.plc_export import write_plc_csv
 from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
-from pneufdd.sim.compile import tube_cv
+from pneufdd.sim.compile import series_cv, tube_cv
 from pneufdd.sim.variation import write_machine
 
 SEED = 51_000  # this file's seeds: SEED + k (development seeds, not acceptance)
@@ -63,6 +64,16 @@ def test_calibration_explains_a_plant_at_scale_2(plant) -> None:
     assert found == pytest.approx(true, rel=0.05)
     ram = next(a for a in result.after.actuators if a.id == "PRESS")
     assert ram.static_friction_n == press.static_friction_n
+    # the ram's valve and tube from its line flow (section 4.2.1): the plant's path
+    (path,) = result.paths
+    assert "PRESS.valve_cv" not in [e.name for e in result.estimates]
+    plant_tube = tube_cv(truth.tube_length_m, truth.tube_inner_diameter_mm)
+    plant_path = series_cv(truth.valve.cv, plant_tube)
+    assert path.path_cv == pytest.approx(plant_path, rel=0.05)
+    twin_path = series_cv(ram.valve.cv, tube_cv(ram.tube_length_m, ram.tube_inner_diameter_mm))
+    (factor,) = [e for e in result.estimates if e.name == "PRESS.fill_path_cv"]
+    assert twin_path == pytest.approx(path.path_cv * np.exp(factor.value), rel=1e-9)
+    assert twin_path == pytest.approx(plant_path, rel=0.05)
 
 
 def test_calibrate_cli_writes_description_and_report(plant, tmp_path: Path) -> None:
@@ -75,6 +86,10 @@ def test_calibrate_cli_writes_description_and_report(plant, tmp_path: Path) -> N
     assert "calibrated to free.parquet" in calibrated.title
     html = report.read_text()
     assert "Starting description" in html
+    assert "Friction identified from the strokes" in html  # the ram: P_PRESS_A/B, X_PRESS
+    assert "PRESS friction from its strokes (eqs. 4.15-4.16): Fsf" in out.read_text()
+    assert "PRESS fill path from its line flow (section 4.2.1): valve + tube Cv" in out.read_text()
+    assert "Fill paths identified from the line flows" in html
     assert "not informed" in html.lower()
     assert "data:image/png;base64" in html
     assert main([*args]) == 2  # never overwrites
@@ -180,3 +195,18 @@ def test_a_drafted_actuator_is_sized_by_the_air_its_lines_hold() -> None:
     assert np.all((air > 0.2) & (air < 0.3))
     speed_up = quarter.duration_s[strokes] / full.duration_s[strokes]
     assert np.all((speed_up > 0.8) & (speed_up <= 1.0))
+
+
+def test_fill_paths_from_line_flows_of_a_festo_dsd_plant() -> None:
+    """Section 4.2.1 on the machine's own cycle: P_In upstream, the line's pressure and
+    flow downstream, zero-flow drop (both sensors' zero errors) removed."""
+    plant = vary_machine(load_machine("festo-dsd"), scale=2.0, seed=SEED + 10)
+    rec = as_exported(simulate(plant, cycles=3, seed=SEED + 11))
+    paths = identify_paths(load_machine("festo-dsd"), [rec])
+    assert set(paths) == {"DNC", "HMPL_V"}  # the axes with line flow sensors
+    for ident, rel in (("DNC", 0.05), ("HMPL_V", 0.15)):  # HMPL_V: 0.1 s strokes, lagged
+        truth = next(a for a in plant.actuators if a.id == ident)
+        true_path = series_cv(
+            truth.valve.cv, tube_cv(truth.tube_length_m, truth.tube_inner_diameter_mm)
+        )
+        assert paths[ident].path_cv == pytest.approx(true_path, rel=rel)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +33,7 @@ import numpy.typing as npt
 from scipy.optimize import least_squares, lsq_linear
 
 from pneufdd.calibration.friction import FrictionIdentification, identify_friction
+from pneufdd.calibration.valve import PathIdentification, identify_paths, valve_cv_for_path
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import segment, sequence_from_machine
@@ -213,6 +214,20 @@ def _friction(ident: str) -> Callable[[dict[str, Any], float], None]:
     return apply
 
 
+def _fill_path(ident: str, path_cv: float) -> Callable[[dict[str, Any], float], None]:
+    """Set the valve so that, with the tube, the fill path has ``path_cv x e^value``."""
+
+    def apply(raw: dict[str, Any], value: float) -> None:
+        table = _actuator_table(raw, ident)
+        table["valve"]["cv"] = valve_cv_for_path(
+            path_cv * math.exp(value),
+            float(table["tube_length_m"]),
+            float(table["tube_inner_diameter_mm"]),
+        )
+
+    return apply
+
+
 def _set_point(raw: dict[str, Any], value: float) -> None:
     supply = raw["supply"]
     new = float(supply["regulator_set_psig"]) + value
@@ -233,6 +248,7 @@ def machine_parameters(
     machine: MachineDescription,
     line_channels: Sequence[str] = (),
     friction_known: Sequence[str] = (),
+    paths: Mapping[str, float] | None = None,
 ) -> list[Parameter]:
     """The parameters the recordings can inform, with their priors.
 
@@ -249,7 +265,12 @@ def machine_parameters(
 
     Friction is fitted only for an actuator with a line pressure sensor whose
     friction was not identified from its strokes (``friction_known``,
-    :mod:`pneufdd.calibration.friction`).
+    :mod:`pneufdd.calibration.friction`). Where the fill path (valve and tube in
+    series) was identified from a line flow (``paths``: actuator id -> Cv,
+    :mod:`pneufdd.calibration.valve`), the valve Cv is no parameter of its own: a
+    last parameter ``{id}.fill_path_cv`` (prior 0.1 around the identified path: the
+    flow sensor's span error, the assumed xT) sets the valve so that, in series with
+    the tube the other parameters left, it gives that path.
     """
     params = [
         Parameter("supply.regulator_set_psig", 5.0, _set_point, "psi"),
@@ -261,7 +282,8 @@ def machine_parameters(
             params.append(Parameter(f"{a.id}.volume", 1.0, _size(a.id)))
         else:
             params.append(Parameter(f"{a.id}.volume", 0.2, _volume(a.id)))
-            params.append(Parameter(f"{a.id}.valve_cv", 0.3, _valve_cv(a.id)))
+            if a.id not in (paths or {}):
+                params.append(Parameter(f"{a.id}.valve_cv", 0.3, _valve_cv(a.id)))
         for side, value in (("A", a.meter_out_cv_a), ("B", a.meter_out_cv_b)):
             if value < 50.0:  # a throttle on that line (none: free exhaust)
                 params.append(
@@ -277,6 +299,9 @@ def machine_parameters(
             params.append(Parameter(f"{a.id}.friction", 0.5, _friction(a.id)))
     if machine.vacuum is not None:
         params.append(Parameter("vacuum.nozzle_diameter_mm", 0.1, _nozzle))
+    # last: they read the tube the parameters above left
+    for ident, path_cv in (paths or {}).items():
+        params.append(Parameter(f"{ident}.fill_path_cv", 0.1, _fill_path(ident, path_cv)))
     return params
 
 
@@ -435,6 +460,7 @@ class CalibrationResult:
     cost_before: float
     cost_after: float
     friction: tuple[FrictionIdentification, ...] = ()
+    paths: tuple[PathIdentification, ...] = ()
 
     def fit_line(self) -> str:
         """One line: the median misfits before and after."""
@@ -454,6 +480,18 @@ class CalibrationResult:
         title = str(raw["machine"].get("title", raw["machine"]["name"])).split(" | calibrated")[0]
         raw["machine"]["title"] = f"{title} | calibrated to {sources}; {self.fit_line()}"
         return load_machine(raw)
+
+    def identification_lines(self) -> tuple[str, ...]:
+        """One line per friction identified from strokes and per fill path from a line
+        flow."""
+        friction = tuple(
+            f"{f.actuator} friction from its strokes (eqs. 4.15-4.16): {f.describe()}"
+            for f in self.friction
+        )
+        return friction + tuple(
+            f"{p.actuator} fill path from its line flow (section 4.2.1): {p.describe()}"
+            for p in self.paths
+        )
 
     @property
     def not_informed(self) -> tuple[str, ...]:
@@ -622,7 +660,10 @@ def calibrate_machine(
     )
     measured = measure_evidence(recordings, before, lines)
     identified = identify_friction(before, recordings) if fit_line_pressures else {}
-    params = machine_parameters(before, lines, tuple(identified))
+    paths = identify_paths(before, recordings) if fit_line_pressures else {}
+    params = machine_parameters(
+        before, lines, tuple(identified), {k: p.path_cv for k, p in paths.items()}
+    )
     sigma = np.array([p.prior_sigma for p in params])
     base = copy.deepcopy(before.raw)
     for ident, found in identified.items():
@@ -684,7 +725,8 @@ def calibrate_machine(
         return z, std, chi2
 
     everything = np.ones(len(params), dtype=bool)
-    z, std, chi2 = fit(everything, volume_start(before, params, measured, seed))
+    start = load_machine(_applied(base, params, np.zeros(len(params))))
+    z, std, chi2 = fit(everything, volume_start(start, params, measured, seed))
     # informed: the data (not the prior) set it; judged on the posterior of the
     # weighted problem, before any inflation for misfit
     informed = std <= informed_ratio
@@ -720,4 +762,5 @@ def calibrate_machine(
         cost_before=float(np.dot(r0, r0)),
         cost_after=float(np.dot(r1, r1)),
         friction=tuple(identified.values()),
+        paths=tuple(paths.values()),
     )

@@ -190,6 +190,7 @@ def calibrate(
     lines = [f"calibrated from {start.source} to {sources} by pneufdd {__version__}"]
     lines.append(result.fit_line())
     lines += [f"{e.name}: {e.describe()}" for e in result.estimates]
+    lines += result.identification_lines()
     text = machine_to_toml(calibrated, header="\n".join(lines))
     html = render_calibration_report(result, start.source, sources) if report is not None else None
     write_text_atomic(out, text)
@@ -201,6 +202,8 @@ def calibrate(
         highlight=False,
         soft_wrap=True,
     )
+    for line in result.identification_lines():
+        console.print(line, highlight=False, soft_wrap=True)
 
 
 def register(app: typer.Typer) -> None:

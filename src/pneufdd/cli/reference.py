@@ -182,6 +182,8 @@ def _calibrated(
         highlight=False,
         soft_wrap=True,
     )
+    for line in result.identification_lines():
+        console.print(line, highlight=False, soft_wrap=True)
     return calibrated
 
 

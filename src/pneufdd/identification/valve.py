@@ -108,6 +108,7 @@ def fit_valve(
     zero_drop: tuple[float, float] = (0.0, 0.0),
     temperature: float = T_ROOM,
     fit_xt: bool = True,
+    xt: float = 1.0,
 ) -> ValveFit:
     """Fit Cv and xT of the ISA gas equation (eq. 4.6) to measured flow points.
 
@@ -126,7 +127,9 @@ def fit_valve(
     temperature : float
         Upstream air temperature [K].
     fit_xt : bool
-        Fit xT too (else xT = 1).
+        Fit xT too (else ``xt``).
+    xt : float
+        xT when it is not fitted [-] (a catalogue or assumed value).
 
     Returns
     -------
@@ -154,12 +157,12 @@ def fit_valve(
         raise InputError(describe("corrected upstream pressure", "<= 0 Pa", "> 0 Pa"))
     scale = max(float(np.max(np.abs(flow))), 1e-12)
     # first guess from the subsonic law at xT = 1 (flow is proportional to Cv)
-    unit = np.asarray(isa_mass_flow(corrected, p2, 1.0, 1.0, temperature))
+    unit = np.asarray(isa_mass_flow(corrected, p2, 1.0, 1.0 if fit_xt else xt, temperature))
     cv0 = max(float(np.dot(unit, flow) / max(np.dot(unit, unit), 1e-30)), 1e-3)
 
     def residual(theta: FloatArray) -> FloatArray:
-        cv, xt = float(theta[0]), float(theta[1]) if fit_xt else 1.0
-        model = np.asarray(isa_mass_flow(corrected, p2, cv, xt, temperature))
+        cv, x = float(theta[0]), float(theta[1]) if fit_xt else xt
+        model = np.asarray(isa_mass_flow(corrected, p2, cv, x, temperature))
         out: FloatArray = (model - flow) / scale
         return out
 
@@ -184,7 +187,7 @@ def fit_valve(
     return ValveFit(
         cv=float(sol.x[0]),
         cv_std=float(std[0]),
-        xt=float(sol.x[1]) if fit_xt else 1.0,
+        xt=float(sol.x[1]) if fit_xt else xt,
         xt_std=float(std[1]) if fit_xt else 0.0,
         rms=float(np.sqrt(np.mean(res**2)) * scale),
         points=int(p1.size),

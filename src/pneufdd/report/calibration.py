@@ -86,6 +86,38 @@ def render_calibration_report(result: CalibrationResult, description: str, sourc
     )
     png = base64.b64encode(to_png(calibration_figure(result))).decode("ascii")
     uninformed = ", ".join(result.not_informed) or "none"
+    friction = "".join(
+        f"<tr><td class='l'>{_e(f.actuator)}</td><td>{f.strokes}</td>"
+        f"<td>{_f(f.static_friction_n, 1)} +- {_f(f.static_friction_std_n, 1)}</td>"
+        f"<td>{_f(f.coulomb_friction_n, 1)} +- {_f(f.coulomb_friction_std_n, 1)}</td>"
+        f"<td>{_f(f.viscous_friction_n_s_m, 1)}"
+        f"{'' if f.viscous_fitted else ' (Cvf/Fcf of the description)'}</td></tr>"
+        for f in result.friction
+    )
+    paths = "".join(
+        f"<tr><td class='l'>{_e(p.actuator)}</td><td>{_e(', '.join(p.lines))}</td>"
+        f"<td>{p.points}</td><td>{_f(p.path_cv, 3)} +- {_f(p.path_cv_std, 3)}</td></tr>"
+        for p in result.paths
+    )
+    paths_section = (
+        "<h2>Fill paths identified from the line flows (section 4.2.1, eq. 4.6)</h2>"
+        "<p class='note'>Valve and tube in series, from P_In, the line pressure and the "
+        "line flow with the zero-flow correction; the twin's valve Cv is set so that, "
+        "in series with its tube, it gives this.</p>"
+        "<table><tr><th class='l'>actuator</th><th>lines</th><th>samples</th>"
+        f"<th>valve + tube Cv</th></tr>{paths}</table>"
+        if paths
+        else ""
+    )
+    friction_section = (
+        "<h2>Friction identified from the strokes (eqs. 4.15-4.16)</h2>"
+        "<p class='note'>Where both line pressures and the position are recorded; at the "
+        "areas of the starting description (a fitted size scales them).</p>"
+        "<table><tr><th class='l'>actuator</th><th>strokes</th><th>Fsf [N]</th>"
+        f"<th>Fcf [N]</th><th>Cvf [N s/m]</th></tr>{friction}</table>"
+        if friction
+        else ""
+    )
     fit_rows = "".join(
         f"<tr><td class='l'>{_e(k)}</td><td>{_f(v, 2)}</td></tr>" for k, v in summary.items()
     )
@@ -103,6 +135,8 @@ Weighted misfit (sum of squares) {_f(result.cost_before, 1)} before,
 {_e(uninformed)}.</p>
 <table><tr><th class='l'>parameter</th><th class='l'>change (+- 1 standard error)</th>
 <th>prior sigma</th></tr>{params}</table>
+{friction_section}
+{paths_section}
 <h2>Per step, recordings against the twin before and after</h2>
 <figure><img alt="per-step air, durations and pressures" src="data:image/png;base64,{png}"></figure>
 {_table(result.measured, result.simulated_before, result.simulated_after)}
