@@ -90,6 +90,7 @@ def test_calibrate_cli_writes_description_and_report(plant, tmp_path: Path) -> N
     assert "PRESS friction from its strokes (eqs. 4.15-4.16): Fsf" in out.read_text()
     assert "PRESS fill path from its line flow (section 4.2.1): valve + tube Cv" in out.read_text()
     assert "Fill paths identified from the line flows" in html
+    assert "weighted misfit, air after" in html
     assert "not informed" in html.lower()
     assert "data:image/png;base64" in html
     assert main([*args]) == 2  # never overwrites

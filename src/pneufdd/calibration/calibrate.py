@@ -498,6 +498,15 @@ class CalibrationResult:
         """Parameters left at their prior."""
         return tuple(e.name for e in self.estimates if not e.informed)
 
+    def weighted_misfit(self) -> dict[str, float]:
+        """The weighted misfit (sum of squares, what the fit minimises without its
+        prior) by evidence, before and after: ``air_before``, ``durations_after``, ..."""
+        out: dict[str, float] = {}
+        for label, sim in (("before", self.simulated_before), ("after", self.simulated_after)):
+            for part, r in _residual_parts(self.measured, sim).items():
+                out[f"{part}_{label}"] = float(np.dot(r, r))
+        return out
+
     def fit_summary(self) -> dict[str, float]:
         """Median absolute misfits before and after (air in %, durations in ms, P_In in mbar)."""
         out: dict[str, float] = {}
@@ -521,21 +530,31 @@ def _air_scale(air: FloatArray) -> FloatArray:
     return out
 
 
-def _residuals(measured: Evidence, sim: Evidence) -> FloatArray:
-    parts = []
+def _residual_parts(measured: Evidence, sim: Evidence) -> dict[str, FloatArray]:
+    """Weighted residuals by evidence: supply air, durations, P_In, line pressures."""
+    parts: dict[str, FloatArray] = {}
     if np.all(np.isfinite(measured.supply_air_kg)):
         scale = _air_scale(measured.supply_air_kg)
-        parts.append((sim.supply_air_kg - measured.supply_air_kg) / scale)
-    parts.append((sim.duration_s - measured.duration_s) / DURATION_SIGMA_S)
+        parts["air"] = (sim.supply_air_kg - measured.supply_air_kg) / scale
+    parts["durations"] = (sim.duration_s - measured.duration_s) / DURATION_SIGMA_S
     if np.all(np.isfinite(measured.supply_pressure_pa)):
-        parts.append((sim.supply_pressure_pa - measured.supply_pressure_pa) / PRESSURE_SIGMA_PA)
+        parts["supply_pressure"] = (
+            sim.supply_pressure_pa - measured.supply_pressure_pa
+        ) / PRESSURE_SIGMA_PA
+    lines = []
     for name, values in measured.line_pressure_pa.items():
         # the shape over the steps only: a line gauge's offset (up to 1.5 % of its
         # span, docs/plant-variation.md) is not the twin's to explain
         twin = sim.line_pressure_pa[name]
-        parts.append(((twin - twin.mean()) - (values - values.mean())) / (2 * PRESSURE_SIGMA_PA))
-    out: FloatArray = np.concatenate(parts)
-    return np.nan_to_num(out, nan=0.0)
+        lines.append(((twin - twin.mean()) - (values - values.mean())) / (2 * PRESSURE_SIGMA_PA))
+    if lines:
+        parts["line_pressures"] = np.concatenate(lines)
+    return {k: np.nan_to_num(v, nan=0.0) for k, v in parts.items()}
+
+
+def _residuals(measured: Evidence, sim: Evidence) -> FloatArray:
+    out: FloatArray = np.concatenate(list(_residual_parts(measured, sim).values()))
+    return out
 
 
 def _air_per_actuator(machine: MachineDescription, seed: int) -> tuple[FloatArray, FloatArray]:

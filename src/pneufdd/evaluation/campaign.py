@@ -334,7 +334,8 @@ def _calibrated_twin(
     fit = result.fit_summary()
     seconds = time.perf_counter() - t0
     say(f"{machine.name}: {plant_file.stem} calibrated in {seconds:.0f} s; {result.fit_line()}")
-    return twin, {"file": str(path), "seconds": seconds, "fit": fit}
+    misfit = result.weighted_misfit()
+    return twin, {"file": str(path), "seconds": seconds, "fit": fit, "weighted_misfit": misfit}
 
 
 def _reference(

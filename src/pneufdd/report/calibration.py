@@ -120,6 +120,9 @@ def render_calibration_report(result: CalibrationResult, description: str, sourc
     )
     fit_rows = "".join(
         f"<tr><td class='l'>{_e(k)}</td><td>{_f(v, 2)}</td></tr>" for k, v in summary.items()
+    ) + "".join(
+        f"<tr><td class='l'>weighted misfit, {_e(k.replace('_', ' '))}</td><td>{_f(v, 1)}</td></tr>"
+        for k, v in result.weighted_misfit().items()
     )
     return f"""<!DOCTYPE html><html><head><meta charset="utf-8">
 <title>pneufdd calibration of {_e(result.before.name)}</title><style>{_STYLE}</style></head><body>
