@@ -255,7 +255,7 @@ def valve_cv_for_path(path_cv: float, tube_length_m: float, tube_inner_diameter_
 
     Examples
     --------
-    >>> from pneufdd.sim.compile import tube_cv
+    >>> from pneufdd.sim.compile import series_cv, tube_cv
     >>> path = series_cv(0.74, tube_cv(0.83, 7.0))
     >>> round(valve_cv_for_path(path, 0.83, 7.0), 3)
     0.74
