@@ -27,7 +27,6 @@ settled at its new end, and kept when it travels at least half the stroke.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -41,7 +40,9 @@ from pneufdd.identification.friction import (
     fit_sliding_friction,
 )
 from pneufdd.recording.model import Recording
+from pneufdd.signals.digital import edge_times
 from pneufdd.sim import MachineDescription
+from pneufdd.sim.compile import piston_areas
 from pneufdd.sim.description import Actuator
 
 __all__ = ["FrictionIdentification", "actuator_strokes", "identify_friction", "stroke_speed"]
@@ -113,21 +114,13 @@ class FrictionIdentification:
         )
 
 
-def _edges(rec: Recording, channel: str, rising: bool) -> FloatArray:
-    if channel not in rec.channels:
-        return np.zeros(0)
-    t, u = rec.channel(channel)
-    d = np.diff((np.asarray(u) > 0.5).astype(np.int8))
-    out: FloatArray = np.asarray(t[1:][d > 0 if rising else d < 0], dtype=np.float64)
-    return out
-
-
 def _motion_starts(rec: Recording, actuator: Actuator) -> FloatArray:
     """Times of the solenoid edges that can start a motion of ``actuator`` [s]."""
     ident = actuator.id
-    starts = [_edges(rec, f"U_{ident}_A", True), _edges(rec, f"U_{ident}_B", True)]
+    a_on, a_off = edge_times(rec, f"U_{ident}_A")
+    starts = [a_on, edge_times(rec, f"U_{ident}_B")[0]]
     if actuator.valve.kind == "5/2-monostable":
-        starts.append(_edges(rec, f"U_{ident}_A", False))
+        starts.append(a_off)
     out: FloatArray = np.sort(np.concatenate(starts))
     return out
 
@@ -172,11 +165,6 @@ def actuator_strokes(rec: Recording, actuator: Actuator) -> list[Stroke]:
         sel = slice(i0, end)
         out.append(Stroke(t[sel], pa[sel], pb[sel], x[sel]))
     return out
-
-
-def _areas(actuator: Actuator) -> tuple[float, float]:
-    area_a = math.pi * (actuator.bore_mm * 1e-3) ** 2 / 4.0
-    return area_a, area_a - math.pi * (actuator.rod_mm * 1e-3) ** 2 / 4.0
 
 
 def stroke_speed(stroke: Stroke) -> float:
@@ -242,7 +230,7 @@ def identify_friction(
         strokes = [s for rec in recordings for s in actuator_strokes(rec, actuator)]
         if len(strokes) < 2:
             continue
-        area_a, area_b = _areas(actuator)
+        area_a, area_b, _ = piston_areas(actuator)
         try:
             breakaway = fit_breakaway_friction(
                 strokes, area_a, area_b, noise_m=_position_noise(strokes)

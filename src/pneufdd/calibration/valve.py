@@ -38,6 +38,7 @@ import numpy.typing as npt
 from pneufdd.errors import InputError
 from pneufdd.identification.valve import fit_valve
 from pneufdd.recording.model import Recording
+from pneufdd.signals.digital import edge_times
 from pneufdd.sim import MachineDescription
 from pneufdd.sim.compile import tube_cv
 from pneufdd.sim.description import Actuator
@@ -109,19 +110,13 @@ def _held(rec: Recording, channel: str, time: FloatArray) -> BoolArray:
 
 def _last_pulse_was_a(rec: Recording, ident: str, time: FloatArray) -> BoolArray:
     """Bistable valve: whether the last solenoid switched on before ``time`` was A's."""
-    edges: list[tuple[float, bool]] = []
-    for side in "AB":
-        name = f"U_{ident}_{side}"
-        if name not in rec.channels:
-            continue
-        t, u = rec.channel(name)
-        rising = np.flatnonzero(np.diff((np.asarray(u) > 0.5).astype(np.int8)) > 0) + 1
-        edges += [(float(t[i]), side == "A") for i in rising]
-    if not edges:
+    on_a, on_b = edge_times(rec, f"U_{ident}_A")[0], edge_times(rec, f"U_{ident}_B")[0]
+    when = np.concatenate([on_a, on_b])
+    if when.size == 0:
         return np.zeros(time.size, dtype=bool)
-    edges.sort()
-    when = np.array([e[0] for e in edges])
-    is_a = np.array([e[1] for e in edges])
+    order = np.argsort(when, kind="stable")
+    when = when[order]
+    is_a = np.concatenate([np.ones(on_a.size, bool), np.zeros(on_b.size, bool)])[order]
     idx = np.searchsorted(when, time, side="right") - 1
     out: BoolArray = np.where(idx >= 0, is_a[np.clip(idx, 0, None)], False)
     return out
@@ -146,7 +141,7 @@ def connected_to_supply(
     if kind == "5/3-closed-centre":
         return u_a & ~u_b if side == "A" else u_b & ~u_a
     last_a = _last_pulse_was_a(rec, ident, time)
-    started = u_a | u_b | (np.cumsum(u_a | u_b) > 0)
+    started = np.cumsum(u_a | u_b) > 0  # a solenoid has been on
     return last_a if side == "A" else started & ~last_a
 
 

@@ -17,8 +17,9 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.errors import InputError, describe
+from pneufdd.recording.model import Recording
 
-__all__ = ["Edges", "debounce", "debounced_edges", "debounced_edges_many", "edges"]
+__all__ = ["Edges", "debounce", "debounced_edges", "debounced_edges_many", "edge_times", "edges"]
 
 IntArray = npt.NDArray[np.int64]
 
@@ -119,6 +120,22 @@ def edges(values: npt.ArrayLike) -> Edges:
         rising=(np.flatnonzero(d > 0) + 1).astype(np.int64),
         falling=(np.flatnonzero(d < 0) + 1).astype(np.int64),
     )
+
+
+def edge_times(
+    recording: Recording, name: str
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Times of the rising and falling edges of one digital channel of a recording [s].
+
+    An edge is dated at the first sample that shows the new state (:func:`edges`);
+    a sample counts as on above 0.5. A channel the recording lacks has no edges.
+    """
+    if name not in recording.channels:
+        return np.zeros(0), np.zeros(0)
+    t, values = recording.channel(name)
+    e = edges(np.asarray(values) > 0.5)
+    times = np.asarray(t, dtype=np.float64)
+    return times[e.rising], times[e.falling]
 
 
 def debounced_edges(

@@ -14,7 +14,15 @@ from pneufdd.sim import layout as lay
 from pneufdd.sim.description import Actuator, MachineDescription, solenoid_slots
 from pneufdd.sim.leaks import LeakSpec
 
-__all__ = ["DEFAULT_RESOLUTION", "Plant", "Resolution", "compile_plant", "series_cv", "tube_cv"]
+__all__ = [
+    "DEFAULT_RESOLUTION",
+    "Plant",
+    "Resolution",
+    "compile_plant",
+    "piston_areas",
+    "series_cv",
+    "tube_cv",
+]
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
@@ -89,7 +97,8 @@ class Plant:
     t_wall: float
 
 
-def _areas(a: Actuator) -> tuple[float, float, float]:
+def piston_areas(a: Actuator) -> tuple[float, float, float]:
+    """Piston area of side A, annular area of side B and rod area [m^2]."""
     area_a = math.pi * (a.bore_mm * 1e-3) ** 2 / 4.0
     rod = math.pi * (a.rod_mm * 1e-3) ** 2 / 4.0
     return area_a, area_a - rod, rod
@@ -164,7 +173,7 @@ def compile_plant(
     leak_by_loc = {lk.location: lk.area_m2 for lk in leaks}
     sp[lay.SP_SUPPLY_LEAK] = leak_by_loc.get("supply", 0.0)
     for i, a in enumerate(machine.actuators):
-        area_a, area_b, rod = _areas(a)
+        area_a, area_b, rod = piston_areas(a)
         ap[i, lay.AP_STROKE] = a.stroke_mm * 1e-3
         ap[i, lay.AP_MASS] = a.moving_mass_kg
         ap[i, lay.AP_FS] = a.static_friction_n
