@@ -15,7 +15,9 @@ from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.step_summaries import machine_sequence, segment_cycles, step_table
 from pneufdd.diagnosis.twin_effects import TwinLeakEffect
 from pneufdd.diagnosis.verify import refine_by_simulation, verify_explanations
+from pneufdd.errors import InputError
 from pneufdd.location import SUPPLY, Location
+from pneufdd.parallel import thread_map
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.sim import load_machine, simulate
 
@@ -111,6 +113,37 @@ def test_probed_second_leak_found_where_the_additive_model_fails():
     best = min(out, key=lambda s: out[s].rss)
     assert best == (0, 2)
     assert out[best].sizes == pytest.approx([3.0, 1.0], rel=0.01)
+
+
+def test_threads_size_every_explanation_as_one_thread_does():
+    # the same explanations, sizes and residuals, in the same order, whatever the
+    # number of threads: each is sized from the same start on its own
+    rng = np.random.default_rng(11)
+    base = np.abs(rng.normal(size=(6, 30)))
+    sim = _pair_simulator(base, rng.normal(size=30))
+    target = sim({1: 2.5, 4: 1.2})
+    fits = {}
+    for sub in [(i,) for i in range(6)] + [(i, j) for i in range(6) for j in range(i + 1, 6)]:
+        sizes = np.clip(np.linalg.lstsq(base[list(sub)].T, target, rcond=None)[0], 0.0, None)
+        r = target - base[list(sub)].T @ sizes
+        fits[sub] = (sizes, float(r @ r))
+    upper = np.full(6, 10.0)
+    serial = verify_explanations(target, fits, 6, sim, upper, probe=1.0)
+    threaded = verify_explanations(
+        target, fits, 6, sim, upper, probe=1.0, parallel_map=lambda f, xs: thread_map(f, xs, 3)
+    )
+    assert list(threaded) == list(serial)
+    assert len(serial) >= 5  # singles, partners and pairs were sized
+    for sub, fit in serial.items():
+        assert np.array_equal(threaded[sub].sizes, fit.sizes)
+        assert threaded[sub].rss == fit.rss
+
+
+def test_simulation_threads_must_be_a_positive_integer():
+    sig = _synthetic_signatures(np.ones((2, 3)))
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(InputError, match="simulation threads"):
+            LeakEffectModel(sig, threads=bad)  # type: ignore[arg-type]
 
 
 def _synthetic_signatures(base: np.ndarray) -> SignatureSet:
@@ -260,7 +293,11 @@ def test_diagnose_checks_two_large_leaks_by_simulation_end_to_end():
     run = simulate("festo-dsd", cycles=8, leaks={"supply": 5.0, "HGD2_A": 3.0}, seed=7_200_002)
     truth = {leak["location"]: leak["mass_flow_kg_s"] for leak in run.metadata["leaks"]}
     table = run_table(model, run)
-    result = diagnose(model, table)
+    result = diagnose(model, table, threads=1)
+    # two threads check the same explanations: the same diagnosis
+    assert diagnose(model, table, threads=2).to_dict() == result.to_dict()
+    with pytest.raises(InputError, match="threads"):
+        diagnose(model, table, threads=0)
     assert result.detected
     assert result.localisation is not None
     assert result.localisation.simulated

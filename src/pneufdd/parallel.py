@@ -5,7 +5,7 @@ run each). :func:`executor` opens a :class:`concurrent.futures.Executor` for the
 
 * ``workers=1`` and no scheduler: None, the caller runs the jobs itself, in order;
 * no scheduler: a :class:`distributed.LocalCluster` of ``workers`` processes (default:
-  one per CPU), one thread each (the compiled twin holds the GIL), closed on exit;
+  one per CPU), one thread each (a job's Python work holds the GIL), closed on exit;
 * ``scheduler="tcp://host:8786"``: an existing cluster (started with
   ``dask scheduler`` and ``dask worker`` on other machines); its workers need pneufdd
   installed, and files the jobs name must be readable there (jobs that carry their
@@ -13,7 +13,8 @@ run each). :func:`executor` opens a :class:`concurrent.futures.Executor` for the
 
 Jobs are plain functions of picklable arguments; results are identical whichever way
 they run (every job seeds its own random numbers). ``distributed`` is imported only
-when a cluster is used.
+when a cluster is used. Inside one job, :func:`thread_map` runs independent
+simulations on threads (the twin's compiled kernel releases the GIL).
 
 Examples
 --------
@@ -26,16 +27,44 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import Executor, Future, as_completed
+from concurrent.futures import Executor, Future, ThreadPoolExecutor, as_completed
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from pneufdd.errors import InputError, describe
 
-__all__ = ["executor", "map_unordered", "resolve_workers"]
+__all__ = ["available_cores", "executor", "map_unordered", "resolve_workers", "thread_map"]
 
 T = TypeVar("T")
 R = TypeVar("R")
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the system reports it) [-].
+
+    >>> available_cores() >= 1
+    True
+    """
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # no affinity on this system (macOS, Windows)
+        return max(1, os.cpu_count() or 1)
+
+
+def thread_map(func: Callable[[T], R], items: Iterable[T], threads: int) -> list[R]:
+    """``[func(item) for item in items]``, in order, on up to ``threads`` threads.
+
+    For work that releases the GIL (the twin's compiled kernel); with one thread or
+    one item it runs on the calling thread.
+
+    >>> thread_map(abs, [-1, 2, -3], threads=2)
+    [1, 2, 3]
+    """
+    jobs = list(items)
+    if threads <= 1 or len(jobs) <= 1:
+        return [func(job) for job in jobs]
+    with ThreadPoolExecutor(min(threads, len(jobs))) as pool:
+        return list(pool.map(func, jobs))
 
 
 def resolve_workers(workers: int | None) -> int:

@@ -25,7 +25,7 @@ from pneufdd.diagnosis.pipeline import diagnose_recording
 from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.errors import InputError, PneufddError, describe
-from pneufdd.parallel import executor, map_unordered
+from pneufdd.parallel import available_cores, executor, map_unordered
 from pneufdd.recording.io import SUFFIXES
 
 __all__ = ["RunJob", "diagnose_one", "diagnose_runs", "expand_runs"]
@@ -89,6 +89,8 @@ class RunJob:
     reference: str
     settings: CostSettings | None = None
     localisation: LocalisationSettings | None = None
+    threads: int = 1
+    """Threads of the run's check by simulation (1 when runs share the cores)."""
 
 
 _REFERENCES: dict[str, ReferenceModel] = {}
@@ -107,7 +109,7 @@ def diagnose_one(job: RunJob) -> dict[str, Any]:
     try:
         model = _reference(job.reference)
         _, result = diagnose_recording(
-            model, Path(job.run), job.settings, localisation=job.localisation
+            model, Path(job.run), job.settings, localisation=job.localisation, threads=job.threads
         )
     except PneufddError as exc:
         return {**base, "error": str(exc)}
@@ -152,10 +154,13 @@ def diagnose_runs(
     given = [str(path) for path in expand_runs(runs)]
     reference_path = str(Path(reference).absolute())  # workers may run in another folder
     _reference(reference_path)  # a bad reference fails at once, here
+    size = None if workers is None else min(workers, len(given))
+    # one run at a time in this process: its simulations may use every core
+    threads = available_cores() if size == 1 and scheduler is None else 1
     jobs = [
-        RunJob(str(Path(run).absolute()), reference_path, settings, localisation) for run in given
+        RunJob(str(Path(run).absolute()), reference_path, settings, localisation, threads)
+        for run in given
     ]
-    size = None if workers is None else min(workers, len(jobs))
     with executor(size, scheduler) as pool:
         done: dict[int, dict[str, Any]] = {}
         next_index = 0

@@ -36,6 +36,7 @@ from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.location import SUPPLY
+from pneufdd.parallel import available_cores
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.signals.quality import MAX_REPAIR_S
 
@@ -591,9 +592,10 @@ def _locate_and_cost(
     settings: CostSettings,
     localisation_settings: LocalisationSettings,
     notes: list[str],
+    threads: int = 1,
 ) -> tuple[Localisation | None, list[CostedLeak], float]:
     """Location, size and cost of the leaks behind a detected deviation."""
-    effects = reference.leak_effects()
+    effects = reference.leak_effects(threads=threads)
     if effects is None:
         notes.append(
             "leak detected but the reference holds no leak signatures: location and size "
@@ -646,6 +648,7 @@ def diagnose(
     run: StepTable,
     settings: CostSettings | None = None,
     localisation: LocalisationSettings | None = None,
+    threads: int | None = None,
 ) -> Diagnosis:
     """Detect, locate, size and cost leaks in ``run`` against ``reference``.
 
@@ -661,11 +664,20 @@ def diagnose(
         Overrides the reference's localisation settings (e.g. ``max_leaks``, or
         ``simulate_explanations=False`` to skip the check by simulation of the best
         explanations when the signatures do not explain the run).
+    threads : int, optional
+        Threads that run the check by simulation's independent simulations at once
+        (the result does not depend on it). Default: the cores this process may use
+        (:func:`pneufdd.parallel.available_cores`); 1 where several diagnoses already
+        share the cores (a campaign's or a batch's workers).
 
     Returns
     -------
     Diagnosis
     """
+    if threads is not None and (
+        isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
+    ):
+        raise InputError(describe("threads", threads, "an integer >= 1, or None for every core"))
     settings = settings or CostSettings()
     table = check_compatible(reference, run)
     X = table.features()
@@ -692,7 +704,13 @@ def diagnose(
     total = 0.0
     if detected:
         found, leaks, total = _locate_and_cost(
-            reference, observed, m, settings, localisation or reference.localisation, notes
+            reference,
+            observed,
+            m,
+            settings,
+            localisation or reference.localisation,
+            notes,
+            available_cores() if threads is None else threads,
         )
     return Diagnosis(
         detected=bool(detected),

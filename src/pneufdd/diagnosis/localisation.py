@@ -51,7 +51,13 @@ from pneufdd.diagnosis.model_choice import (
     same_actuator_pair,
 )
 from pneufdd.diagnosis.piecewise import WhitenedEffects
-from pneufdd.diagnosis.verify import SimulatedEffect, refine_by_simulation, verify_explanations
+from pneufdd.diagnosis.verify import (
+    ParallelMap,
+    SimulatedEffect,
+    refine_by_simulation,
+    serial_map,
+    verify_explanations,
+)
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
@@ -356,6 +362,7 @@ def _check_by_simulation(
     n_loc: int,
     dof: int,
     settings: LocalisationSettings,
+    parallel_map: ParallelMap = serial_map,
 ) -> tuple[Fits, Best, int] | None:
     """Simulated explanations and the choice among them, or None if none ran."""
     pairs_too = settings.max_leaks > 1
@@ -372,6 +379,7 @@ def _check_by_simulation(
         top_pairs=3 if pairs_too else 0,
         partners=3 if pairs_too else 0,
         probes=settings.probes,
+        parallel_map=parallel_map,
     )
     if not checked:
         return None
@@ -406,8 +414,10 @@ def _simulate_group_competitors(
     simulate: SimulatedEffect,
     n_loc: int,
     checks: int,
+    parallel_map: ParallelMap = serial_map,
 ) -> None:
     """Size by simulation the locations the signatures rank best in each slot (in place)."""
+    trials: dict[Subset, FloatArray] = {}
     for slot, loc in enumerate(subset):
         others = tuple(x for x in subset if x != loc)
         ranked = sorted(
@@ -417,16 +427,20 @@ def _simulate_group_competitors(
         )
         for _, alt in ranked[:checks]:
             trial = tuple(sorted((*others, alt)))
-            if trial in fits:
+            if trial in fits or trial in trials:
                 continue
-            start = np.array(
+            trials[trial] = np.array(
                 [sizes[subset.index(i)] if i in others else sizes[slot] for i in trial]
             )
-            refined = refine_by_simulation(
-                trial, start, target, simulate, model.size_cap[list(trial)]
-            )
-            if refined is not None:
-                fits[trial] = (refined.sizes, refined.rss)
+    refined = parallel_map(
+        lambda job: refine_by_simulation(
+            job[0], job[1], target, simulate, model.size_cap[list(job[0])]
+        ),
+        list(trials.items()),
+    )
+    for trial, fit in zip(trials, refined, strict=True):
+        if fit is not None:
+            fits[trial] = (fit.sizes, fit.rss)
 
 
 def _forced_member(
@@ -591,7 +605,7 @@ def locate(
         and (chosen > 1 or misfit > settings.severe_misfit_ratio)
     ):
         checked = _check_by_simulation(
-            target, model, fits, best, chosen, simulate, n_loc, dof, settings
+            target, model, fits, best, chosen, simulate, n_loc, dof, settings, effects.parallel_map
         )
         if checked is not None:
             fits, best, chosen = checked
@@ -601,7 +615,15 @@ def locate(
         # only simulated explanations are compared: check the alternatives the
         # signature model ranks best in each slot
         _simulate_group_competitors(
-            target, model, fits, subset, coef, simulate, n_loc, settings.group_checks
+            target,
+            model,
+            fits,
+            subset,
+            coef,
+            simulate,
+            n_loc,
+            settings.group_checks,
+            effects.parallel_map,
         )
     else:
         for loc in subset:

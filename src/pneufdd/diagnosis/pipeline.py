@@ -359,10 +359,12 @@ def diagnose_recording(
     settings: CostSettings | None = None,
     progress: Progress | None = None,
     localisation: LocalisationSettings | None = None,
+    threads: int | None = None,
 ) -> tuple[StepTable, Diagnosis]:
     """Read (if a path), segment and diagnose one run against ``model``.
 
-    ``localisation`` overrides the reference's localisation settings.
+    ``localisation`` overrides the reference's localisation settings; ``threads``
+    is :func:`~pneufdd.diagnosis.engine.diagnose`'s (None: every core).
     """
     advance = counter(progress, "diagnosing", 3)
     recording = path if isinstance(path, Recording) else Recording.read(Path(path))
@@ -370,6 +372,6 @@ def diagnose_recording(
     advance()
     table, startup = _run_table(model, recording, where)
     advance()
-    result = diagnose(model, table, settings, localisation)
+    result = diagnose(model, table, settings, localisation, threads)
     advance()
     return table, replace(result, startup_cycles=startup)

@@ -360,17 +360,23 @@ class ReferenceModel:
             self.machine_description, f"machine description of reference {self.machine!r}"
         )
 
-    def leak_effects(self, simulation_cycles: int = 2) -> LeakEffectModel | None:
+    def leak_effects(self, simulation_cycles: int = 2, threads: int = 1) -> LeakEffectModel | None:
         """The leak-effect model of this machine and sensor set; None without signatures.
 
         Its signatures are :attr:`signatures`; its simulations run the digital twin of
-        :attr:`description` (none without a description or a PLC sequence).
+        :attr:`description` (none without a description or a PLC sequence), on up to
+        ``threads`` threads at once.
         """
         if self.signatures is None:
             return None
         sequence = sequence_from_records(self.sequence) if self.sequence else ()
         return LeakEffectModel.from_description(
-            self.signatures, self.description, sequence, self.channels, simulation_cycles
+            self.signatures,
+            self.description,
+            sequence,
+            self.channels,
+            simulation_cycles,
+            threads=threads,
         )
 
     @cached_property

@@ -27,6 +27,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import threading
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from typing import Any
@@ -484,7 +485,8 @@ class TwinLeakEffect:
     callable simulates the exact set of leaks asked for, with the same seed as its
     leak-free baseline (common random numbers), and returns the mean feature change
     over the inner cycles, summarised exactly like a measured run. Results are cached
-    per set of sizes (rounded to 1e-4 SLPM); the baseline is simulated once.
+    per set of sizes (rounded to 1e-4 SLPM); the baseline is simulated once. Calls
+    from several threads at once are safe (the compiled twin releases the GIL).
 
     Parameters
     ----------
@@ -520,6 +522,7 @@ class TwinLeakEffect:
         self.cycles = cycles
         self.seed = seed
         self.simulations = 0
+        self._lock = threading.RLock()
         self._columns: npt.NDArray[np.int64] | None = None
         self._base: npt.NDArray[np.float64] | None = None
         self._cache: dict[tuple[tuple[str, float], ...], npt.NDArray[np.float64] | None] = {}
@@ -528,7 +531,8 @@ class TwinLeakEffect:
         mean, _, names, _ = _mean_features(
             self.machine, leaks, self.cycles, self.seed, self.sequence, self.channels, False
         )
-        self.simulations += 1
+        with self._lock:
+            self.simulations += 1
         if self._columns is None:
             index = {n: i for i, n in enumerate(names)}
             missing = [n for n in self.feature_names if n not in index]
@@ -549,8 +553,9 @@ class TwinLeakEffect:
         key = tuple(sorted((str(loc), round(slpm, 4)) for loc, slpm in flows.items()))
         if key in self._cache:
             return self._cache[key]
-        if self._base is None:
-            self._base = self._features({})
+        with self._lock:  # the first call of several threads simulates it once
+            if self._base is None:
+                self._base = self._features({})
         try:
             change: npt.NDArray[np.float64] | None = (
                 self._features({Location.parse(name): slpm for name, slpm in key}) - self._base

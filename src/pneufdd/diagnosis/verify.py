@@ -25,19 +25,37 @@ caller chooses among them with the same rules as for the signature fits.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
-from typing import NamedTuple
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import lsq_linear
 
-__all__ = ["SimulatedFit", "refine_by_simulation", "verify_explanations"]
+__all__ = [
+    "ParallelMap",
+    "SimulatedFit",
+    "refine_by_simulation",
+    "serial_map",
+    "verify_explanations",
+]
 
 FloatArray = npt.NDArray[np.float64]
 Subset = tuple[int, ...]
 SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
 """Whitened effect of leaks ``{location index: size [kg/s]}`` by simulation, or None."""
+ParallelMap = Callable[[Callable[[Any], Any], Iterable[Any]], list[Any]]
+"""``parallel_map(func, items)``: ``[func(item) for item in items]``, in order, computed
+on as many threads as the caller allows (the simulations are independent)."""
+
+
+def serial_map(func: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
+    """:data:`ParallelMap` on the calling thread: ``[func(item) for item in items]``.
+
+    >>> serial_map(abs, [-1, 2])
+    [1, 2]
+    """
+    return [func(item) for item in items]
 
 
 class SimulatedFit(NamedTuple):
@@ -183,6 +201,7 @@ def verify_explanations(
     probe: float = 8.6e-4,
     max_iterations: int = 3,
     probes: int = 0,
+    parallel_map: ParallelMap = serial_map,
 ) -> dict[Subset, SimulatedFit]:
     """Simulate and size the most promising explanations of one or two leaks.
 
@@ -220,6 +239,11 @@ def verify_explanations(
         Gauss-Newton steps per explanation at most [-].
     probes : int
         Second leaks probed in step 2 (0: every location) [-].
+    parallel_map : callable
+        Runs the independent work of each step (the explanations it sizes, the
+        probes) on several threads; ``simulate`` must then be thread-safe. The result
+        does not depend on it: every explanation is sized from the same start and
+        kept in the same order as on one thread.
 
     Returns
     -------
@@ -253,17 +277,22 @@ def verify_explanations(
     )
     checked: dict[Subset, SimulatedFit] = {}
 
-    def check(sub: Subset, start: FloatArray) -> None:
-        if sub in checked:
-            return
-        result = refine_by_simulation(
-            sub, start, target, simulate, upper[list(sub)], max_iterations
+    def check(candidates: Iterable[tuple[Subset, FloatArray]]) -> None:
+        todo: dict[Subset, FloatArray] = {}
+        for sub, start in candidates:
+            if sub not in checked and sub not in todo:
+                todo[sub] = start
+        results = parallel_map(
+            lambda job: refine_by_simulation(
+                job[0], job[1], target, simulate, upper[list(job[0])], max_iterations
+            ),
+            list(todo.items()),
         )
-        if result is not None:
-            checked[sub] = result
+        for sub, result in zip(todo, results, strict=True):
+            if result is not None:
+                checked[sub] = result
 
-    for _, single in singles[:top_singles]:
-        check(single, model_fits[single][0])
+    check((single, model_fits[single][0]) for _, single in singles[:top_singles])
     firsts = sorted((fit.rss, sub) for sub, fit in checked.items() if len(sub) == 1)
     if firsts and partners > 0:
         first = firsts[0][1][0]
@@ -277,8 +306,10 @@ def verify_explanations(
                 # the signature model's best partners of the first leak
                 others.sort(key=lambda o: _pair_rss(model_fits, first, o))
                 others = others[:probes]
-            for other in others:
-                probed = simulate({first: float(size[0]), other: probe})
+            probed_all = parallel_map(
+                lambda other: simulate({first: float(size[0]), other: probe}), others
+            )
+            for other, probed in zip(others, probed_all, strict=True):
                 if probed is None:
                     continue
                 columns = np.column_stack([slope[:, 0], (probed - base) / probe])
@@ -289,10 +320,11 @@ def verify_explanations(
                 ).x
                 residual = rest - columns @ step
                 ranked.append((float(residual @ residual), other, step))
+            starts = []
             for _, other, step in sorted(ranked, key=lambda r: r[0])[:partners]:
                 sizes = {first: float(size[0] + step[0]), other: float(step[1])}
                 pair = tuple(sorted(sizes))
-                check(pair, np.array([sizes[i] for i in pair]))
-    for _, couple in pairs[:top_pairs]:
-        check(couple, model_fits[couple][0])
+                starts.append((pair, np.array([sizes[i] for i in pair])))
+            check(starts)
+    check((couple, model_fits[couple][0]) for _, couple in pairs[:top_pairs])
     return checked

@@ -48,7 +48,7 @@ from pneufdd.diagnosis.twin_effects import (
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.location import locations_of
-from pneufdd.parallel import executor, map_unordered, resolve_workers
+from pneufdd.parallel import available_cores, executor, map_unordered, resolve_workers
 from pneufdd.physics.leaks import leak_mass_flow
 from pneufdd.physics.units import psig_to_pa
 from pneufdd.progress import Progress, counter
@@ -229,6 +229,8 @@ class Job:
     references: dict[str, str]
     nominal_pressure_pa: float
     run_cycles: int
+    threads: int = 1
+    """Threads of each diagnosis's check by simulation: the cores left to one worker."""
 
 
 @dataclass
@@ -412,7 +414,7 @@ def run_job(job: Job) -> list[dict[str, Any]]:
             return [{**base, "stalled": True, "reason": str(exc)}]
         table = table.take(np.arange(min(job.run_cycles, table.n_cycles)))
         start = time.perf_counter()
-        result = diagnose(model, table)
+        result = diagnose(model, table, threads=job.threads)
         seconds = time.perf_counter() - start
         loc = result.localisation
         records.append(
@@ -547,6 +549,9 @@ def _run_campaign(
 ) -> CampaignResult:
     manifest: dict[str, Any] = {"design": asdict(design), "machines": []}
     jobs: list[Job] = []
+    # in this process, a diagnosis's simulations may use every core; a cluster's
+    # workers already share them
+    threads = available_cores() if pool is None else 1
     for m, name in enumerate(design.machines):
         machine = load_machine(name)
         sets = channel_sets(machine, design.sensor_sets)
@@ -636,6 +641,7 @@ def _run_campaign(
                         references,
                         nominal,
                         design.run_cycles,
+                        threads,
                     )
                     for kind, leaks, seed in runs
                 )

@@ -58,6 +58,10 @@ sub-step loops run over a list of the awake chambers, and the position switches,
 the release checks and the spool logic run only after a piston moved, while a
 solenoid waits for its release, or after a solenoid changed.
 
+The kernel releases the GIL (``nogil``): the diagnosis's simulation checks run
+independent explanations on several threads of one process
+(:mod:`pneufdd.diagnosis.verify`).
+
 The PLC (section 3.2.3) runs every millisecond: a step starts by applying its
 valve commands, ends when all awaited switches (and its dwell timer) are
 satisfied, plus a random part of a scan time. Solenoids with an ``until``
@@ -213,7 +217,7 @@ def _enthalpy_flow(f: float, ti: float, tj: float) -> float:
     return _CP_AIR * f * (ti if f > 0.0 else tj)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_cycle(
     plant: PlantParams,
     program: Program,

@@ -30,7 +30,7 @@ F64 = npt.NDArray[np.float64]
 SENSOR_SI_UNIT = {"pressure": "Pa", "flow": "kg/s", "position": "m"}
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _recursion(x: F64, gain: float, pole: float) -> F64:  # pragma: no cover - compiled
     y = np.empty_like(x)
     previous = 0.0
