@@ -143,3 +143,30 @@ def test_every_simulated_cycle_segments_as_complete() -> None:
     complete = [c for c in seg.cycles if c.complete]
     assert len(complete) == 2, [c.reason for c in seg.cycles]
     assert all(len(c.steps) == 58 for c in complete)
+
+
+def _outputs_of(result) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
+    out = {k: np.asarray(v) for k, v in result.outputs.items()}
+    out["step_start"] = result.step_start
+    for name in result.recording.channels:
+        out["channel:" + name] = result.recording.channel(name)[1]
+    return out
+
+
+def test_a_run_does_not_depend_on_the_runs_before_or_beside_it() -> None:
+    # kernel buffers are kept between runs and shared by threads: a run that follows
+    # other machines' runs, or runs beside another, gives exactly what it gives alone
+    from concurrent.futures import ThreadPoolExecutor
+
+    def festo() -> dict[str, np.ndarray]:
+        return _outputs_of(run_simulation("festo-dsd", cycles=2, leaks={"DNC_B": 4}, seed=3))
+
+    first = festo()
+    run_simulation("carton-sorter", cycles=1, seed=4)
+    run_simulation("festo-dsd", cycles=1, leaks={"supply": 6}, seed=5)
+    with ThreadPoolExecutor(3) as pool:
+        later = list(pool.map(lambda _: festo(), range(3)))
+    for other in later:
+        assert other.keys() == first.keys()
+        for key, value in first.items():
+            assert np.array_equal(other[key], value), key
