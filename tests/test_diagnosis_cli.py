@@ -139,6 +139,15 @@ def test_leaky_run_exits_one(files, tmp_path):
     assert any("signatures" in note for note in data["notes"])  # built without them
 
 
+def test_threads_option(files, tmp_path, capsys):
+    out = tmp_path / "d.json"
+    args = ["diagnose", str(files["leaky"]), "--reference", str(files["ref"])]
+    assert main([*args, "--threads", "1", "--json", str(out)]) == 1
+    assert json.loads(out.read_text())["detected"] is True
+    assert main([*args, "--threads", "0"]) == 2
+    assert "--threads" in _flat(capsys.readouterr().err)
+
+
 @pytest.mark.parametrize(("run", "message"), [("other", "another machine"), ("noq", "Q_In")])
 def test_bad_runs_fail_cleanly(files, tmp_path, capsys, run, message):
     out, rep = tmp_path / "d.json", tmp_path / "d.html"

@@ -66,6 +66,9 @@ def test_batch_on_a_dask_cluster_equals_the_serial_batch(files):
     assert [r.get("detected") for r in serial] == [False, True, False, None]
     assert "missing.parquet" in serial[3]["error"]
     assert serial[1]["machine"] == "press-fit-cell"
+    assert list(diagnose_runs(runs, files / "ref.pnref", workers=1, threads=1)) == serial
+    with pytest.raises(InputError, match="threads"):
+        list(diagnose_runs(runs, files / "ref.pnref", threads=0))
 
 
 def test_diagnose_command_prints_one_json_line_per_run(files, capsys):

@@ -113,6 +113,14 @@ def diagnose(
         str | None,
         typer.Option(help="Batch: run on an existing Dask cluster (tcp://host:8786)."),
     ] = None,
+    threads: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            help="Threads of the check by simulation (default: every core; in a batch on "
+            "a Dask cluster, one per worker).",
+        ),
+    ] = None,
     tag_map: MapOption = None,
     overwrite: Annotated[
         bool, typer.Option(help="Replace existing --json/--report files (never an input).")
@@ -144,7 +152,7 @@ def diagnose(
             raise InputError(
                 describe("--map with several runs", str(tag_map), "one run (import them first)")
             )
-        args = (json_out, report, settings, max_leaks, simulate, workers, scheduler)
+        args = (json_out, report, settings, max_leaks, simulate, workers, scheduler, threads)
         raise typer.Exit(run_batch(runs, reference, *args))
     run = runs[0]
     model = load_reference(reference)
@@ -155,7 +163,7 @@ def diagnose(
         localisation = replace(localisation, simulate_explanations=simulate)
     with progress_bars() as progress:
         source = run if tag_map is None else read_recording(run, tag_map)
-        table, result = diagnose_recording(model, source, settings, progress, localisation)
+        table, result = diagnose_recording(model, source, settings, progress, localisation, threads)
     # render everything first, write afterwards: no partial output on error
     outputs: list[tuple[Path, str]] = []
     if json_out is not None:

@@ -38,6 +38,7 @@ def run_batch(
     simulate: bool | None,
     workers: int | None,
     scheduler: str | None,
+    threads: int | None = None,
 ) -> int:
     """Diagnose every run; print or write one JSON line per run; return the exit code."""
     from rich.console import Console
@@ -61,7 +62,9 @@ def run_batch(
     lines = []
     errors = leaks = 0
     out = Console(soft_wrap=True)
-    for record in diagnose_runs(runs, reference, settings, localisation, workers, scheduler):
+    for record in diagnose_runs(
+        runs, reference, settings, localisation, workers, scheduler, threads
+    ):
         line = json.dumps(record, allow_nan=False)
         errors += "error" in record
         leaks += bool(record.get("detected"))

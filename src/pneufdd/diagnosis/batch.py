@@ -125,6 +125,7 @@ def diagnose_runs(
     localisation: LocalisationSettings | None = None,
     workers: int | None = 1,
     scheduler: str | None = None,
+    threads: int | None = None,
 ) -> Iterator[dict[str, Any]]:
     """Diagnose every run against ``reference``; one record per run, in order.
 
@@ -143,6 +144,9 @@ def diagnose_runs(
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``) instead; its workers
         must read the runs and the reference at the same paths.
+    threads : int, optional
+        Threads of each run's check by simulation (None: every core when the runs
+        are diagnosed in this process, one per worker on a cluster).
 
     Yields
     ------
@@ -156,7 +160,10 @@ def diagnose_runs(
     _reference(reference_path)  # a bad reference fails at once, here
     size = None if workers is None else min(workers, len(given))
     # one run at a time in this process: its simulations may use every core
-    threads = available_cores() if size == 1 and scheduler is None else 1
+    if threads is None:
+        threads = available_cores() if size == 1 and scheduler is None else 1
+    elif isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise InputError(describe("threads", threads, "an integer >= 1, or None"))
     jobs = [
         RunJob(str(Path(run).absolute()), reference_path, settings, localisation, threads)
         for run in given
