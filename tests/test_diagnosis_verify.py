@@ -17,7 +17,6 @@ from pneufdd.diagnosis.twin_effects import TwinLeakEffect
 from pneufdd.diagnosis.verify import refine_by_simulation, verify_explanations
 from pneufdd.errors import InputError
 from pneufdd.location import SUPPLY, Location
-from pneufdd.parallel import thread_map
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.sim import load_machine, simulate
 
@@ -129,9 +128,7 @@ def test_threads_size_every_explanation_as_one_thread_does():
         fits[sub] = (sizes, float(r @ r))
     upper = np.full(6, 10.0)
     serial = verify_explanations(target, fits, 6, sim, upper, probe=1.0)
-    threaded = verify_explanations(
-        target, fits, 6, sim, upper, probe=1.0, parallel_map=lambda f, xs: thread_map(f, xs, 3)
-    )
+    threaded = verify_explanations(target, fits, 6, sim, upper, probe=1.0, threads=3)
     assert list(threaded) == list(serial)
     assert len(serial) >= 5  # singles, partners and pairs were sized
     for sub, fit in serial.items():

@@ -33,7 +33,15 @@ from typing import Any, TypeVar
 
 from pneufdd.errors import InputError, describe
 
-__all__ = ["available_cores", "executor", "map_unordered", "resolve_workers", "thread_map"]
+__all__ = [
+    "available_cores",
+    "executor",
+    "map_unordered",
+    "positive_count",
+    "resolve_threads",
+    "resolve_workers",
+    "thread_map",
+]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -67,6 +75,26 @@ def thread_map(func: Callable[[T], R], items: Iterable[T], threads: int) -> list
         return list(pool.map(func, jobs))
 
 
+def positive_count(value: object, name: str) -> int:
+    """``value`` if it is an integer >= 1 (not a bool), else :class:`InputError` naming ``name``.
+
+    >>> positive_count(2, "threads")
+    2
+    """
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InputError(describe(name, value, "an integer >= 1"))
+    return value
+
+
+def resolve_threads(threads: int | None) -> int:
+    """Threads to use: ``threads``, or every core this process may use when None.
+
+    >>> resolve_threads(None) == available_cores()
+    True
+    """
+    return available_cores() if threads is None else positive_count(threads, "threads")
+
+
 def resolve_workers(workers: int | None) -> int:
     """Worker processes to use: ``workers``, or one per CPU when None.
 
@@ -75,9 +103,7 @@ def resolve_workers(workers: int | None) -> int:
     """
     if workers is None:
         return max(1, os.cpu_count() or 1)
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise InputError(describe("workers", workers, "an integer >= 1"))
-    return workers
+    return positive_count(workers, "workers")
 
 
 @contextmanager

@@ -25,7 +25,7 @@ from pneufdd.diagnosis.pipeline import diagnose_recording
 from pneufdd.diagnosis.pnref import load_reference
 from pneufdd.diagnosis.reference import ReferenceModel
 from pneufdd.errors import InputError, PneufddError, describe
-from pneufdd.parallel import available_cores, executor, map_unordered
+from pneufdd.parallel import available_cores, executor, map_unordered, positive_count
 from pneufdd.recording.io import SUFFIXES
 
 __all__ = ["RunJob", "diagnose_one", "diagnose_runs", "expand_runs"]
@@ -162,8 +162,7 @@ def diagnose_runs(
     # one run at a time in this process: its simulations may use every core
     if threads is None:
         threads = available_cores() if size == 1 and scheduler is None else 1
-    elif isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
-        raise InputError(describe("threads", threads, "an integer >= 1, or None"))
+    threads = positive_count(threads, "threads")
     jobs = [
         RunJob(str(Path(run).absolute()), reference_path, settings, localisation, threads)
         for run in given

@@ -19,17 +19,15 @@ the description that reference was built with; the engine never looks a machine 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import numpy.typing as npt
 
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.twin_effects import SIGNATURE_SEED, TwinLeakEffect
-from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
-from pneufdd.parallel import thread_map
+from pneufdd.parallel import positive_count
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.signals.segmentation import StepSpec
 from pneufdd.sim import MachineDescription
@@ -68,11 +66,9 @@ class LeakEffectModel:
     def __init__(
         self, signatures: SignatureSet, simulator: Simulator | None = None, threads: int = 1
     ) -> None:
-        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
-            raise InputError(describe("simulation threads", threads, "an integer >= 1"))
         self.signatures = signatures
         self.simulator = simulator
-        self.threads = threads
+        self.threads = positive_count(threads, "simulation threads")
 
     @classmethod
     def from_description(
@@ -102,7 +98,8 @@ class LeakEffectModel:
         seed : int
             Seed of every simulation (the signatures' seed: common random numbers).
         threads : int
-            Threads that run independent simulations at once (:meth:`parallel_map`).
+            Threads that run independent simulations at once (:attr:`threads`; the
+            twin's compiled kernel releases the GIL).
         """
         twin = None
         if machine is not None and sequence:
@@ -115,19 +112,6 @@ class LeakEffectModel:
     def locations(self) -> tuple[Location, ...]:
         """Candidate locations, in the order of the signatures."""
         return self.signatures.locations
-
-    def parallel_map(self, func: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
-        """``[func(item) for item in items]``, in order, on up to :attr:`threads` threads.
-
-        For independent simulations: the twin's compiled kernel releases the GIL, so
-        two threads on two cores check two explanations in about the time of one.
-
-        >>> sig = SignatureSet(("supply",), np.array([[4.0]]), np.array([[[4.0]]]),
-        ...     ("f1",), np.array([6e5]))
-        >>> LeakEffectModel(sig, threads=2).parallel_map(abs, [-1.0, 2.0, -3.0])
-        [1.0, 2.0, 3.0]
-        """
-        return thread_map(func, items, self.threads)
 
     @property
     def can_simulate(self) -> bool:

@@ -36,7 +36,7 @@ from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.steps import StepTable
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.location import SUPPLY
-from pneufdd.parallel import available_cores
+from pneufdd.parallel import resolve_threads
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.signals.quality import MAX_REPAIR_S
 
@@ -674,10 +674,7 @@ def diagnose(
     -------
     Diagnosis
     """
-    if threads is not None and (
-        isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
-    ):
-        raise InputError(describe("threads", threads, "an integer >= 1, or None for every core"))
+    n_threads = resolve_threads(threads)
     settings = settings or CostSettings()
     table = check_compatible(reference, run)
     X = table.features()
@@ -710,7 +707,7 @@ def diagnose(
             settings,
             localisation or reference.localisation,
             notes,
-            available_cores() if threads is None else threads,
+            n_threads,
         )
     return Diagnosis(
         detected=bool(detected),

@@ -51,13 +51,7 @@ from pneufdd.diagnosis.model_choice import (
     same_actuator_pair,
 )
 from pneufdd.diagnosis.piecewise import WhitenedEffects
-from pneufdd.diagnosis.verify import (
-    ParallelMap,
-    SimulatedEffect,
-    refine_by_simulation,
-    serial_map,
-    verify_explanations,
-)
+from pneufdd.diagnosis.verify import SimulatedEffect, refine_all, verify_explanations
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
@@ -362,7 +356,7 @@ def _check_by_simulation(
     n_loc: int,
     dof: int,
     settings: LocalisationSettings,
-    parallel_map: ParallelMap = serial_map,
+    threads: int = 1,
 ) -> tuple[Fits, Best, int] | None:
     """Simulated explanations and the choice among them, or None if none ran."""
     pairs_too = settings.max_leaks > 1
@@ -379,7 +373,7 @@ def _check_by_simulation(
         top_pairs=3 if pairs_too else 0,
         partners=3 if pairs_too else 0,
         probes=settings.probes,
-        parallel_map=parallel_map,
+        threads=threads,
     )
     if not checked:
         return None
@@ -414,7 +408,7 @@ def _simulate_group_competitors(
     simulate: SimulatedEffect,
     n_loc: int,
     checks: int,
-    parallel_map: ParallelMap = serial_map,
+    threads: int = 1,
 ) -> None:
     """Size by simulation the locations the signatures rank best in each slot (in place)."""
     trials: dict[Subset, FloatArray] = {}
@@ -432,15 +426,8 @@ def _simulate_group_competitors(
             trials[trial] = np.array(
                 [sizes[subset.index(i)] if i in others else sizes[slot] for i in trial]
             )
-    refined = parallel_map(
-        lambda job: refine_by_simulation(
-            job[0], job[1], target, simulate, model.size_cap[list(job[0])]
-        ),
-        list(trials.items()),
-    )
-    for trial, fit in zip(trials, refined, strict=True):
-        if fit is not None:
-            fits[trial] = (fit.sizes, fit.rss)
+    for trial, fit in refine_all(trials, target, simulate, model.size_cap, threads=threads).items():
+        fits[trial] = (fit.sizes, fit.rss)
 
 
 def _forced_member(
@@ -605,7 +592,7 @@ def locate(
         and (chosen > 1 or misfit > settings.severe_misfit_ratio)
     ):
         checked = _check_by_simulation(
-            target, model, fits, best, chosen, simulate, n_loc, dof, settings, effects.parallel_map
+            target, model, fits, best, chosen, simulate, n_loc, dof, settings, effects.threads
         )
         if checked is not None:
             fits, best, chosen = checked
@@ -623,7 +610,7 @@ def locate(
             simulate,
             n_loc,
             settings.group_checks,
-            effects.parallel_map,
+            effects.threads,
         )
     else:
         for loc in subset:

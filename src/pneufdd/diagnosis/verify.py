@@ -26,36 +26,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import lsq_linear
 
-__all__ = [
-    "ParallelMap",
-    "SimulatedFit",
-    "refine_by_simulation",
-    "serial_map",
-    "verify_explanations",
-]
+from pneufdd.parallel import thread_map
+
+__all__ = ["SimulatedFit", "refine_all", "refine_by_simulation", "verify_explanations"]
 
 FloatArray = npt.NDArray[np.float64]
 Subset = tuple[int, ...]
 SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
 """Whitened effect of leaks ``{location index: size [kg/s]}`` by simulation, or None."""
-ParallelMap = Callable[[Callable[[Any], Any], Iterable[Any]], list[Any]]
-"""``parallel_map(func, items)``: ``[func(item) for item in items]``, in order, computed
-on as many threads as the caller allows (the simulations are independent)."""
-
-
-def serial_map(func: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
-    """:data:`ParallelMap` on the calling thread: ``[func(item) for item in items]``.
-
-    >>> serial_map(abs, [-1, 2])
-    [1, 2]
-    """
-    return [func(item) for item in items]
 
 
 class SimulatedFit(NamedTuple):
@@ -182,6 +166,46 @@ def refine_by_simulation(
     return best
 
 
+def refine_all(
+    starts: Mapping[Subset, FloatArray],
+    target: FloatArray,
+    simulate: SimulatedEffect,
+    upper: FloatArray,
+    max_iterations: int = 4,
+    threads: int = 1,
+) -> dict[Subset, SimulatedFit]:
+    """Size several explanations by simulation (:func:`refine_by_simulation`) at once.
+
+    Each is sized from its own start, on up to ``threads`` threads (``simulate`` must
+    then be thread-safe); the result is the same on any number of threads.
+
+    Parameters
+    ----------
+    starts : mapping
+        ``subset -> starting sizes [kg/s]``.
+    target, simulate, max_iterations
+        As for :func:`refine_by_simulation`.
+    upper : ndarray, shape (n_locations,)
+        Largest size of every location [kg/s].
+    threads : int
+        Threads that size explanations at once [-].
+
+    Returns
+    -------
+    dict
+        ``subset -> SimulatedFit`` in the order of ``starts``, for those the machine
+        could run.
+    """
+    fits = thread_map(
+        lambda job: refine_by_simulation(
+            job[0], job[1], target, simulate, upper[list(job[0])], max_iterations
+        ),
+        list(starts.items()),
+        threads,
+    )
+    return {sub: fit for sub, fit in zip(starts, fits, strict=True) if fit is not None}
+
+
 def _pair_rss(fits: Mapping[Subset, tuple[FloatArray, float]], a: int, b: int) -> float:
     """Signature-model residual of the pair ``a, b`` (inf when it was not fitted) [-]."""
     fit = fits.get((min(a, b), max(a, b)))
@@ -201,7 +225,7 @@ def verify_explanations(
     probe: float = 8.6e-4,
     max_iterations: int = 3,
     probes: int = 0,
-    parallel_map: ParallelMap = serial_map,
+    threads: int = 1,
 ) -> dict[Subset, SimulatedFit]:
     """Simulate and size the most promising explanations of one or two leaks.
 
@@ -239,9 +263,9 @@ def verify_explanations(
         Gauss-Newton steps per explanation at most [-].
     probes : int
         Second leaks probed in step 2 (0: every location) [-].
-    parallel_map : callable
-        Runs the independent work of each step (the explanations it sizes, the
-        probes) on several threads; ``simulate`` must then be thread-safe. The result
+    threads : int
+        Threads that run the independent work of each step (the explanations it
+        sizes, the probes) at once; ``simulate`` must then be thread-safe. The result
         does not depend on it: every explanation is sized from the same start and
         kept in the same order as on one thread.
 
@@ -282,15 +306,7 @@ def verify_explanations(
         for sub, start in candidates:
             if sub not in checked and sub not in todo:
                 todo[sub] = start
-        results = parallel_map(
-            lambda job: refine_by_simulation(
-                job[0], job[1], target, simulate, upper[list(job[0])], max_iterations
-            ),
-            list(todo.items()),
-        )
-        for sub, result in zip(todo, results, strict=True):
-            if result is not None:
-                checked[sub] = result
+        checked.update(refine_all(todo, target, simulate, upper, max_iterations, threads))
 
     check((single, model_fits[single][0]) for _, single in singles[:top_singles])
     firsts = sorted((fit.rss, sub) for sub, fit in checked.items() if len(sub) == 1)
@@ -306,8 +322,8 @@ def verify_explanations(
                 # the signature model's best partners of the first leak
                 others.sort(key=lambda o: _pair_rss(model_fits, first, o))
                 others = others[:probes]
-            probed_all = parallel_map(
-                lambda other: simulate({first: float(size[0]), other: probe}), others
+            probed_all = thread_map(
+                lambda other: simulate({first: float(size[0]), other: probe}), others, threads
             )
             for other, probed in zip(others, probed_all, strict=True):
                 if probed is None:

@@ -99,12 +99,13 @@ class _BufferPool:
 
     A festo-dsd run's buffers hold about 16 MB: allocated anew for every run, the
     C library maps fresh pages, and touching them cost about 7 ms per run in page
-    faults (measured, issue 13: one festo-dsd cycle 22.6 -> 15.2 ms, four cycles
-    68.2 -> 61.0 ms, mean of 60 runs). A run takes a buffer of its shape out of the
-    pool, or allocates one, and gives it back when done; nothing a run returns
-    refers to its buffers (``_take`` copies), so results do not depend on it. Only
-    buffers of the starting size are kept (those for ``max_cycle_s`` are 6 times
-    larger); ``keep`` of 2 serves the two threads of a diagnosis.
+    faults (measured, issue 13: one festo-dsd cycle 22.0-22.2 -> 16.1-16.4 ms, mean
+    of 50 runs; four cycles 60.0-67.3 -> 58.6-61.9 ms, within the noise). A run
+    takes a buffer of its shape out of the pool, or allocates one, and gives it back
+    when done; nothing a run returns refers to its buffers (``_take`` copies), so
+    results do not depend on it. Only buffers of the starting size are kept (those
+    for ``max_cycle_s`` are 6 times larger); ``keep`` of 2 serves the two threads of
+    a diagnosis.
     """
 
     def __init__(self, keep: int = 2) -> None:
