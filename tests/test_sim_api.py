@@ -170,3 +170,19 @@ def test_a_run_does_not_depend_on_the_runs_before_or_beside_it() -> None:
         assert other.keys() == first.keys()
         for key, value in first.items():
             assert np.array_equal(other[key], value), key
+
+
+def test_recording_some_channels_gives_exactly_those_of_a_full_run() -> None:
+    machine = load_machine("press-fit-cell")
+    names = [s.channel for s in machine.sensors]
+    assert len(names) >= 3
+    full = run_simulation(machine, cycles=2, seed=4)
+    # the first channels only (no noise drawn after them), and one left out between
+    for chosen in (names[:2], [names[0], names[2]], [names[-1]], []):
+        part = run_simulation(machine, cycles=2, seed=4, channels=chosen)
+        assert part.recording.analog_channels == tuple(chosen)
+        for name in (*chosen, *part.recording.digital_channels):
+            assert np.array_equal(part.recording.channel(name)[1], full.recording.channel(name)[1])
+        assert part.step_start.tolist() == full.step_start.tolist()
+    with pytest.raises(InputError, match=r"channels to record .*'nope'"):
+        run_simulation(machine, cycles=1, channels=[names[0], "nope"])

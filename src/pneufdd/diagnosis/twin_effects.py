@@ -195,12 +195,17 @@ def _mean_features(
     MachineStalledError, NoCompleteCycleError
         When the machine cannot run with these leaks.
     """
-    # the first simulated cycle starts from rest and the last one has no successor to
-    # end its last step: segmentation keeps the cycles in between, and the leaked air
-    # is averaged over the same inner cycles
+    # ``cycles + 2`` cycles are simulated and every one that segments as complete
+    # (all of them: the run ends with an idle tail) is averaged; the leaked air is
+    # averaged over the inner ``cycles`` (the first starts from rest)
     sizes = _leak_sizes(leaks)
     sim = run_simulation(
-        machine, cycles=cycles + 2, leaks=sizes, seed=seed, keep_outputs=leak_flows
+        machine,
+        cycles=cycles + 2,
+        leaks=sizes,
+        seed=seed,
+        keep_outputs=leak_flows,
+        channels=channels,
     )
     rec = sim.recording
     found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {sizes}")
@@ -599,6 +604,7 @@ def _plant_effects(job: SpreadJob) -> npt.NDArray[np.float64] | None:
                     leaks={str(loc): f"{mm}mm"},
                     seed=seed,
                     keep_outputs=False,
+                    channels=channels,
                 )
                 rec = sim.recording
                 found, _, _ = segment_cycles(rec, sequence, f"plant with a leak at {loc}")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -17,7 +17,7 @@ from pneufdd.errors import InputError, PneufddError, describe
 from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
 from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
-from pneufdd.sim.description import MachineDescription, solenoid_slots
+from pneufdd.sim.description import MachineDescription, Sensor, solenoid_slots
 from pneufdd.sim.kernel import SAMPLE_DT, run_cycle
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import load_machine
@@ -185,6 +185,7 @@ def run_simulation(
     max_cycle_s: float = 120.0,
     resolution: Resolution = DEFAULT_RESOLUTION,
     schedule: LeakSchedule | None = None,
+    channels: Sequence[str] | None = None,
 ) -> SimulationResult:
     """Simulate ``cycles`` machine cycles and return true states plus the recording.
 
@@ -212,6 +213,13 @@ def run_simulation(
         Leaks that appear, grow and are repaired during the run
         (:mod:`pneufdd.sim.schedule`): set between cycles from each cycle's start
         time, recorded in the metadata (``leak_schedule``, ``leak_timeline``).
+    channels : sequence of str, optional
+        The analog channels to record (None: every sensor of the description). Each
+        recorded channel is identical to the same channel of a run that records them
+        all: sensor noise is drawn channel by channel in the description's order, so
+        a channel left out before a recorded one still draws its noise, and channels
+        after the last recorded one cost nothing (the twin's check of a diagnosis
+        needs only its sensor set's channels).
 
     Returns
     -------
@@ -219,6 +227,7 @@ def run_simulation(
     """
     _check_args(cycles, seed, max_cycle_s)
     desc = load_machine(machine)
+    sensors = _recorded_sensors(desc, channels)
     specs = resolve_leaks(desc, leaks)
     plant = compile_plant(desc, specs, resolution)
     if schedule is not None:
@@ -285,13 +294,13 @@ def run_simulation(
                         float(buf.ev_t0[e, 1]),
                     )
                 )
-            chunks.append(_take(desc, buf, n, k_start, keep_outputs))
+            chunks.append(_take(desc, sensors, buf, n, k_start, keep_outputs))
             if progress is not None:
                 progress(cyc + 1, cycles)
     finally:
         _POOL.give(start_shape, pooled)
     result = _assemble(
-        desc, plant, specs, chunks, step_start, strokes, rng, seed, cycles, total_sub
+        desc, sensors, plant, specs, chunks, step_start, strokes, rng, seed, cycles, total_sub
     )
     if schedule is None:
         return result
@@ -343,17 +352,48 @@ def _records(
     return params, program, records_state, outputs
 
 
+def _recorded_sensors(
+    desc: MachineDescription, channels: Sequence[str] | None
+) -> tuple[Sensor | None, ...]:
+    """The description's sensors up to the last one recorded; None for one left out.
+
+    Raises
+    ------
+    InputError
+        If a channel is not one of the description's sensors.
+    """
+    if channels is None:
+        return tuple(desc.sensors)
+    names = [s.channel for s in desc.sensors]
+    unknown = [c for c in channels if c not in names]
+    if unknown:
+        raise InputError(describe(f"channels to record of machine {desc.name!r}", unknown, names))
+    wanted = set(channels)
+    kept = [s if s.channel in wanted else None for s in desc.sensors]
+    while kept and kept[-1] is None:
+        kept.pop()
+    return tuple(kept)
+
+
 def _take(
-    desc: MachineDescription, buf: _Buffers, n: int, k0: int, keep: bool
+    desc: MachineDescription,
+    sensors: Sequence[Sensor | None],
+    buf: _Buffers,
+    n: int,
+    k0: int,
+    keep: bool,
 ) -> dict[str, npt.NDArray[Any]]:
     """Copy what one cycle produced out of the reusable buffers.
 
-    Only the sensors' true signals and the digital samples are kept unless ``keep``
-    asks for every internal state (memory grows with cycles x samples x states).
+    Only the recorded sensors' true signals and the digital samples are kept unless
+    ``keep`` asks for every internal state (memory grows with cycles x samples x
+    states).
     """
     p, x, fch, fexh, fr = buf.p[:n], buf.x[:n], buf.fch[:n], buf.fexh[:n], buf.fr[:n]
-    chunk: dict[str, npt.NDArray[Any]] = {}
-    for sensor in desc.sensors:
+    chunk: dict[str, npt.NDArray[Any]] = {"n": np.array(n)}
+    for sensor in sensors:
+        if sensor is None:
+            continue
         chunk["truth:" + sensor.channel] = _truth_for(
             desc, sensor.kind, sensor.location, p, x, fch, fexh, fr
         ).copy()
@@ -391,6 +431,7 @@ def _truth_for(
 
 def _assemble(
     desc: MachineDescription,
+    sensors: Sequence[Sensor | None],
     plant: Plant,
     specs: list[LeakSpec],
     chunks: list[dict[str, npt.NDArray[Any]]],
@@ -401,13 +442,17 @@ def _assemble(
     cycles: int,
     total_sub: int,
 ) -> SimulationResult:
-    n = sum(c["truth:" + desc.sensors[0].channel].size for c in chunks) if desc.sensors else 0
-    if not desc.sensors:
+    if desc.sensors:
+        n = sum(int(c["n"]) for c in chunks)
+    else:
         n = sum(c["cmd"].shape[0] for c in chunks) * _DIGITAL_EVERY
     time = np.arange(n, dtype=np.float64) * SAMPLE_DT
     analog: dict[str, npt.NDArray[np.float64]] = {}
     units: dict[str, str] = {}
-    for sensor in desc.sensors:
+    for sensor in sensors:
+        if sensor is None:  # not recorded: its noise is drawn all the same
+            rng.standard_normal(n)
+            continue
         truth = _cat(chunks, "truth:" + sensor.channel)
         analog[sensor.channel] = apply_sensor(sensor, truth, rng, ANALOG_RATE_HZ)
         units[sensor.channel] = SENSOR_SI_UNIT[sensor.kind]
