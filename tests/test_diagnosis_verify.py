@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -14,7 +16,7 @@ from pneufdd.diagnosis.localisation import LocalisationSettings, locate
 from pneufdd.diagnosis.signatures import SignatureSet
 from pneufdd.diagnosis.step_summaries import machine_sequence, segment_cycles, step_table
 from pneufdd.diagnosis.twin_effects import TwinLeakEffect
-from pneufdd.diagnosis.verify import refine_by_simulation, verify_explanations
+from pneufdd.diagnosis.verify import refine_all, refine_by_simulation, verify_explanations
 from pneufdd.errors import InputError
 from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
@@ -134,6 +136,80 @@ def test_threads_size_every_explanation_as_one_thread_does():
     for sub, fit in serial.items():
         assert np.array_equal(threaded[sub].sizes, fit.sizes)
         assert threaded[sub].rss == fit.rss
+
+
+def test_start_and_difference_steps_in_one_call_size_as_one_at_a_time():
+    rng = np.random.default_rng(4)
+    base = np.abs(rng.normal(size=(2, 20)))
+    sim = _pair_simulator(base, 0.3 * rng.normal(size=20))
+    target = sim({0: 1.7, 1: 0.6})
+    batches = []
+
+    def many(calls):
+        batches.append(len(calls))
+        return [sim(c) for c in calls]
+
+    start, upper = np.array([1.0, 1.0]), np.array([9.0, 9.0])
+    one = refine_by_simulation((0, 1), start, target, sim, upper)
+    both = refine_by_simulation((0, 1), start, target, sim, upper, simulate_many=many)
+    assert batches == [3]  # the start and one difference step per leak
+    assert one is not None
+    assert both is not None
+    assert np.array_equal(both.sizes, one.sizes)
+    assert both.rss == one.rss
+    assert np.array_equal(both.jacobian, one.jacobian)
+
+
+def test_a_stalled_start_is_shrunk_alike_with_steps_in_one_call():
+    rng = np.random.default_rng(6)
+    base = np.abs(rng.normal(size=(2, 20)))
+    plain = _pair_simulator(base, 0.3 * rng.normal(size=20))
+
+    def sim(leaks):  # the machine stalls when both leaks together exceed 3
+        return None if sum(leaks.values()) > 3.0 else plain(leaks)
+
+    target = plain({0: 1.2, 1: 0.8})
+    batches = []
+
+    def many(calls):
+        batches.append([round(sum(c.values()), 6) for c in calls])
+        return [sim(c) for c in calls]
+
+    start, upper = np.array([2.0, 2.0]), np.array([9.0, 9.0])
+    one = refine_by_simulation((0, 1), start, target, sim, upper)
+    both = refine_by_simulation((0, 1), start, target, sim, upper, simulate_many=many)
+    # 4.0 stalls, 2.8 runs: the start and its difference steps at each size tried
+    assert [b[0] for b in batches] == [4.0, 2.8]
+    assert one is not None
+    assert both is not None
+    assert np.array_equal(both.sizes, one.sizes)
+    assert both.rss == one.rss
+
+
+def test_no_more_simulations_run_at_once_than_threads():
+    running, peak, lock = [0], [0], threading.Lock()
+    rng = np.random.default_rng(2)
+    base = np.abs(rng.normal(size=(5, 12)))
+    plain = _pair_simulator(base, np.zeros(12))
+
+    def sim(leaks):
+        with lock:
+            running[0] += 1
+            peak[0] = max(peak[0], running[0])
+        time.sleep(0.002)
+        with lock:
+            running[0] -= 1
+        return plain(leaks)
+
+    target = plain({1: 1.0, 3: 2.0})
+    starts = {(i, j): np.array([1.0, 1.0]) for i in range(5) for j in range(i + 1, 5)}
+    upper = np.full(5, 9.0)
+    threaded = refine_all(starts, target, sim, upper, threads=2)
+    serial = refine_all(starts, target, plain, upper, threads=1)
+    assert peak[0] == 2
+    assert list(threaded) == list(serial)
+    for sub, fit in serial.items():
+        assert np.array_equal(threaded[sub].sizes, fit.sizes)
 
 
 def test_simulation_threads_must_be_a_positive_integer():

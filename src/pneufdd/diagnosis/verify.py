@@ -24,8 +24,11 @@ caller chooses among them with the same rules as for the signature fits.
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import math
-from collections.abc import Callable, Iterable, Mapping
+import threading
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -40,6 +43,8 @@ FloatArray = npt.NDArray[np.float64]
 Subset = tuple[int, ...]
 SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
 """Whitened effect of leaks ``{location index: size [kg/s]}`` by simulation, or None."""
+SimulateMany = Callable[[Sequence[Mapping[int, float]]], list[FloatArray | None]]
+"""A :data:`SimulatedEffect` of several sets of leaks, results in their order."""
 
 
 class SimulatedFit(NamedTuple):
@@ -69,6 +74,7 @@ def refine_by_simulation(
     max_iterations: int = 4,
     tolerance: float = 0.02,
     min_step: float = 1e-4,
+    simulate_many: SimulateMany | None = None,
 ) -> SimulatedFit | None:
     """Size an explanation against the simulator (Gauss-Newton, Broyden updates).
 
@@ -77,7 +83,10 @@ def refine_by_simulation(
     the PLC's 100 Hz signals, so smaller steps see noise); later ones are Broyden
     rank-one updates from the steps taken, so an iteration costs one simulation.
     Each step is the bounded linear least-squares step
-    (:func:`scipy.optimize.lsq_linear`) within ``0 <= size <= upper``.
+    (:func:`scipy.optimize.lsq_linear`) within ``0 <= size <= upper``. With
+    ``simulate_many`` the starting point and the difference steps, which do not
+    depend on each other, are simulated in one call (at once on several threads);
+    the result is the same.
 
     Parameters
     ----------
@@ -98,6 +107,8 @@ def refine_by_simulation(
         Stop when no size moves by more than this fraction [-].
     min_step : float
         Smallest finite-difference step [kg/s].
+    simulate_many : callable, optional
+        ``simulate`` of a list of leak sets, results in the same order.
 
     Returns
     -------
@@ -121,27 +132,41 @@ def refine_by_simulation(
     upper = np.asarray(upper, dtype=np.float64)
     sizes = np.clip(np.asarray(start, dtype=np.float64), 0.0, upper)
 
-    def run(x: FloatArray) -> FloatArray | None:
-        return simulate(dict(zip(subset, (float(v) for v in x), strict=True)))
+    def leaks(x: FloatArray) -> dict[int, float]:
+        return dict(zip(subset, (float(v) for v in x), strict=True))
 
-    effect = run(sizes)
-    for _ in range(2):
+    def run(x: FloatArray) -> FloatArray | None:
+        return simulate(leaks(x))
+
+    def difference_steps(x: FloatArray) -> list[tuple[float, FloatArray]]:
+        out = []
+        for i in range(x.size):
+            step = max(0.15 * x[i], min_step)
+            if x[i] + step > upper[i]:
+                step = -step
+            trial = x.copy()
+            trial[i] += step
+            out.append((step, trial))
+        return out
+
+    for attempt in range(3):
+        if attempt > 0:
+            sizes = 0.7 * sizes  # the machine stalls: the explanation is too large
+        steps = difference_steps(sizes)
+        moved_all: list[FloatArray | None] | None = None
+        if simulate_many is None:
+            effect = run(sizes)
+        else:
+            effect, *moved_all = simulate_many([leaks(sizes), *(leaks(t) for _, t in steps)])
         if effect is not None:
             break
-        sizes = 0.7 * sizes  # the machine stalls: the explanation is too large
-        effect = run(sizes)
     if effect is None:
         return None
     residual = target - effect
     jacobian = np.zeros((target.size, sizes.size))
     best = SimulatedFit(sizes.copy(), float(residual @ residual), jacobian)
-    for i in range(sizes.size):
-        step = max(0.15 * sizes[i], min_step)
-        if sizes[i] + step > upper[i]:
-            step = -step
-        trial = sizes.copy()
-        trial[i] += step
-        moved = run(trial)
+    for i, (step, trial) in enumerate(steps):
+        moved = run(trial) if moved_all is None else moved_all[i]
         if moved is None:
             return best
         jacobian[:, i] = (moved - effect) / step
@@ -176,8 +201,10 @@ def refine_all(
 ) -> dict[Subset, SimulatedFit]:
     """Size several explanations by simulation (:func:`refine_by_simulation`) at once.
 
-    Each is sized from its own start, on up to ``threads`` threads (``simulate`` must
-    then be thread-safe); the result is the same on any number of threads.
+    Each is sized from its own start (``simulate`` must be thread-safe when
+    ``threads > 1``): every explanation on its own thread and, within one, the start
+    and the difference steps at once, with at most ``threads`` simulations running at
+    any time; the result is the same on any number of threads.
 
     Parameters
     ----------
@@ -196,14 +223,68 @@ def refine_all(
         ``subset -> SimulatedFit`` in the order of ``starts``, for those the machine
         could run.
     """
-    fits = thread_map(
-        lambda job: refine_by_simulation(
-            job[0], job[1], target, simulate, upper[list(job[0])], max_iterations
-        ),
-        list(starts.items()),
-        threads,
-    )
+    jobs = list(starts.items())
+    if threads <= 1:
+        fits = [
+            refine_by_simulation(sub, start, target, simulate, upper[list(sub)], max_iterations)
+            for sub, start in jobs
+        ]
+    else:
+        gate = _FairGate(threads, len(jobs))
+
+        def size(k: int) -> SimulatedFit | None:
+            def one(leaks: Mapping[int, float]) -> FloatArray | None:
+                return gate.run(k, simulate, leaks)
+
+            def many(calls: Sequence[Mapping[int, float]]) -> list[FloatArray | None]:
+                return thread_map(one, calls, len(calls))
+
+            sub, start = jobs[k]
+            return refine_by_simulation(
+                sub,
+                start,
+                target,
+                one,
+                upper[list(sub)],
+                max_iterations,
+                simulate_many=many,
+            )
+
+        fits = thread_map(size, range(len(jobs)), len(jobs))
     return {sub: fit for sub, fit in zip(starts, fits, strict=True) if fit is not None}
+
+
+class _FairGate:
+    """At most ``slots`` simulations at once; a free slot goes to the explanation
+    that has run the fewest so far (then the first), so that explanations progress
+    together and the batch does not end with one long chain on one core."""
+
+    def __init__(self, slots: int, jobs: int) -> None:
+        self._cond = threading.Condition()
+        self._free = slots
+        self._done = [0] * jobs
+        self._waiting: list[tuple[int, int, int]] = []
+        self._tickets = itertools.count()
+
+    def run(
+        self, job: int, simulate: SimulatedEffect, leaks: Mapping[int, float]
+    ) -> FloatArray | None:
+        """``simulate(leaks)`` for explanation ``job``, when its turn comes."""
+        with self._cond:
+            ticket = (self._done[job], job, next(self._tickets))
+            heapq.heappush(self._waiting, ticket)
+            while self._free == 0 or self._waiting[0] != ticket:
+                self._cond.wait()
+            heapq.heappop(self._waiting)
+            self._free -= 1
+            self._cond.notify_all()
+        try:
+            return simulate(leaks)
+        finally:
+            with self._cond:
+                self._free += 1
+                self._done[job] += 1
+                self._cond.notify_all()
 
 
 def _pair_rss(fits: Mapping[Subset, tuple[FloatArray, float]], a: int, b: int) -> float:
@@ -264,10 +345,10 @@ def verify_explanations(
     probes : int
         Second leaks probed in step 2 (0: every location) [-].
     threads : int
-        Threads that run the independent work of each step (the explanations it
-        sizes, the probes) at once; ``simulate`` must then be thread-safe. The result
-        does not depend on it: every explanation is sized from the same start and
-        kept in the same order as on one thread.
+        Simulations that run at once (:func:`refine_all`; the probes); the partners
+        of step 2 and the pairs of step 3 are one batch. ``simulate`` must then be
+        thread-safe. The result does not depend on it: every explanation is sized
+        from the same start and kept in the same order as on one thread.
 
     Returns
     -------
@@ -310,6 +391,7 @@ def verify_explanations(
 
     check((single, model_fits[single][0]) for _, single in singles[:top_singles])
     firsts = sorted((fit.rss, sub) for sub, fit in checked.items() if len(sub) == 1)
+    partner_starts: list[tuple[Subset, FloatArray]] = []
     if firsts and partners > 0:
         first = firsts[0][1][0]
         size, _, slope = checked[(first,)]
@@ -336,11 +418,15 @@ def verify_explanations(
                 ).x
                 residual = rest - columns @ step
                 ranked.append((float(residual @ residual), other, step))
-            starts = []
             for _, other, step in sorted(ranked, key=lambda r: r[0])[:partners]:
                 sizes = {first: float(size[0] + step[0]), other: float(step[1])}
                 pair = tuple(sorted(sizes))
-                starts.append((pair, np.array([sizes[i] for i in pair])))
-            check(starts)
-    check((couple, model_fits[couple][0]) for _, couple in pairs[:top_pairs])
+                partner_starts.append((pair, np.array([sizes[i] for i in pair])))
+    # the partners and the signature model's pairs are independent: one batch, a
+    # partner's start first (as if sized before the model pairs); a model pair that
+    # was also a partner the machine could not run is then sized from its own start
+    model_pairs = [(couple, model_fits[couple][0]) for _, couple in pairs[:top_pairs]]
+    check([*partner_starts, *model_pairs])
+    partner_pairs = {sub for sub, _ in partner_starts}
+    check((sub, start) for sub, start in model_pairs if sub in partner_pairs)
     return checked
