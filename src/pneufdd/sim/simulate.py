@@ -90,7 +90,7 @@ class _Buffers:
         self.ev_t1 = np.zeros(n_ev)
         self.truth = np.empty((0, 0))
 
-    def truth_store(self, channels: int, samples: int) -> npt.NDArray[np.float64]:
+    def truth_store(self, channels: int, samples: int, expected: int) -> npt.NDArray[np.float64]:
         """Room for the true signals of ``channels`` sensors over ``samples`` samples.
 
         A run writes each cycle's samples after the previous ones (one row per
@@ -98,11 +98,12 @@ class _Buffers:
         returns never refers to them. Kept with the buffers, the rows save the page
         faults of fresh memory: a festo-dsd run of four cycles freed and re-touched
         about 20 MB of NumPy arrays, about 5,000 page faults (measured, issue 13).
-        Grows by doubling and keeps what was written.
+        When it must grow it makes room for the ``expected`` samples of the whole
+        run, keeping what was written.
         """
         have = self.truth
         if have.shape[0] < channels or have.shape[1] < samples:
-            grown = np.empty((max(channels, have.shape[0]), max(samples, 2 * have.shape[1])))
+            grown = np.empty((max(channels, have.shape[0]), max(samples, expected)))
             grown[: have.shape[0], : have.shape[1]] = have
             self.truth = grown
         return self.truth
@@ -158,9 +159,9 @@ class _BufferPool:
 
 
 _POOL = _BufferPool()
-TRUTH_KEEP_BYTES = 32 * 2**20
-"""Largest true-signal store kept between runs [bytes] (about 25 festo-dsd cycles of
-every sensor)."""
+TRUTH_KEEP_BYTES = 8 * 2**20
+"""Largest true-signal store kept between runs [bytes]: the four-cycle runs of a
+diagnosis's check with every festo-dsd sensor (about 5.3 MB), not a long run's."""
 
 
 def _ou_grid(rng: np.random.Generator, start: float, std: float, tau: float, n: int) -> Any:
@@ -321,7 +322,8 @@ def run_simulation(
                         float(buf.ev_t0[e, 1]),
                     )
                 )
-            store = pooled.truth_store(n_recorded, k_start + n)
+            done = k_start + n  # samples so far: the run's length follows from them
+            store = pooled.truth_store(n_recorded, done, done * cycles // (cyc + 1) + 1000)
             chunks.append(_take(desc, sensors, buf, n, k_start, keep_outputs, store))
             if progress is not None:
                 progress(cyc + 1, cycles)
