@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 
 import numpy as np
@@ -164,6 +165,7 @@ def test_a_run_does_not_depend_on_the_runs_before_or_beside_it() -> None:
     first = festo()
     run_simulation("carton-sorter", cycles=1, seed=4)
     run_simulation("festo-dsd", cycles=1, leaks={"supply": 6}, seed=5)
+    run_simulation("festo-dsd", cycles=3, seed=7, channels=["P_In", "Q_In"])
     with ThreadPoolExecutor(3) as pool:
         later = list(pool.map(lambda _: festo(), range(3)))
     for other in later:
@@ -186,3 +188,17 @@ def test_recording_some_channels_gives_exactly_those_of_a_full_run() -> None:
         assert part.step_start.tolist() == full.step_start.tolist()
     with pytest.raises(InputError, match=r"channels to record .*'nope'"):
         run_simulation(machine, cycles=1, channels=[names[0], "nope"])
+
+
+def test_kept_true_signal_rows_grow_and_keep_what_the_run_wrote() -> None:
+    # a run's true signals go to rows kept with the pooled buffers; a later run may
+    # record more channels over fewer samples than the rows were made for
+    sim = importlib.import_module("pneufdd.sim.simulate")
+    buffers = sim._Buffers(10, 4, 1, 2, 2, 2)
+    wide = buffers.truth_store(2, 0, 100, 100)
+    wide[:, :100] = 7.0
+    rows = buffers.truth_store(5, 30, 50, 60)
+    assert rows.shape[0] == 5
+    assert rows.shape[1] >= 60
+    assert np.all(rows[:2, :30] == 7.0)
+    assert buffers.truth_store(3, 40, 60, 60) is rows  # room enough: the same rows

@@ -90,21 +90,23 @@ class _Buffers:
         self.ev_t1 = np.zeros(n_ev)
         self.truth = np.empty((0, 0))
 
-    def truth_store(self, channels: int, samples: int, expected: int) -> npt.NDArray[np.float64]:
+    def truth_store(
+        self, channels: int, written: int, samples: int, expected: int
+    ) -> npt.NDArray[np.float64]:
         """Room for the true signals of ``channels`` sensors over ``samples`` samples.
 
-        A run writes each cycle's samples after the previous ones (one row per
-        recorded sensor) and the sensor models read the rows at the end; what a run
-        returns never refers to them. Kept with the buffers, the rows save the page
-        faults of fresh memory: a festo-dsd run of four cycles freed and re-touched
-        about 20 MB of NumPy arrays, about 5,000 page faults (measured, issue 13).
-        When it must grow it makes room for the ``expected`` samples of the whole
-        run, keeping what was written.
+        A run writes each cycle's samples after the ``written`` ones of the cycles
+        before (one row per recorded sensor) and the sensor models read the rows at
+        the end; what a run returns never refers to them. Kept with the buffers, the
+        rows save the page faults of fresh memory: a festo-dsd run of four cycles
+        freed and re-touched about 20 MB of NumPy arrays, about 5,000 page faults
+        (measured, issue 13). When it must grow it makes room for the ``expected``
+        samples of the whole run and keeps the ``written`` ones.
         """
         have = self.truth
         if have.shape[0] < channels or have.shape[1] < samples:
             grown = np.empty((max(channels, have.shape[0]), max(samples, expected)))
-            grown[: have.shape[0], : have.shape[1]] = have
+            grown[: have.shape[0], :written] = have[:, :written]
             self.truth = grown
         return self.truth
 
@@ -323,7 +325,8 @@ def run_simulation(
                     )
                 )
             done = k_start + n  # samples so far: the run's length follows from them
-            store = pooled.truth_store(n_recorded, done, done * cycles // (cyc + 1) + 1000)
+            expected = done * cycles // (cyc + 1) + 1000
+            store = pooled.truth_store(n_recorded, k_start, done, expected)
             chunks.append(_take(desc, sensors, buf, n, k_start, keep_outputs, store))
             if progress is not None:
                 progress(cyc + 1, cycles)
