@@ -334,6 +334,7 @@ def run_simulation(
             desc,
             sensors,
             pooled.truth,
+            int(state["istate"][lay.IS_SAMPLE]),
             plant,
             specs,
             chunks,
@@ -435,15 +436,12 @@ def _take(
     ``keep`` asks for them (memory grows with cycles x samples x states).
     """
     p, x, fch, fexh, fr = buf.p[:n], buf.x[:n], buf.fch[:n], buf.fexh[:n], buf.fr[:n]
-    chunk: dict[str, npt.NDArray[Any]] = {"n": np.array(n)}
-    row = 0
-    for sensor in sensors:
-        if sensor is None:
-            continue
+    chunk: dict[str, npt.NDArray[Any]] = {}
+    recorded = (sensor for sensor in sensors if sensor is not None)
+    for row, sensor in enumerate(recorded):
         store[row, k0 : k0 + n] = _truth_for(
             desc, sensor.kind, sensor.location, p, x, fch, fexh, fr
         )
-        row += 1
     first = (-k0) % _DIGITAL_EVERY  # digital samples fall on every 10th global sample
     chunk["cmd"] = buf.cmd[first:n:_DIGITAL_EVERY].copy()
     chunk["sw"] = buf.sw[first:n:_DIGITAL_EVERY].copy()
@@ -480,6 +478,7 @@ def _assemble(
     desc: MachineDescription,
     sensors: Sequence[Sensor | None],
     store: npt.NDArray[np.float64],
+    samples: int,
     plant: Plant,
     specs: list[LeakSpec],
     chunks: list[dict[str, npt.NDArray[Any]]],
@@ -490,10 +489,8 @@ def _assemble(
     cycles: int,
     total_sub: int,
 ) -> SimulationResult:
-    if desc.sensors:
-        n = sum(int(c["n"]) for c in chunks)
-    else:
-        n = sum(c["cmd"].shape[0] for c in chunks) * _DIGITAL_EVERY
+    # a description without sensors keeps the length its digital samples give
+    n = samples if desc.sensors else sum(c["cmd"].shape[0] for c in chunks) * _DIGITAL_EVERY
     time = np.arange(n, dtype=np.float64) * SAMPLE_DT
     analog: dict[str, npt.NDArray[np.float64]] = {}
     units: dict[str, str] = {}
