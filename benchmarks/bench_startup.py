@@ -5,12 +5,19 @@ pneufdd``, each the median wall time of 5 fresh processes, against the same
 interpreter doing nothing (``python -c pass``) and importing numpy, measured in the
 same run; and ``pneufdd simulate --machine festo-dsd --cycles 4`` as a whole
 process (target: >= 100 x real time), against the libraries it cannot do without
-(numba with one cached compiled function, and pyarrow's Parquet writer; since stop 25
-a simulation builds its Arrow arrays from NumPy buffers and no longer imports pandas).
+(numpy, pyarrow's Parquet writer and one call of the twin's compiled code; since stop
+25 a simulation builds its Arrow arrays from NumPy buffers and no longer imports
+pandas).
+
+The command runs twice over: with the twin compiled ahead of time (``make bench``
+runs ``pneufdd build-twin`` first; :mod:`pneufdd.sim.prebuilt`), which is what the
+target is about, and with numba's JIT (``PNEUFDD_PREBUILT=0``), whose process imports
+numba and loads the kernels from numba's cache (about 0.6 s more).
 """
 
 from __future__ import annotations
 
+import os
 import resource
 import statistics
 import subprocess
@@ -26,7 +33,9 @@ PNEUFDD = str(Path(PYTHON).with_name("pneufdd"))
 REPEAT = 5
 
 
-def median_times(argv: list[str], repeat: int = REPEAT) -> tuple[float, float]:
+def median_times(
+    argv: list[str], repeat: int = REPEAT, env: dict[str, str] | None = None
+) -> tuple[float, float]:
     """Median wall and CPU (user + system) time of ``repeat`` fresh processes [s].
 
     CPU time is what a process costs on a shared machine whatever its load.
@@ -35,7 +44,7 @@ def median_times(argv: list[str], repeat: int = REPEAT) -> tuple[float, float]:
     for _ in range(repeat):
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
-        subprocess.run(argv, check=True, capture_output=True)
+        subprocess.run(argv, check=True, capture_output=True, env=env)
         walls.append(time.perf_counter() - start)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
@@ -49,21 +58,28 @@ _FLOOR = (
 )
 
 
-def simulate_process() -> list[BenchResult]:
-    """``pneufdd simulate --cycles 4`` as whole processes: wall time and real-time factor."""
+def simulate_process(prebuilt: bool) -> list[BenchResult]:
+    """``pneufdd simulate --cycles 4`` as whole processes: wall time and real-time factor.
+
+    Parameters
+    ----------
+    prebuilt : bool
+        Use the prebuilt twin if one is current (else ``PNEUFDD_PREBUILT=0``: the JIT).
+    """
     from pneufdd.recording import read_parquet
 
+    env = dict(os.environ, PNEUFDD_PREBUILT="1" if prebuilt else "0")
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder) / "run.parquet"
         argv = [PNEUFDD, "simulate", "--machine", "festo-dsd", "--cycles", "4"]
         argv += ["--out", str(out), "--overwrite"]
-        subprocess.run(argv, check=True, capture_output=True)  # warm numba's cache
-        wall, cpu = median_times(argv)
+        subprocess.run(argv, check=True, capture_output=True, env=env)  # warm the caches
+        wall, cpu = median_times(argv, env=env)
         recording = read_parquet(out)
         simulated = recording.duration
-        floor_wall, floor_cpu = median_times([PYTHON, "-c", _FLOOR], repeat=REPEAT)
-    name = "pneufdd simulate --cycles 4"
-    libraries = "python: import numba, pyarrow.parquet; one call of a cached numba function"
+        floor_wall, floor_cpu = median_times([PYTHON, "-c", _FLOOR], repeat=REPEAT, env=env)
+    name = "pneufdd simulate --cycles 4" + ("" if prebuilt else " on numba's JIT")
+    libraries = "python: import numpy, pyarrow.parquet; one call of the twin's compiled code"
     return [
         BenchResult(f"{name} (wall)", wall, "s", libraries, floor_wall),
         BenchResult(f"{name} (cpu)", cpu, "s", libraries, floor_cpu),
@@ -71,6 +87,13 @@ def simulate_process() -> list[BenchResult]:
             f"{name}: simulated time (ratio = x real time)", simulated, "s", "its wall time", wall
         ),
     ]
+
+
+def twin_origin() -> str:
+    """Which compiled twin a fresh process of this environment uses ("jit" or a path)."""
+    code = "from pneufdd.sim.prebuilt import compiled_twin; print(compiled_twin().origin)"
+    done = subprocess.run([PYTHON, "-c", code], check=True, capture_output=True, text=True)
+    return done.stdout.strip()
 
 
 def run() -> list[BenchResult]:
@@ -86,7 +109,11 @@ def run() -> list[BenchResult]:
         out.append(BenchResult(f"{name} (wall)", wall, "s", "python -c pass", base_wall))
         out.append(BenchResult(f"{name} (wall)", wall, "s", "python -c 'import numpy'", numpy_wall))
         out.append(BenchResult(f"{name} (cpu)", cpu, "s", "python -c 'import numpy'", numpy_cpu))
-    return out + simulate_process()
+    origin = twin_origin()
+    print(f"the twin of these processes: {origin}", flush=True)
+    if origin == "jit":
+        print("no prebuilt twin (run `pneufdd build-twin`): both lines use the JIT", flush=True)
+    return out + simulate_process(prebuilt=True) + simulate_process(prebuilt=False)
 
 
 if __name__ == "__main__":

@@ -1668,6 +1668,28 @@ def build_monitor(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
     return cases
 
 
+def build_build_twin(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "build-twin")
+    blocker = _put(folder, "f.txt", b"a file where the folder should be")
+    return [
+        Case(
+            f"build-twin/{label}",
+            "build-twin",
+            ["build-twin", *extra],
+            folder,
+            [blocker],
+            [],
+            mentions=words,
+        )
+        for label, extra, words in (
+            ("dir_is_a_file", ["--dir", blocker], ("f.txt",)),
+            ("dir_under_a_file", ["--dir", f"{blocker}/sub"], ("f.txt",)),
+            ("force_with_value", ["--force", "yes"], ("yes",)),
+            ("unknown_option", ["--fast"], ("--fast",)),
+        )
+    ]
+
+
 BUILDERS: dict[str, Builder] = {
     "steps": build_steps,
     "features": build_features,
@@ -1683,6 +1705,7 @@ BUILDERS: dict[str, Builder] = {
     "machine calibrate": build_machine_calibrate,
     "evaluate": build_evaluate,
     "vector-map": build_vector_map,
+    "build-twin": build_build_twin,
 }
 """Case builders by command path; a command added to the CLI adds one here."""
 

@@ -14,6 +14,7 @@ import typer
 
 from pneufdd import __version__
 from pneufdd.cli import (
+    build_twin,
     campaign,
     demo,
     diagnose,
@@ -46,7 +47,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data, evaluate, monitor, history):
+for module in (import_data, evaluate, monitor, history, build_twin):
     module.register(app)
 
 _STATE = {"debug": False}

@@ -74,6 +74,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 from pneufdd.physics.chamber import chamber_pressure_kernel, chamber_volume_kernel
@@ -109,6 +110,7 @@ from pneufdd.sim.layout import (
     IS_PHASE,
     IS_SAMPLE,
     IS_STEP,
+    SAMPLE_DT,
     SP_COMP_BAND,
     SP_COMP_PERIOD,
     SP_COMP_PHASE,
@@ -144,11 +146,9 @@ from pneufdd.sim.layout import (
 )
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 
-__all__ = ["SAMPLE_DT", "run_cycle"]
+__all__ = ["SAMPLE_DT", "first_order_recursion_kernel", "run_cycle"]
 
-SAMPLE_DT = 1e-3
-"""Output (analog) sample interval [s]."""
-
+F64 = npt.NDArray[np.float64]
 _G = GAMMA_AIR
 _CV_AIR = R_AIR / (GAMMA_AIR - 1.0)
 _CP_AIR = GAMMA_AIR * R_AIR / (GAMMA_AIR - 1.0)
@@ -705,3 +705,15 @@ def run_cycle(
         istate[IS_SAMPLE] += 1
         ss[SS_TIME] = istate[IS_SAMPLE] * SAMPLE_DT
     return n_out, 0, n_ev, total_sub
+
+
+@njit(cache=True, nogil=True)
+def first_order_recursion_kernel(x: F64, gain: float, pole: float) -> F64:
+    """``y[k] = gain * x[k] + pole * y[k-1]``, ``y[-1] = 0``: the sensors' first-order lag
+    and the house-pressure drift (:func:`pneufdd.sim.sensors.first_order_recursion`)."""
+    y = np.empty_like(x)
+    previous = 0.0
+    for k in range(x.size):
+        previous = gain * x[k] + pole * previous
+        y[k] = previous
+    return y

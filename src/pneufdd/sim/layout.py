@@ -5,6 +5,9 @@ The compiled integrator takes plain numpy arrays; these constants name their col
 
 from __future__ import annotations
 
+SAMPLE_DT = 1e-3
+"""Output (analog) sample interval of the twin [s]."""
+
 # supply parameters (float array)
 SP_P_HOUSE = 0  # nominal house pressure [Pa abs]
 SP_DRIFT_STD = 1  # OU standard deviation [Pa]

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from pneufdd.errors import InputError, describe
-from pneufdd.physics.leaks import leak_area, leak_mass_flow
 from pneufdd.physics.units import kg_s_to_slpm, psig_to_pa
 from pneufdd.sim.description import MachineDescription
 
@@ -150,6 +149,10 @@ def resolve_leaks(
         if leak.location in seen:
             raise InputError(describe("leak location given twice", leak.location, "once"))
         seen.add(leak.location)
+        # the leak laws are compiled kernels, imported once there is a leak: a leak-free
+        # run on the prebuilt twin (pneufdd.sim.prebuilt) never loads numba
+        from pneufdd.physics.leaks import leak_area, leak_mass_flow
+
         ref = p_nom if leak.unit == "SLPM" else None
         area = float(leak_area(leak.size, leak.unit, ref))
         mdot = float(leak_mass_flow(p_nom, area))

@@ -18,26 +18,16 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
 from pneufdd.physics.constants import P_ATM
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.sim.description import Sensor
+from pneufdd.sim.prebuilt import compiled_twin
 
 __all__ = ["SENSOR_SI_UNIT", "apply_sensor", "first_order_recursion"]
 
 F64 = npt.NDArray[np.float64]
 SENSOR_SI_UNIT = {"pressure": "Pa", "flow": "kg/s", "position": "m"}
-
-
-@njit(cache=True, nogil=True)
-def _recursion(x: F64, gain: float, pole: float) -> F64:  # pragma: no cover - compiled
-    y = np.empty_like(x)
-    previous = 0.0
-    for k in range(x.size):
-        previous = gain * x[k] + pole * previous
-        y[k] = previous
-    return y
 
 
 def first_order_recursion(x: F64, gain: float, pole: float) -> F64:
@@ -46,7 +36,9 @@ def first_order_recursion(x: F64, gain: float, pole: float) -> F64:
     The sensor's first-order lag (``gain = 1 - pole``, ``pole = exp(-dt / tau)``, the
     exact discretisation of ``tau dy/dt + y = x`` for a piecewise-constant input) and
     the house-pressure drift's AR(1) process (``gain = 1``) are both this recursion.
-    It is compiled with numba like the rest of the twin: the same result as
+    It is compiled like the rest of the twin
+    (:func:`pneufdd.sim.kernel.first_order_recursion_kernel`, prebuilt or numba's JIT,
+    :mod:`pneufdd.sim.prebuilt`): the same result as
     ``scipy.signal.lfilter([gain], [1, -pole], x)`` (the tests use it as the oracle),
     without importing :mod:`scipy.signal`, which costs about 0.5 s at the start of
     every ``pneufdd simulate``.
@@ -71,7 +63,8 @@ def first_order_recursion(x: F64, gain: float, pole: float) -> F64:
     [0.5, 0.75, 0.875]
     """
     samples = np.ascontiguousarray(x, dtype=np.float64)
-    return np.asarray(_recursion(samples, float(gain), float(pole)))
+    recursion = compiled_twin().first_order_recursion
+    return np.asarray(recursion(samples, float(gain), float(pole)))
 
 
 def _quantise(values: F64, low: float, high: float, bits: int) -> F64:

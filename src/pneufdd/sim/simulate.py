@@ -18,9 +18,10 @@ from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
 from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
 from pneufdd.sim.description import MachineDescription, Sensor, solenoid_slots
-from pneufdd.sim.kernel import SAMPLE_DT, run_cycle
+from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import load_machine
+from pneufdd.sim.prebuilt import compiled_twin
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulationResult, Stroke
 from pneufdd.sim.schedule import LeakSchedule
@@ -280,6 +281,7 @@ def run_simulation(
     strokes: list[Stroke] = []
     total_sub = 0
     params, program, records_state, outputs = _records(plant, state, buf)
+    run_cycle = compiled_twin().run_cycle
     try:
         for cyc in range(cycles):
             jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], nsteps)

@@ -1,0 +1,333 @@
+"""The twin's compiled code built ahead of time, so that short commands start at once.
+
+numba compiles the twin's kernels (:func:`pneufdd.sim.kernel.run_cycle`, the sensor
+lag :func:`pneufdd.sim.kernel.first_order_recursion_kernel`) on first use and keeps
+them in its on-disk cache. Loading them from that cache still imports numba and
+prepares its compiler (together about 0.6 s per process, most of a four-cycle
+``pneufdd simulate``; ``benchmarks/bench_startup.py``). ``pneufdd build-twin`` (or
+:func:`build_prebuilt_twin`) compiles the same Python functions once more with
+numba's ahead-of-time compiler (:mod:`numba.pycc`) into an ordinary extension module;
+a process that finds a current one uses it and never imports numba for the twin.
+
+* **Same code, same numbers.** The module is compiled from the very functions the
+  JIT compiles (their ``py_func``), for the same argument types, by the same LLVM
+  without fast-math, for the generic CPU of the platform (no host-specific
+  instructions, so a cache directory shared by different x86-64 machines works).
+  Recordings are bit-for-bit those of the JIT (``tests/test_sim_prebuilt.py``).
+* **Never stale.** The module's name holds a hash of every source file of
+  :mod:`pneufdd.physics` and :mod:`pneufdd.sim`, and of the Python, NumPy, numba and
+  llvmlite versions and the platform. After any edit or upgrade the name no longer
+  matches, the module is ignored and the JIT runs, until ``pneufdd build-twin`` is
+  run again.
+* **Threads.** numba's ahead-of-time wrappers keep the GIL by default; the build
+  sets the same "release the GIL" flag as the JIT's ``nogil=True`` (numba's
+  ``Flags.release_gil``), so the diagnosis's simulation checks still run in
+  parallel on threads.
+* **Where.** ``$PNEUFDD_PREBUILT_DIR``, else ``$NUMBA_CACHE_DIR/pneufdd-prebuilt``
+  (the Makefile keeps numba's cache in ``.numba_cache``), else
+  ``~/.cache/pneufdd/prebuilt`` (``$XDG_CACHE_HOME`` respected). Building replaces
+  the older builds in that directory; the new file is written aside and renamed, so
+  a process never loads a half-written module. ``PNEUFDD_PREBUILT=0`` makes every
+  process use the JIT.
+
+Building needs a C compiler and Python's headers (numba links its runtime into the
+module), and takes about 15 s. :mod:`numba.pycc` is marked "pending deprecation" by
+numba: if a numba without it is installed, the build fails with a clear error and
+everything runs on the JIT, with the same results.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.machinery
+import importlib.util
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import ModuleType
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from pneufdd.errors import PneufddError
+
+__all__ = [
+    "CompiledTwin",
+    "PrebuiltBuildError",
+    "build_prebuilt_twin",
+    "compiled_twin",
+    "load_prebuilt_twin",
+    "prebuilt_directory",
+    "prebuilt_path",
+]
+
+DIRECTORY_ENV = "PNEUFDD_PREBUILT_DIR"
+"""Environment variable naming the directory of the prebuilt twin."""
+SWITCH_ENV = "PNEUFDD_PREBUILT"
+"""Environment variable: ``0`` makes every process use numba's JIT."""
+_PREFIX = "pneufdd_twin_"
+_PACKAGE = Path(__file__).resolve().parent.parent
+
+
+class PrebuiltBuildError(PneufddError):
+    """The prebuilt twin could not be compiled (compiler, headers or numba missing)."""
+
+
+class CompiledTwin(NamedTuple):
+    """The twin's compiled functions a simulation calls, and where they come from."""
+
+    run_cycle: Callable[..., tuple[int, int, int, int]]
+    """:func:`pneufdd.sim.kernel.run_cycle`."""
+    first_order_recursion: Callable[..., Any]
+    """:func:`pneufdd.sim.kernel.first_order_recursion_kernel`."""
+    origin: str
+    """``"jit"`` or the path of the prebuilt module."""
+
+
+def prebuilt_directory() -> Path:
+    """The directory that holds the prebuilt twin (see the module's notes)."""
+    if os.environ.get(DIRECTORY_ENV):
+        return Path(os.environ[DIRECTORY_ENV])
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"]) / "pneufdd-prebuilt"
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "pneufdd" / "prebuilt"
+
+
+def _sources() -> list[Path]:
+    """The files whose code the prebuilt module holds or whose arrays it is typed for."""
+    return sorted([*(_PACKAGE / "physics").glob("*.py"), *(_PACKAGE / "sim").glob("*.py")])
+
+
+def _version(package: str) -> str:
+    """The installed version of ``package`` without importing it.
+
+    The name of its ``.dist-info`` folder next to the package (``numba-0.61.2.dist-info``);
+    :mod:`importlib.metadata` would do the same but costs 20-25 ms to import, 5 % of a
+    short ``pneufdd simulate``. Without that folder: the size and time of the package's
+    ``__init__.py``, which change when it is reinstalled.
+    """
+    spec = importlib.util.find_spec(package)
+    if spec is None or spec.origin is None:
+        return "absent"
+    init = Path(spec.origin)
+    infos = sorted(init.parent.parent.glob(f"{package}-*.dist-info"))
+    if infos:
+        return infos[-1].name
+    stat = init.stat()
+    return f"{init}:{stat.st_size}:{stat.st_mtime_ns}"
+
+
+def build_key() -> str:
+    """Hash of the sources, the compiler's and runtime's versions and the platform [hex]."""
+    digest = hashlib.sha256()
+    for part in (
+        sys.implementation.cache_tag,
+        sys.version,
+        platform.machine(),
+        np.__version__,
+        _version("numba"),
+        _version("llvmlite"),
+    ):
+        digest.update(part.encode() + b"\0")
+    for path in _sources():
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+def _module_name() -> str:
+    return _PREFIX + build_key()[:24]
+
+
+def prebuilt_path(directory: Path | None = None) -> Path:
+    """Where the prebuilt twin of the installed sources is (or would be) [path]."""
+    suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
+    return (directory or prebuilt_directory()) / (_module_name() + suffix)
+
+
+def load_prebuilt_twin(directory: Path | None = None) -> ModuleType | None:
+    """The prebuilt module of the installed sources, or None if there is none.
+
+    Parameters
+    ----------
+    directory : Path, optional
+        Where to look (default :func:`prebuilt_directory`).
+
+    Returns
+    -------
+    module or None
+        The extension module (functions ``run_cycle`` and ``first_order_recursion``);
+        None if it was not built for these sources, or does not load on this system.
+    """
+    path = prebuilt_path(directory)
+    if not path.is_file():
+        return None
+    spec = importlib.util.spec_from_file_location(path.name.split(".")[0], path)
+    if spec is None or spec.loader is None:  # pragma: no cover - an extension suffix always has one
+        return None
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except (ImportError, OSError):
+        return None  # a module built on another system: the JIT gives the same results
+    return module
+
+
+def _jit_twin() -> CompiledTwin:
+    from pneufdd.sim.kernel import first_order_recursion_kernel, run_cycle
+
+    return CompiledTwin(run_cycle, first_order_recursion_kernel, "jit")
+
+
+@functools.cache
+def compiled_twin() -> CompiledTwin:
+    """The prebuilt twin if one is current, else numba's JIT (identical results).
+
+    Decided once per process; ``PNEUFDD_PREBUILT=0`` chooses the JIT.
+    """
+    if os.environ.get(SWITCH_ENV, "1") != "0":
+        module = load_prebuilt_twin()
+        if module is not None:
+            return CompiledTwin(
+                module.run_cycle, module.first_order_recursion, str(module.__file__)
+            )
+    return _jit_twin()
+
+
+@contextmanager
+def _wrappers_release_gil() -> Iterator[None]:
+    """Compile pycc's Python wrappers with numba's ``release_gil`` flag (``nogil=True``).
+
+    numba.pycc builds every export with a default ``Flags()`` and offers no option for
+    the GIL; the wrapper code that releases it is numba's own (the JIT's ``nogil``).
+    """
+    import numba.pycc.compiler as pycc_compiler
+    from numba.core.compiler import Flags
+
+    class _ReleasingFlags(Flags):
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)  # type: ignore[no-untyped-call]
+            setattr(self, "release_gil", True)  # noqa: B010 - numba's option descriptor
+
+    setattr(pycc_compiler, "Flags", _ReleasingFlags)  # noqa: B010 - not exported by numba
+    try:
+        yield
+    finally:
+        setattr(pycc_compiler, "Flags", Flags)  # noqa: B010
+
+
+def _signatures() -> dict[str, Any]:
+    """The exported functions' numba signatures: the types a simulation passes them."""
+    import importlib
+
+    import numba
+    from numba.core import types
+
+    simulate = importlib.import_module("pneufdd.sim.simulate")
+    from pneufdd.sim.compile import compile_plant, initial_state
+    from pneufdd.sim.loading import load_machine
+    from pneufdd.sim.records import CycleDraws
+
+    machine = load_machine("festo-dsd")
+    plant = compile_plant(machine, [])
+    buffers = simulate._Buffers(
+        10,
+        2 + 2 * len(machine.actuators),
+        len(machine.actuators),
+        plant.n_solenoids,
+        plant.n_switches,
+        len(machine.steps),
+    )
+    records = simulate._records(plant, initial_state(machine, plant), buffers)
+    vector = np.zeros(3)
+    draws = CycleDraws(vector, vector, vector)
+    typeof: Any = numba.typeof
+    unituple: Any = types.UniTuple
+    args = [typeof(r) for r in (records[0], records[1], draws, records[2], records[3])]
+    return {
+        "run_cycle": unituple(types.int64, 4)(*args),
+        "first_order_recursion": typeof(vector)(typeof(vector), types.float64, types.float64),
+    }
+
+
+def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> Path:
+    """Compile the twin ahead of time for the installed sources (about 15 s).
+
+    Parameters
+    ----------
+    directory : Path, optional
+        Where to write it (default :func:`prebuilt_directory`); created if missing.
+    force : bool
+        Compile even if a current module exists.
+
+    Returns
+    -------
+    Path
+        The module's path.
+
+    Raises
+    ------
+    PrebuiltBuildError
+        If numba's ahead-of-time compiler, a C compiler or Python's headers are missing.
+    """
+    directory = directory or prebuilt_directory()
+    target = prebuilt_path(directory)
+    if target.is_file() and not force and load_prebuilt_twin(directory) is not None:
+        return target
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise PrebuiltBuildError(
+            f"cannot make the prebuilt twin's folder {str(directory)!r}: "
+            f"{error.strerror or error}; give a folder that can be created and written"
+        ) from error
+    import numba
+    from numba.core.errors import NumbaPendingDeprecationWarning
+
+    from pneufdd.sim.kernel import first_order_recursion_kernel, run_cycle
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
+        try:
+            from numba.pycc.cc import CC
+        except ImportError as error:
+            raise PrebuiltBuildError(
+                f"this numba ({numba.__version__}) has no ahead-of-time compiler (numba.pycc); "
+                "the twin runs on numba's JIT with the same results"
+            ) from error
+    signatures = _signatures()
+    name = target.name.split(".")[0]
+    workspace = Path(tempfile.mkdtemp(prefix=".build-", dir=directory))
+    try:
+        compiler = CC(name)  # type: ignore[no-untyped-call]
+        compiler.output_dir = str(workspace)
+        compiler.target_cpu = ""  # the platform's generic CPU: portable, same numbers
+        compiler.export("run_cycle", signatures["run_cycle"])(  # type: ignore[no-untyped-call]
+            run_cycle.py_func
+        )
+        compiler.export("first_order_recursion", signatures["first_order_recursion"])(  # type: ignore[no-untyped-call]
+            first_order_recursion_kernel.py_func
+        )
+        with _wrappers_release_gil():
+            try:
+                compiler.compile()
+            except Exception as error:  # compiler, linker or headers missing
+                raise PrebuiltBuildError(
+                    f"compiling the prebuilt twin failed ({type(error).__name__}: {error}); "
+                    "it needs a C compiler (gcc) and Python's headers (Python.h); the twin "
+                    "runs on numba's JIT with the same results"
+                ) from error
+        os.replace(workspace / compiler.output_file, target)
+    finally:
+        shutil.rmtree(workspace, ignore_errors=True)
+    for old in directory.glob(_PREFIX + "*"):
+        if old != target and old.is_file():
+            old.unlink(missing_ok=True)
+    return target

@@ -1,0 +1,121 @@
+"""The prebuilt twin (numba.pycc, ahead of time) against numba's JIT: same numbers.
+
+One real build (about 15 s: numba's ahead-of-time compiler and gcc) into a temporary
+directory; the comparisons run in fresh processes, one that uses the prebuilt module
+and one told to use the JIT (``PNEUFDD_PREBUILT=0``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pneufdd.cli.app import main
+from pneufdd.sim.prebuilt import (
+    build_key,
+    build_prebuilt_twin,
+    load_prebuilt_twin,
+    prebuilt_directory,
+    prebuilt_path,
+)
+
+pytestmark = pytest.mark.skipif(
+    shutil.which("gcc") is None and shutil.which("cc") is None,
+    reason="building the prebuilt twin needs a C compiler",
+)
+
+_RUN = r"""
+import hashlib, json, sys
+import numpy as np
+from pneufdd.sim import run_simulation
+from pneufdd.sim.prebuilt import compiled_twin
+
+leaks = json.loads(sys.argv[1])
+result = run_simulation("festo-dsd", cycles=2, leaks=leaks or None, seed=11)
+digests = {}
+for name in result.recording.channels:
+    time, values = result.recording.channel(name)
+    data = np.ascontiguousarray(time).tobytes() + np.ascontiguousarray(values).tobytes()
+    digests[name] = hashlib.sha256(data).hexdigest()
+for name, values in sorted(result.outputs.items()):
+    digests["outputs." + name] = hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()
+digests["strokes"] = hashlib.sha256(repr(result.strokes).encode()).hexdigest()
+print(json.dumps({"origin": compiled_twin().origin, "numba": "numba" in sys.modules,
+                  "digests": digests}))
+"""
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    directory = tmp_path_factory.mktemp("prebuilt")
+    older = directory / "pneufdd_twin_0000.cpython-311-x86_64-linux-gnu.so"
+    older.write_bytes(b"an older build")
+    path = build_prebuilt_twin(directory)
+    assert path == prebuilt_path(directory)
+    assert not older.exists()  # building replaces the older builds
+    return directory
+
+
+def _run(directory: Path, leaks: dict[str, Any], prebuilt: bool) -> dict[str, Any]:
+    env = dict(os.environ, PNEUFDD_PREBUILT_DIR=str(directory))
+    env["PNEUFDD_PREBUILT"] = "1" if prebuilt else "0"
+    done = subprocess.run(
+        [sys.executable, "-c", _RUN, json.dumps(leaks)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    result: dict[str, Any] = json.loads(done.stdout)
+    return result
+
+
+@pytest.mark.parametrize("leaks", [{}, {"DNC_B": 3}, {"supply": "30slpm", "DNC_A": "1.2mm"}])
+def test_prebuilt_twin_records_what_the_jit_records(built: Path, leaks: dict[str, Any]) -> None:
+    prebuilt = _run(built, leaks, prebuilt=True)
+    jit = _run(built, leaks, prebuilt=False)
+    assert prebuilt["origin"] == str(prebuilt_path(built))
+    assert jit["origin"] == "jit"
+    assert len(prebuilt["digests"]) > 40  # 2 x 2 x 6 + supply channels, outputs, strokes
+    assert prebuilt["digests"] == jit["digests"]
+    # without a leak the prebuilt twin's process never imports numba
+    assert prebuilt["numba"] is (len(leaks) > 0)
+    assert jit["numba"] is True
+
+
+def test_prebuilt_twin_is_found_only_under_the_sources_key(built: Path, tmp_path: Path) -> None:
+    module = load_prebuilt_twin(built)
+    assert module is not None
+    assert callable(module.run_cycle)
+    assert callable(module.first_order_recursion)
+    assert prebuilt_path(built).name.startswith("pneufdd_twin_" + build_key()[:24])
+    # the same module under another key (other sources) is not loaded
+    other = tmp_path / prebuilt_path(built).name.replace(build_key()[:24], "f" * 24)
+    shutil.copy(prebuilt_path(built), other)
+    assert load_prebuilt_twin(tmp_path) is None
+    assert load_prebuilt_twin(tmp_path / "missing") is None
+
+
+def test_build_twin_command_reports_an_up_to_date_build(
+    built: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["build-twin", "--dir", str(built)]) == 0
+    assert f"up to date: {prebuilt_path(built)}" in " ".join(capsys.readouterr().out.split())
+
+
+def test_prebuilt_directory_follows_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PNEUFDD_PREBUILT_DIR", "/somewhere/else")
+    assert prebuilt_directory() == Path("/somewhere/else")
+    monkeypatch.delenv("PNEUFDD_PREBUILT_DIR")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "/numba/cache")
+    assert prebuilt_directory() == Path("/numba/cache/pneufdd-prebuilt")
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", "/xdg")
+    assert prebuilt_directory() == Path("/xdg/pneufdd/prebuilt")
