@@ -12,6 +12,7 @@ import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +28,9 @@ from pneufdd.sim.prebuilt import (
 )
 
 pytestmark = pytest.mark.skipif(
-    shutil.which("gcc") is None and shutil.which("cc") is None,
-    reason="building the prebuilt twin needs a C compiler",
+    (shutil.which("gcc") is None and shutil.which("cc") is None)
+    or not (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file(),
+    reason="building the prebuilt twin needs a C compiler and Python's headers",
 )
 
 _RUN = r"""

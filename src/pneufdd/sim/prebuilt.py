@@ -172,8 +172,8 @@ def load_prebuilt_twin(directory: Path | None = None) -> ModuleType | None:
     spec = importlib.util.spec_from_file_location(path.name.split(".")[0], path)
     if spec is None or spec.loader is None:  # pragma: no cover - an extension suffix always has one
         return None
-    module = importlib.util.module_from_spec(spec)
     try:
+        module = importlib.util.module_from_spec(spec)  # loads the shared library
         spec.loader.exec_module(module)
     except (ImportError, OSError):
         return None  # a module built on another system: the JIT gives the same results
@@ -230,27 +230,11 @@ def _signatures() -> dict[str, Any]:
     import numba
     from numba.core import types
 
-    simulate = importlib.import_module("pneufdd.sim.simulate")
-    from pneufdd.sim.compile import compile_plant, initial_state
-    from pneufdd.sim.loading import load_machine
-    from pneufdd.sim.records import CycleDraws
-
-    machine = load_machine("festo-dsd")
-    plant = compile_plant(machine, [])
-    buffers = simulate._Buffers(
-        10,
-        2 + 2 * len(machine.actuators),
-        len(machine.actuators),
-        plant.n_solenoids,
-        plant.n_switches,
-        len(machine.steps),
-    )
-    records = simulate._records(plant, initial_state(machine, plant), buffers)
-    vector = np.zeros(3)
-    draws = CycleDraws(vector, vector, vector)
+    arguments = importlib.import_module("pneufdd.sim.simulate").kernel_arguments()
+    vector = arguments[2].jitter  # a float64 vector, as the recursion takes and returns
     typeof: Any = numba.typeof
     unituple: Any = types.UniTuple
-    args = [typeof(r) for r in (records[0], records[1], draws, records[2], records[3])]
+    args = [typeof(record) for record in arguments]
     return {
         "run_cycle": unituple(types.int64, 4)(*args),
         "first_order_recursion": typeof(vector)(typeof(vector), types.float64, types.float64),

@@ -31,6 +31,7 @@ __all__ = [
     "SIMULATOR_VERSION",
     "MachineStalledError",
     "as_exported",
+    "kernel_arguments",
     "run_simulation",
     "simulate",
 ]
@@ -397,6 +398,24 @@ def _records(
     records_state = State(*(state[name] for name in State._fields))
     outputs = Outputs(*(getattr(buf, name) for name in Outputs._fields))
     return params, program, records_state, outputs
+
+
+def kernel_arguments(
+    machine: MachineLike = "festo-dsd",
+) -> tuple[PlantParams, Program, CycleDraws, State, Outputs]:
+    """Arguments of :func:`pneufdd.sim.kernel.run_cycle` for ``machine`` at rest, leak-free.
+
+    Records of the kind (array types and layouts) a simulation passes to the kernel,
+    over small buffers: :mod:`pneufdd.sim.prebuilt` types the ahead-of-time build with
+    them, so the prebuilt twin accepts exactly what :func:`run_simulation` passes.
+    """
+    desc = load_machine(machine)
+    plant = compile_plant(desc, [])
+    na = len(desc.actuators)
+    buf = _Buffers(10, 2 + 2 * na, na, plant.n_solenoids, plant.n_switches, len(desc.steps))
+    params, program, state, outputs = _records(plant, initial_state(desc, plant), buf)
+    draws = CycleDraws(np.zeros(len(desc.steps)), np.ones(na), np.zeros(4))
+    return params, program, draws, state, outputs
 
 
 def _recorded_sensors(
