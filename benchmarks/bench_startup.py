@@ -12,7 +12,9 @@ pandas).
 The command runs twice over: with the twin compiled ahead of time (``make bench``
 runs ``pneufdd build-twin`` first; :mod:`pneufdd.sim.prebuilt`), which is what the
 target is about, and with numba's JIT (``PNEUFDD_PREBUILT=0``), whose process imports
-numba and loads the kernels from numba's cache (about 0.6 s more).
+numba and loads the kernels from numba's cache (about 0.6 s more). A third line
+simulates with a leak: its size becomes an area through the compiled leak law
+(``physics/leaks.py``), which loads numba in any case.
 """
 
 from __future__ import annotations
@@ -58,13 +60,16 @@ _FLOOR = (
 )
 
 
-def simulate_process(prebuilt: bool) -> list[BenchResult]:
+def simulate_process(prebuilt: bool, leak: str | None = None) -> list[BenchResult]:
     """``pneufdd simulate --cycles 4`` as whole processes: wall time and real-time factor.
 
     Parameters
     ----------
     prebuilt : bool
         Use the prebuilt twin if one is current (else ``PNEUFDD_PREBUILT=0``: the JIT).
+    leak : str, optional
+        A ``--leak`` option (its size is turned into an area by the compiled leak law,
+        which loads numba even with the prebuilt twin).
     """
     from pneufdd.recording import read_parquet
 
@@ -72,21 +77,24 @@ def simulate_process(prebuilt: bool) -> list[BenchResult]:
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder) / "run.parquet"
         argv = [PNEUFDD, "simulate", "--machine", "festo-dsd", "--cycles", "4"]
-        argv += ["--out", str(out), "--overwrite"]
+        argv += ["--out", str(out), "--overwrite"] + (["--leak", leak] if leak else [])
         subprocess.run(argv, check=True, capture_output=True, env=env)  # warm the caches
         wall, cpu = median_times(argv, env=env)
         recording = read_parquet(out)
         simulated = recording.duration
         floor_wall, floor_cpu = median_times([PYTHON, "-c", _FLOOR], repeat=REPEAT, env=env)
-    name = "pneufdd simulate --cycles 4" + ("" if prebuilt else " on numba's JIT")
+    name = "pneufdd simulate --cycles 4" + (f" --leak {leak}" if leak else "")
+    name += "" if prebuilt else " on numba's JIT"
     libraries = "python: import numpy, pyarrow.parquet; one call of the twin's compiled code"
-    return [
-        BenchResult(f"{name} (wall)", wall, "s", libraries, floor_wall),
-        BenchResult(f"{name} (cpu)", cpu, "s", libraries, floor_cpu),
+    results = [BenchResult(f"{name} (wall)", wall, "s", libraries, floor_wall)]
+    if leak is None:
+        results.append(BenchResult(f"{name} (cpu)", cpu, "s", libraries, floor_cpu))
+    results.append(
         BenchResult(
             f"{name}: simulated time (ratio = x real time)", simulated, "s", "its wall time", wall
-        ),
-    ]
+        )
+    )
+    return results
 
 
 def twin_origin() -> str:
@@ -113,7 +121,8 @@ def run() -> list[BenchResult]:
     print(f"the twin of these processes: {origin}", flush=True)
     if origin == "jit":
         print("no prebuilt twin (run `pneufdd build-twin`): both lines use the JIT", flush=True)
-    return out + simulate_process(prebuilt=True) + simulate_process(prebuilt=False)
+    out += simulate_process(prebuilt=True) + simulate_process(prebuilt=False)
+    return out + simulate_process(prebuilt=True, leak="DNC_B=3")
 
 
 if __name__ == "__main__":
