@@ -16,10 +16,13 @@ import sysconfig
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from pneufdd.cli.app import main
 from pneufdd.sim.prebuilt import (
+    _prebuilt_twin,
+    argument_layout,
     build_key,
     build_prebuilt_twin,
     load_prebuilt_twin,
@@ -50,7 +53,7 @@ for name, values in sorted(result.outputs.items()):
     digests["outputs." + name] = hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()
 digests["strokes"] = hashlib.sha256(repr(result.strokes).encode()).hexdigest()
 print(json.dumps({"origin": compiled_twin().origin, "numba": "numba" in sys.modules,
-                  "digests": digests}))
+                  "kernel": "pneufdd.sim.kernel" in sys.modules, "digests": digests}))
 """
 
 
@@ -87,8 +90,10 @@ def test_prebuilt_twin_records_what_the_jit_records(built: Path, leaks: dict[str
     assert jit["origin"] == "jit"
     assert len(prebuilt["digests"]) > 40  # 2 x 2 x 6 + supply channels, outputs, strokes
     assert prebuilt["digests"] == jit["digests"]
-    # without a leak the prebuilt twin's process never imports numba
+    # without a leak the prebuilt twin's process never imports numba, and no call fell
+    # back to the JIT's kernel (its arguments had the layout the module is typed for)
     assert prebuilt["numba"] is (len(leaks) > 0)
+    assert prebuilt["kernel"] is False
     assert jit["numba"] is True
 
 
@@ -121,3 +126,17 @@ def test_prebuilt_directory_follows_the_environment(monkeypatch: pytest.MonkeyPa
     monkeypatch.delenv("NUMBA_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", "/xdg")
     assert prebuilt_directory() == Path("/xdg/pneufdd/prebuilt")
+
+
+def test_prebuilt_functions_run_only_on_their_argument_layout(built: Path) -> None:
+    module = load_prebuilt_twin(built)
+    assert module is not None
+    twin = _prebuilt_twin(module)
+    # float32 samples: the ahead-of-time wrapper would read them as float64; the guard
+    # hands them to the JIT, which compiles for them (y = x/2 + y/2)
+    samples = np.ones(4, dtype=np.float32)
+    assert argument_layout((samples, 0.5, 0.5)) != argument_layout((np.ones(4), 0.5, 0.5))
+    np.testing.assert_allclose(
+        twin.first_order_recursion(samples, 0.5, 0.5), [0.5, 0.75, 0.875, 0.9375]
+    )
+    assert twin.first_order_recursion(np.ones(3), 0.5, 0.5).tolist() == [0.5, 0.75, 0.875]

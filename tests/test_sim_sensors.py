@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.signal import lfilter
 
+from pneufdd.errors import InputError
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.sim.description import Sensor
 from pneufdd.sim.sensors import apply_sensor, first_order_recursion
@@ -56,3 +58,8 @@ def test_first_order_lag_settles_to_its_input_with_time_constant_tau() -> None:
     y = first_order_recursion(np.ones(200), 1.0 - pole, pole)
     np.testing.assert_allclose(y[14], 1.0 - np.exp(-1.0), rtol=1e-12)
     np.testing.assert_allclose(y[-1], 1.0, atol=1e-5)
+
+
+def test_first_order_recursion_takes_one_dimension_only() -> None:
+    with pytest.raises(InputError, match=r"\(2, 2\)"):
+        first_order_recursion(np.ones((2, 2)), 0.5, 0.5)

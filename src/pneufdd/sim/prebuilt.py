@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib
 import importlib.machinery
 import importlib.util
 import os
@@ -48,7 +49,7 @@ import shutil
 import sys
 import tempfile
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
@@ -186,6 +187,60 @@ def _jit_twin() -> CompiledTwin:
     return CompiledTwin(run_cycle, first_order_recursion_kernel, "jit")
 
 
+Layout = tuple[tuple[str, int, bool, bool], ...]
+
+
+def argument_layout(arguments: Sequence[Any]) -> Layout:
+    """Dtype, dimensions, C order and writability of every array in ``arguments``.
+
+    Arguments are arrays, or records (tuples) of arrays; anything else is described
+    by its type name, so it never matches an array's layout.
+    """
+    layout = []
+    for argument in arguments:
+        for array in argument if isinstance(argument, tuple) else (argument,):
+            if isinstance(array, np.ndarray):
+                flags = array.flags
+                layout.append((array.dtype.str, array.ndim, flags.c_contiguous, flags.writeable))
+            else:
+                layout.append((type(array).__name__, -1, False, False))
+    return tuple(layout)
+
+
+class _Guarded:
+    """A prebuilt function that runs only on the argument layout it was compiled for.
+
+    Ahead-of-time wrappers trust their declared types: an array of another dtype or
+    number of dimensions is read as if it had the declared ones (a wrong result or a
+    crash). Any other layout goes to the JIT's function, which compiles for it.
+    """
+
+    def __init__(self, prebuilt: Callable[..., Any], layout: Layout, jit_name: str) -> None:
+        self._prebuilt = prebuilt
+        self._layout = layout
+        self._jit_name = jit_name
+
+    def __call__(self, *arguments: Any) -> Any:
+        if argument_layout(arguments) == self._layout:
+            return self._prebuilt(*arguments)
+        return getattr(_jit_twin(), self._jit_name)(*arguments)
+
+
+def _prebuilt_twin(module: ModuleType) -> CompiledTwin:
+    """The module's functions, each guarded by the layout of the arguments it is typed for."""
+    arguments = importlib.import_module("pneufdd.sim.simulate").kernel_arguments()
+    vector = arguments[2].jitter
+    return CompiledTwin(
+        _Guarded(module.run_cycle, argument_layout(arguments), "run_cycle"),
+        _Guarded(
+            module.first_order_recursion,
+            argument_layout((vector, 0.5, 0.5)),
+            "first_order_recursion",
+        ),
+        str(module.__file__),
+    )
+
+
 @functools.cache
 def compiled_twin() -> CompiledTwin:
     """The prebuilt twin if one is current, else numba's JIT (identical results).
@@ -195,9 +250,7 @@ def compiled_twin() -> CompiledTwin:
     if os.environ.get(SWITCH_ENV, "1") != "0":
         module = load_prebuilt_twin()
         if module is not None:
-            return CompiledTwin(
-                module.run_cycle, module.first_order_recursion, str(module.__file__)
-            )
+            return _prebuilt_twin(module)
     return _jit_twin()
 
 
@@ -225,8 +278,6 @@ def _wrappers_release_gil() -> Iterator[None]:
 
 def _signatures() -> dict[str, Any]:
     """The exported functions' numba signatures: the types a simulation passes them."""
-    import importlib
-
     import numba
     from numba.core import types
 

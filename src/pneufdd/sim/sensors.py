@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.errors import InputError, describe
 from pneufdd.physics.constants import P_ATM
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.sim.description import Sensor
@@ -46,7 +47,7 @@ def first_order_recursion(x: F64, gain: float, pole: float) -> F64:
     Parameters
     ----------
     x : ndarray
-        Input samples [any unit].
+        Input samples, one dimension [any unit].
     gain : float
         Input gain [-].
     pole : float
@@ -57,12 +58,19 @@ def first_order_recursion(x: F64, gain: float, pole: float) -> F64:
     ndarray
         Filtered samples [unit of ``x``].
 
+    Raises
+    ------
+    InputError
+        If ``x`` has more or fewer than one dimension.
+
     Examples
     --------
     >>> first_order_recursion(np.array([1.0, 1.0, 1.0]), 0.5, 0.5).tolist()
     [0.5, 0.75, 0.875]
     """
     samples = np.ascontiguousarray(x, dtype=np.float64)
+    if samples.ndim != 1:
+        raise InputError(describe("samples of the recursion (shape)", samples.shape, "(n,)"))
     recursion = compiled_twin().first_order_recursion
     return np.asarray(recursion(samples, float(gain), float(pole)))
 
