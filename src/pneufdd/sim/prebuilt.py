@@ -334,8 +334,9 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
             from numba.pycc.cc import CC
         except ImportError as error:
             raise PrebuiltBuildError(
-                f"this numba ({numba.__version__}) has no ahead-of-time compiler (numba.pycc); "
-                "the twin runs on numba's JIT with the same results"
+                f"numba's ahead-of-time compiler (numba.pycc, numba {numba.__version__}) "
+                f"cannot be loaded ({error}); it needs setuptools, and numbas after its "
+                "removal have none; the twin runs on numba's JIT with the same results"
             ) from error
     signatures = _signatures()
     name = target.name.split(".")[0]
