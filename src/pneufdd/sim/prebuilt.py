@@ -19,6 +19,9 @@ a process that finds a current one uses it and never imports numba for the twin.
   llvmlite versions and the platform. After any edit or upgrade the name no longer
   matches, the module is ignored and the JIT runs, until ``pneufdd build-twin`` is
   run again.
+* **Guarded.** numba's ahead-of-time wrappers trust their declared types; each call
+  compares its arrays' layout with the one the module was typed for, and any other
+  layout runs on the JIT (:class:`_Guarded`).
 * **Threads.** numba's ahead-of-time wrappers keep the GIL by default; the build
   sets the same "release the GIL" flag as the JIT's ``nogil=True`` (numba's
   ``Flags.release_gil``), so the diagnosis's simulation checks still run in
