@@ -140,3 +140,11 @@ def test_prebuilt_functions_run_only_on_their_argument_layout(built: Path) -> No
         twin.first_order_recursion(samples, 0.5, 0.5), [0.5, 0.75, 0.875, 0.9375]
     )
     assert twin.first_order_recursion(np.ones(3), 0.5, 0.5).tolist() == [0.5, 0.75, 0.875]
+
+
+def test_prebuilt_wrappers_release_the_gil(built: Path) -> None:
+    # numba's wrappers release the GIL with PyEval_SaveThread (the JIT's nogil=True);
+    # a pycc module built without the release_gil flag never references it (checked
+    # on a build without it: only PyGILState_Ensure/Release appear)
+    assert b"PyEval_SaveThread" in prebuilt_path(built).read_bytes()
+    assert b"PyEval_RestoreThread" in prebuilt_path(built).read_bytes()
