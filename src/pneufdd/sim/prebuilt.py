@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import importlib
 import importlib.machinery
 import importlib.util
 import os
@@ -231,7 +230,9 @@ class _Guarded:
 
 def _prebuilt_twin(module: ModuleType) -> CompiledTwin:
     """The module's functions, each guarded by the layout of the arguments it is typed for."""
-    arguments = importlib.import_module("pneufdd.sim.simulate").kernel_arguments()
+    from pneufdd.sim.simulate import kernel_arguments
+
+    arguments = kernel_arguments()
     vector = arguments[2].jitter
     return CompiledTwin(
         _Guarded(module.run_cycle, argument_layout(arguments), "run_cycle"),
@@ -284,7 +285,9 @@ def _signatures() -> dict[str, Any]:
     import numba
     from numba.core import types
 
-    arguments = importlib.import_module("pneufdd.sim.simulate").kernel_arguments()
+    from pneufdd.sim.simulate import kernel_arguments
+
+    arguments = kernel_arguments()
     vector = arguments[2].jitter  # a float64 vector, as the recursion takes and returns
     typeof: Any = numba.typeof
     unituple: Any = types.UniTuple
@@ -317,7 +320,7 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
     """
     directory = directory or prebuilt_directory()
     target = prebuilt_path(directory)
-    if target.is_file() and not force and load_prebuilt_twin(directory) is not None:
+    if not force and load_prebuilt_twin(directory) is not None:
         return target
     try:
         directory.mkdir(parents=True, exist_ok=True)

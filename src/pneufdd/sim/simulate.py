@@ -515,13 +515,12 @@ def _assemble(
     time = np.arange(n, dtype=np.float64) * SAMPLE_DT
     analog: dict[str, npt.NDArray[np.float64]] = {}
     units: dict[str, str] = {}
-    row = 0
+    rows = iter(store)  # one row per recorded sensor, in their order
     for sensor in sensors:
         if sensor is None:  # not recorded: its noise is drawn all the same
             rng.standard_normal(n)
             continue
-        truth = store[row, :n]
-        row += 1
+        truth = next(rows)[:n]
         analog[sensor.channel] = apply_sensor(sensor, truth, rng, ANALOG_RATE_HZ)
         units[sensor.channel] = SENSOR_SI_UNIT[sensor.kind]
     cmd = _cat(chunks, "cmd")
