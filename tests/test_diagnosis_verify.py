@@ -393,3 +393,137 @@ def test_one_leak_at_most_simulates_no_pairs():
     assert len(result.leaks) == 1
     assert calls  # the single-leak fit misfits: simulated
     assert all(len(c) == 1 for c in calls)  # only single leaks were simulated
+
+
+# ------------------------------------------------------------ fewer simulations
+
+
+def _counting(sim):
+    runs = []
+
+    def counted(leaks):
+        runs.append(tuple(sorted(leaks)))
+        return sim(leaks)
+
+    return counted, runs
+
+
+def test_hopeless_explanations_stop_and_the_best_is_sized_as_without_stopping():
+    rng = np.random.default_rng(21)
+    base = np.abs(rng.normal(size=(6, 30)))
+    plain = _pair_simulator(base, 0.2 * rng.normal(size=30))
+    target = plain({1: 2.5, 4: 1.2})
+    starts = {(i, j): np.array([1.0, 1.0]) for i in range(6) for j in range(i + 1, 6)}
+    upper = np.full(6, 10.0)
+    sim_all, runs_all = _counting(plain)
+    sim_kept, runs_kept = _counting(plain)
+    every = refine_all(starts, target, sim_all, upper, max_iterations=3)
+    kept = refine_all(starts, target, sim_kept, upper, max_iterations=3, keep_within=4.0)
+    leader = min(every, key=lambda s: every[s].rss)
+    assert leader == (1, 4)
+    assert min(kept, key=lambda s: kept[s].rss) == leader
+    # the leader took the same steps, so it has the same sizes and residual
+    assert np.array_equal(kept[leader].sizes, every[leader].sizes)
+    assert kept[leader].rss == every[leader].rss
+    assert runs_kept.count(leader) == runs_all.count(leader)
+    # every explanation still has a fit; the stopped ones no better than their own
+    # fit without stopping, and all far from the leader
+    assert list(kept) == list(every)
+    for sub, fit in kept.items():
+        assert fit.rss >= every[sub].rss
+        if fit.rss != every[sub].rss:
+            assert every[sub].rss > 2.0 * every[leader].rss
+    assert len(runs_kept) < 0.7 * len(runs_all)
+
+
+def test_stopping_does_not_depend_on_threads():
+    rng = np.random.default_rng(22)
+    base = np.abs(rng.normal(size=(5, 20)))
+    plain = _pair_simulator(base, 0.3 * rng.normal(size=20))
+    target = plain({0: 1.5, 3: 2.0})
+    starts = {(i, j): np.array([1.0, 1.5]) for i in range(5) for j in range(i + 1, 5)}
+    upper = np.full(5, 9.0)
+    serial = refine_all(starts, target, plain, upper, keep_within=3.0)
+    threaded = refine_all(starts, target, plain, upper, threads=3, keep_within=3.0)
+    assert list(threaded) == list(serial)
+    for sub, fit in serial.items():
+        assert np.array_equal(threaded[sub].sizes, fit.sizes)
+        assert threaded[sub].rss == fit.rss
+
+
+def test_a_leader_sized_before_stops_a_hopeless_batch_after_its_first_round():
+    rng = np.random.default_rng(23)
+    base = np.abs(rng.normal(size=(3, 20)))
+    plain = _pair_simulator(base, np.zeros(20))
+    target = plain({0: 2.0})
+    sim, runs = _counting(plain)
+    out = refine_all(
+        {(1,): np.array([1.0]), (2,): np.array([1.0])},
+        target,
+        sim,
+        np.full(3, 9.0),
+        keep_within=4.0,
+        leader=1e-9,
+    )
+    assert set(out) == {(1,), (2,)}
+    assert len(runs) == 4  # each: its start and one difference step, nothing more
+
+
+def test_starts_judged_by_slopes_skip_hopeless_difference_steps_and_find_the_pair():
+    # the additive "signature model" misses the interaction of leaks 0 and 2; its
+    # slopes judge each start, and only explanations still in the running have their
+    # difference steps simulated
+    rng = np.random.default_rng(5)
+    base = np.abs(rng.normal(size=(4, 40)))
+    inter = rng.normal(size=40)
+
+    def plain(leaks):
+        out = sum(size * base[loc] for loc, size in leaks.items())
+        if 0 in leaks and 2 in leaks:
+            out = out + leaks[0] * leaks[2] * inter
+        return np.asarray(out, dtype=np.float64)
+
+    def slopes(sub, sizes):
+        return base[list(sub)].T
+
+    target = plain({0: 3.0, 2: 1.0})
+    fits = {}
+    for sub in [(0,), (1,), (2,), (3,), (0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]:
+        sizes = np.clip(np.linalg.lstsq(base[list(sub)].T, target, rcond=None)[0], 0.0, None)
+        r = target - base[list(sub)].T @ sizes
+        fits[sub] = (sizes, float(r @ r))
+    upper = np.full(4, 10.0)
+    found, sized = {}, {}
+    for judged in (False, True):
+        sim, runs = _counting(plain)
+        out = verify_explanations(
+            target,
+            fits,
+            4,
+            sim,
+            upper,
+            probe=1.0,
+            keep_within=4.0,
+            slopes=slopes if judged else None,
+        )
+        best = min(out, key=lambda s: out[s].rss)
+        assert best == (0, 2)
+        assert out[best].sizes == pytest.approx([3.0, 1.0], rel=0.01)
+        found[judged], sized[judged] = len(runs), out[best]
+    assert found[True] < found[False]
+    # the best explanation took the same steps either way
+    assert np.array_equal(sized[True].sizes, sized[False].sizes)
+    assert sized[True].rss == sized[False].rss
+
+
+def test_keep_within_between_zero_and_one_is_refused():
+    with pytest.raises(InputError, match="keep_within"):
+        LocalisationSettings(keep_within=0.5)
+    assert LocalisationSettings(keep_within=0.0).keep_within == 0.0
+
+
+def test_references_saved_before_size_every_explanation_to_the_end():
+    old = LocalisationSettings.from_dict({"max_leaks": 2})
+    assert old.keep_within == 0.0
+    new = LocalisationSettings()
+    assert LocalisationSettings.from_dict(new.to_dict()) == new

@@ -77,6 +77,15 @@ class PiecewiseLinear:
         k = self.segment(function, x)
         return np.asarray(self.intercept[function, k] + x * self.slope[function, k])
 
+    def derivative(self, function: int, x: float) -> FloatArray:
+        """Slope of ``function`` on the segment that holds ``x`` (``x`` floored at 0).
+
+        >>> f = PiecewiseLinear([[1.0, 2.0]], [[[1.0, 10.0], [3.0, 20.0]]])
+        >>> f.derivative(0, 1.5).tolist(), f.derivative(0, 0.5).tolist()
+        ([2.0, 10.0], [1.0, 10.0])
+        """
+        return np.asarray(self.slope[function, self.segment(function, max(float(x), 0.0))])
+
     def secant(self, function: int, x: float) -> FloatArray:
         """``f(x) / x``, the effect per unit size at ``x`` (``x`` floored at 1e-300)."""
         return np.asarray(self(function, x) / max(float(x), 1e-300), dtype=np.float64)

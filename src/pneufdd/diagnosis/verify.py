@@ -24,10 +24,7 @@ caller chooses among them with the same rules as for the signature fits.
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import math
-import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import NamedTuple
 
@@ -45,6 +42,8 @@ SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
 """Whitened effect of leaks ``{location index: size [kg/s]}`` by simulation, or None."""
 SimulateMany = Callable[[Sequence[Mapping[int, float]]], list[FloatArray | None]]
 """A :data:`SimulatedEffect` of several sets of leaks, results in their order."""
+Slopes = Callable[[Subset, FloatArray], FloatArray]
+"""Estimated derivative of the whitened effect of ``subset`` by size at ``sizes``."""
 
 
 class SimulatedFit(NamedTuple):
@@ -63,6 +62,148 @@ class SimulatedFit(NamedTuple):
     sizes: FloatArray
     rss: float
     jacobian: FloatArray
+
+
+class _SizeSearch:
+    """Gauss-Newton sizing of one explanation, one batch of simulations at a time.
+
+    :meth:`requests` gives the sizes to simulate next, :meth:`receive` takes their
+    whitened effects in the same order (None: the machine could not run): the start
+    and the difference steps at once, then one Gauss-Newton step at a time. With an
+    ``estimate`` of the Jacobian, the start is simulated alone first and the
+    difference steps follow only if the search goes on (:attr:`predicted_rss` is
+    then the estimate's prediction); the steps taken are the same. The sequence of
+    sizes depends only on the results, never on when they arrive.
+    """
+
+    def __init__(
+        self,
+        start: FloatArray,
+        target: FloatArray,
+        upper: FloatArray,
+        max_iterations: int,
+        tolerance: float,
+        min_step: float,
+        estimate: FloatArray | None = None,
+    ) -> None:
+        self.target = target
+        self.upper = np.asarray(upper, dtype=np.float64)
+        self.sizes = np.clip(np.asarray(start, dtype=np.float64), 0.0, self.upper)
+        self.max_iterations = max_iterations
+        self.tolerance = tolerance
+        self.min_step = min_step
+        self.best: SimulatedFit | None = None
+        self.done = False
+        self.predicted_rss = math.inf
+        """Residual the linearised model predicts for the next step [-]."""
+        self._estimate = estimate
+        self._attempt = 0
+        self._iteration = 0
+        self._steps: list[tuple[float, FloatArray]] = []
+        self._proposal: FloatArray | None = None
+        self._step = np.zeros(0)
+        self._effect = np.zeros(0)
+        self._residual = np.zeros(0)
+        self._jacobian = np.zeros((0, 0))
+
+    def _difference_steps(self) -> list[tuple[float, FloatArray]]:
+        out = []
+        for i in range(self.sizes.size):
+            step = max(0.15 * self.sizes[i], self.min_step)
+            if self.sizes[i] + step > self.upper[i]:
+                step = -step
+            trial = self.sizes.copy()
+            trial[i] += step
+            out.append((step, trial))
+        return out
+
+    def requests(self) -> list[FloatArray]:
+        """Sizes to simulate next, each [kg/s]; empty when the search has ended."""
+        if self.done:
+            return []
+        if self._proposal is not None:
+            return [self._proposal]
+        self._steps = self._difference_steps()
+        trials = [trial for _, trial in self._steps]
+        if self.best is not None:  # the start ran alone: its difference steps
+            return trials
+        return [self.sizes] if self._estimate is not None else [self.sizes, *trials]
+
+    def stop(self) -> None:
+        """End the search; :attr:`best` stays the best explanation met so far."""
+        self.done = True
+
+    def receive(self, effects: Sequence[FloatArray | None]) -> None:
+        """Take the simulated effects of the last :meth:`requests`, in its order."""
+        if self._proposal is not None:
+            self._take_step(effects[0])
+        elif self.best is not None:
+            self._take_differences(effects)
+        else:
+            self._take_start(effects)
+
+    def _take_start(self, effects: Sequence[FloatArray | None]) -> None:
+        effect, *moved = effects
+        if effect is None:
+            self._attempt += 1
+            if self._attempt == 3:
+                self.done = True
+            self.sizes = 0.7 * self.sizes  # the machine stalls: the explanation is too large
+            return
+        self._effect = effect
+        self._residual = self.target - effect
+        self._jacobian = np.zeros((self.target.size, self.sizes.size))
+        rss = float(self._residual @ self._residual)
+        self.best = SimulatedFit(self.sizes.copy(), rss, self._jacobian)
+        if self._estimate is None:
+            self._take_differences(moved)
+            return
+        bounds = (-self.sizes, self.upper - self.sizes)
+        self.predicted_rss = 2.0 * float(lsq_linear(self._estimate, self._residual, bounds).cost)
+
+    def _take_differences(self, moved_all: Sequence[FloatArray | None]) -> None:
+        for i, ((step, _), moved) in enumerate(zip(self._steps, moved_all, strict=True)):
+            if moved is None:
+                self.done = True
+                return
+            self._jacobian[:, i] = (moved - self._effect) / step
+        self._propose()
+
+    def _propose(self) -> None:
+        if self._iteration == self.max_iterations:
+            self.done = True
+            return
+        solution = lsq_linear(
+            self._jacobian, self._residual, bounds=(-self.sizes, self.upper - self.sizes)
+        )
+        self._step = solution.x
+        self._proposal = self.sizes + self._step
+        self.predicted_rss = 2.0 * float(solution.cost)
+
+    def _take_step(self, new_effect: FloatArray | None) -> None:
+        assert self._proposal is not None
+        assert self.best is not None
+        self._iteration += 1
+        if new_effect is None:
+            self.done = True
+            return
+        new, step_x = self._proposal, self._step
+        # Broyden's rank-one update: the Jacobian reproduces the change just seen
+        change = new_effect - self._effect
+        denom = float(step_x @ step_x)
+        if denom > 0:
+            self._jacobian = (
+                self._jacobian + np.outer(change - self._jacobian @ step_x, step_x) / denom
+            )
+        new_residual = self.target - new_effect
+        rss = float(new_residual @ new_residual)
+        if rss < self.best.rss:
+            self.best = SimulatedFit(new.copy(), rss, self._jacobian)
+        self.sizes, self._effect, self._residual = new, new_effect, new_residual
+        if np.all(np.abs(step_x) <= self.tolerance * np.maximum(np.abs(new), self.min_step)):
+            self.done = True
+            return
+        self._propose()
 
 
 def refine_by_simulation(
@@ -129,66 +270,22 @@ def refine_by_simulation(
     >>> [round(float(v), 4) for v in sizes], rss < 1e-12
     ([2.0, 1.0], True)
     """
-    upper = np.asarray(upper, dtype=np.float64)
-    sizes = np.clip(np.asarray(start, dtype=np.float64), 0.0, upper)
+    search = _SizeSearch(start, target, upper, max_iterations, tolerance, min_step)
 
     def leaks(x: FloatArray) -> dict[int, float]:
         return dict(zip(subset, (float(v) for v in x), strict=True))
 
-    def run(x: FloatArray) -> FloatArray | None:
-        return simulate(leaks(x))
-
-    def difference_steps(x: FloatArray) -> list[tuple[float, FloatArray]]:
-        out = []
-        for i in range(x.size):
-            step = max(0.15 * x[i], min_step)
-            if x[i] + step > upper[i]:
-                step = -step
-            trial = x.copy()
-            trial[i] += step
-            out.append((step, trial))
-        return out
-
-    for attempt in range(3):
-        if attempt > 0:
-            sizes = 0.7 * sizes  # the machine stalls: the explanation is too large
-        steps = difference_steps(sizes)
-        moved_all: list[FloatArray | None] | None = None
-        if simulate_many is None:
-            effect = run(sizes)
-        else:
-            effect, *moved_all = simulate_many([leaks(sizes), *(leaks(t) for _, t in steps)])
-        if effect is not None:
-            break
-    if effect is None:
-        return None
-    residual = target - effect
-    jacobian = np.zeros((target.size, sizes.size))
-    best = SimulatedFit(sizes.copy(), float(residual @ residual), jacobian)
-    for i, (step, trial) in enumerate(steps):
-        moved = run(trial) if moved_all is None else moved_all[i]
-        if moved is None:
-            return best
-        jacobian[:, i] = (moved - effect) / step
-    for _ in range(max_iterations):
-        step_x = lsq_linear(jacobian, residual, bounds=(-sizes, upper - sizes)).x
-        new = sizes + step_x
-        new_effect = run(new)
-        if new_effect is None:
-            break
-        # Broyden's rank-one update: the Jacobian reproduces the change just seen
-        change = new_effect - effect
-        denom = float(step_x @ step_x)
-        if denom > 0:
-            jacobian = jacobian + np.outer(change - jacobian @ step_x, step_x) / denom
-        new_residual = target - new_effect
-        rss = float(new_residual @ new_residual)
-        if rss < best.rss:
-            best = SimulatedFit(new.copy(), rss, jacobian)
-        sizes, effect, residual = new, new_effect, new_residual
-        if np.all(np.abs(step_x) <= tolerance * np.maximum(np.abs(sizes), min_step)):
-            break
-    return best
+    while calls := search.requests():
+        if simulate_many is not None and len(calls) > 1:
+            search.receive(simulate_many([leaks(x) for x in calls]))
+            continue
+        effects: list[FloatArray | None] = []
+        for x in calls:  # one at a time: nothing more once the machine cannot run
+            effects.append(simulate(leaks(x)))
+            if effects[-1] is None:
+                break
+        search.receive(effects + [None] * (len(calls) - len(effects)))
+    return search.best
 
 
 def refine_all(
@@ -198,13 +295,21 @@ def refine_all(
     upper: FloatArray,
     max_iterations: int = 4,
     threads: int = 1,
+    keep_within: float = math.inf,
+    leader: float = math.inf,
+    estimates: Mapping[Subset, FloatArray] | None = None,
 ) -> dict[Subset, SimulatedFit]:
     """Size several explanations by simulation (:func:`refine_by_simulation`) at once.
 
-    Each is sized from its own start (``simulate`` must be thread-safe when
-    ``threads > 1``): every explanation on its own thread and, within one, the start
-    and the difference steps at once, with at most ``threads`` simulations running at
-    any time; the result is the same on any number of threads.
+    The explanations advance in rounds: in each, every one still being sized runs
+    what it needs next (its start and difference steps, then one Gauss-Newton step),
+    all on up to ``threads`` threads (``simulate`` must be thread-safe when
+    ``threads > 1``). Between rounds, an explanation stops being sized when neither
+    its residual so far nor the one its linearised model predicts for its next step
+    comes within ``keep_within`` times the best residual met (``leader`` included):
+    it cannot become the chosen explanation, an alternative or a group member, and
+    its steps would cost simulations that decide nothing. The result does not depend
+    on ``threads``.
 
     Parameters
     ----------
@@ -215,76 +320,75 @@ def refine_all(
     upper : ndarray, shape (n_locations,)
         Largest size of every location [kg/s].
     threads : int
-        Threads that size explanations at once [-].
+        Simulations that run at once [-].
+    keep_within : float
+        Ratio to the best residual beyond which an explanation stops being sized
+        (inf: every explanation is sized to the end) [-].
+    leader : float
+        Best simulated residual of explanations sized before these [-].
+    estimates : mapping, optional
+        ``subset -> estimate of the whitened effect's derivative by size
+        [1/(kg/s)]`` (the signature model's, or one measured by earlier
+        simulations): such an explanation's start is simulated alone, and its
+        difference steps only if the estimate's prediction keeps it in the running.
 
     Returns
     -------
     dict
         ``subset -> SimulatedFit`` in the order of ``starts``, for those the machine
         could run.
+
+    Examples
+    --------
+    Two candidate "leaks" with effects along different directions; the wrong one
+    stops after its start and difference step (2 simulations), the right one is
+    sized:
+
+    >>> S = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
+    >>> runs = []
+    >>> def sim(leaks):
+    ...     runs.append(dict(leaks))
+    ...     return sum(v * S[k] for k, v in leaks.items())
+    >>> y = 2.0 * S[1] + np.array([0.01, 0.0, 0.0])
+    >>> out = refine_all({(0,): np.array([1.0]), (1,): np.array([1.9])}, y, sim,
+    ...                  np.array([9.0, 9.0]), keep_within=4.0)
+    >>> round(float(out[(1,)].sizes[0]), 3), sum(0 in r for r in runs)
+    (2.0, 2)
     """
     jobs = list(starts.items())
-    if threads <= 1:
-        fits = [
-            refine_by_simulation(sub, start, target, simulate, upper[list(sub)], max_iterations)
-            for sub, start in jobs
-        ]
-    else:
-        gate = _FairGate(threads, len(jobs))
+    upper = np.asarray(upper, dtype=np.float64)
+    searches = [
+        _SizeSearch(
+            start,
+            target,
+            upper[list(sub)],
+            max_iterations,
+            0.02,
+            1e-4,
+            None if estimates is None else estimates.get(sub),
+        )
+        for sub, start in jobs
+    ]
+    while True:
+        fits = [s.best.rss for s in searches if s.best is not None]
+        bar = keep_within * min([leader, *fits])
+        for search in searches:
+            if search.best is not None and min(search.best.rss, search.predicted_rss) > bar:
+                search.stop()
+        calls = [(k, x) for k, search in enumerate(searches) for x in search.requests()]
+        if not calls:
+            break
 
-        def size(k: int) -> SimulatedFit | None:
-            def one(leaks: Mapping[int, float]) -> FloatArray | None:
-                return gate.run(k, simulate, leaks)
+        def run(call: tuple[int, FloatArray]) -> FloatArray | None:
+            sub = jobs[call[0]][0]
+            return simulate(dict(zip(sub, (float(v) for v in call[1]), strict=True)))
 
-            def many(calls: Sequence[Mapping[int, float]]) -> list[FloatArray | None]:
-                return thread_map(one, calls, len(calls))
-
-            sub, start = jobs[k]
-            return refine_by_simulation(
-                sub,
-                start,
-                target,
-                one,
-                upper[list(sub)],
-                max_iterations,
-                simulate_many=many,
-            )
-
-        fits = thread_map(size, range(len(jobs)), len(jobs))
-    return {sub: fit for sub, fit in zip(starts, fits, strict=True) if fit is not None}
-
-
-class _FairGate:
-    """At most ``slots`` simulations at once; a free slot goes to the explanation
-    that has run the fewest so far (then the first), so that explanations progress
-    together and the batch does not end with one long chain on one core."""
-
-    def __init__(self, slots: int, jobs: int) -> None:
-        self._cond = threading.Condition()
-        self._free = slots
-        self._done = [0] * jobs
-        self._waiting: list[tuple[int, int, int]] = []
-        self._tickets = itertools.count()
-
-    def run(
-        self, job: int, simulate: SimulatedEffect, leaks: Mapping[int, float]
-    ) -> FloatArray | None:
-        """``simulate(leaks)`` for explanation ``job``, when its turn comes."""
-        with self._cond:
-            ticket = (self._done[job], job, next(self._tickets))
-            heapq.heappush(self._waiting, ticket)
-            while self._free == 0 or self._waiting[0] != ticket:
-                self._cond.wait()
-            heapq.heappop(self._waiting)
-            self._free -= 1
-            self._cond.notify_all()
-        try:
-            return simulate(leaks)
-        finally:
-            with self._cond:
-                self._free += 1
-                self._done[job] += 1
-                self._cond.notify_all()
+        results = thread_map(run, calls, threads)
+        for k, search in enumerate(searches):
+            mine = [r for (j, _), r in zip(calls, results, strict=True) if j == k]
+            if mine:
+                search.receive(mine)
+    return {sub: s.best for (sub, _), s in zip(jobs, searches, strict=True) if s.best is not None}
 
 
 def _pair_rss(fits: Mapping[Subset, tuple[FloatArray, float]], a: int, b: int) -> float:
@@ -307,6 +411,8 @@ def verify_explanations(
     max_iterations: int = 3,
     probes: int = 0,
     threads: int = 1,
+    keep_within: float = math.inf,
+    slopes: Slopes | None = None,
 ) -> dict[Subset, SimulatedFit]:
     """Simulate and size the most promising explanations of one or two leaks.
 
@@ -349,6 +455,16 @@ def verify_explanations(
         of step 2 and the pairs of step 3 are one batch. ``simulate`` must then be
         thread-safe. The result does not depend on it: every explanation is sized
         from the same start and kept in the same order as on one thread.
+    keep_within : float
+        An explanation stops being sized when it cannot come within this ratio of
+        the best simulated residual so far (:func:`refine_all`; inf: never) [-].
+    slopes : callable, optional
+        ``slopes(subset, sizes)``: the signature model's derivative of the whitened
+        effect by size at ``sizes`` [1/(kg/s)]. With it, each explanation's start
+        is simulated alone and judged before its difference steps are simulated
+        (``estimates`` of :func:`refine_all`): by these slopes, and a partner of
+        step 2 by the Jacobian its probe measured (the first leak's from its own
+        sizing, the second's from the probe's change).
 
     Returns
     -------
@@ -382,16 +498,40 @@ def verify_explanations(
     )
     checked: dict[Subset, SimulatedFit] = {}
 
-    def check(candidates: Iterable[tuple[Subset, FloatArray]]) -> None:
+    def check(
+        candidates: Iterable[tuple[Subset, FloatArray]],
+        measured: Mapping[Subset, FloatArray] | None = None,
+    ) -> None:
         todo: dict[Subset, FloatArray] = {}
         for sub, start in candidates:
             if sub not in checked and sub not in todo:
                 todo[sub] = start
-        checked.update(refine_all(todo, target, simulate, upper, max_iterations, threads))
+        estimates = None
+        if slopes is not None:
+            known = measured or {}
+            estimates = {
+                sub: known[sub] if sub in known else slopes(sub, start)
+                for sub, start in todo.items()
+            }
+        leader = min((fit.rss for fit in checked.values()), default=math.inf)
+        checked.update(
+            refine_all(
+                todo,
+                target,
+                simulate,
+                upper,
+                max_iterations,
+                threads,
+                keep_within,
+                leader,
+                estimates,
+            )
+        )
 
     check((single, model_fits[single][0]) for _, single in singles[:top_singles])
     firsts = sorted((fit.rss, sub) for sub, fit in checked.items() if len(sub) == 1)
     partner_starts: list[tuple[Subset, FloatArray]] = []
+    partner_slopes: dict[Subset, FloatArray] = {}
     if firsts and partners > 0:
         first = firsts[0][1][0]
         size, _, slope = checked[(first,)]
@@ -417,16 +557,17 @@ def verify_explanations(
                     bounds=([-size[0], 0.0], [upper[first] - size[0], upper[other]]),
                 ).x
                 residual = rest - columns @ step
-                ranked.append((float(residual @ residual), other, step))
-            for _, other, step in sorted(ranked, key=lambda r: r[0])[:partners]:
+                ranked.append((float(residual @ residual), other, step, columns))
+            for _, other, step, columns in sorted(ranked, key=lambda r: r[0])[:partners]:
                 sizes = {first: float(size[0] + step[0]), other: float(step[1])}
                 pair = tuple(sorted(sizes))
                 partner_starts.append((pair, np.array([sizes[i] for i in pair])))
+                partner_slopes[pair] = columns if pair[0] == first else columns[:, ::-1]
     # the partners and the signature model's pairs are independent: one batch, a
     # partner's start first (as if sized before the model pairs); a model pair that
     # was also a partner the machine could not run is then sized from its own start
     model_pairs = [(couple, model_fits[couple][0]) for _, couple in pairs[:top_pairs]]
-    check([*partner_starts, *model_pairs])
+    check([*partner_starts, *model_pairs], partner_slopes)
     partner_pairs = {sub for sub, _ in partner_starts}
     check((sub, start) for sub, start in model_pairs if sub in partner_pairs)
     return checked
