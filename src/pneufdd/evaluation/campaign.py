@@ -26,7 +26,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from concurrent.futures import Executor
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -287,6 +287,11 @@ def _signatures(
     workers: int,
     pool: Executor | None,
 ) -> SignatureSet:
+    if pool is None and available_cores() > 1:
+        # in this process the signature simulations share the cores on threads (the
+        # twin's kernel releases the GIL); each is the same as on its own
+        with ThreadPoolExecutor(available_cores()) as threads:
+            return _signatures(machine, channels, design, progress, workers, threads)
     sequence = machine_sequence(machine)
     if sequence is None:  # pragma: no cover - a description always has a sequence
         raise InputError(describe("machine sequence", None, "a PLC sequence"))
