@@ -89,3 +89,21 @@ def test_bad_workers_and_scheduler_are_input_errors():
         resolve_workers(0)
     with pytest.raises(InputError, match="scheduler"), executor(scheduler=" "):
         pass
+
+
+def _blas_threads(_: object) -> list[int]:
+    from threadpoolctl import threadpool_info
+
+    return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+
+def test_every_job_runs_with_one_blas_thread_here_and_on_the_cluster(cluster):
+    # NumPy's matrix products sum in another order with more BLAS threads: a job's
+    # result must not depend on where it ran
+    import numpy as np  # noqa: F401  (loads the BLAS library before it is inspected)
+
+    here = [r for _, r in map_unordered(_blas_threads, [0, 1], None)]
+    with executor(scheduler=cluster.scheduler_address) as pool:
+        there = [r for _, r in map_unordered(_blas_threads, [0, 1], pool)]
+    assert here == there
+    assert all(threads and set(threads) == {1} for threads in here)
