@@ -45,6 +45,14 @@ def _pair_simulator(base: np.ndarray, inter: np.ndarray):
     return sim
 
 
+def _assert_same_fits(threaded, serial):
+    """The same explanations in the same order, with the same sizes and residuals."""
+    assert list(threaded) == list(serial)
+    for sub, fit in serial.items():
+        assert np.array_equal(threaded[sub].sizes, fit.sizes)
+        assert threaded[sub].rss == fit.rss
+
+
 @given(st.floats(0.3, 4.0), st.floats(0.3, 4.0), st.floats(0.4, 2.5))
 def test_refine_recovers_sizes_of_a_nonlinear_interacting_pair(a, b, start_factor):
     rng = np.random.default_rng(3)
@@ -87,9 +95,9 @@ def test_refine_gives_none_when_the_machine_never_runs():
     assert [c[0] for c in calls] == pytest.approx([1.0, 0.7, 0.49])
 
 
-def test_probed_second_leak_found_where_the_additive_model_fails():
-    # leaks 0 and 2 interact in a direction no signature has: the additive model
-    # cannot explain the pair; probing next to the first leak sees the interaction
+def _additive_model_misses_an_interaction():
+    """Leaks 0 and 2 interact in a direction no signature has: (base, simulator, the
+    target of leaks 0: 3 and 2: 1, the additive model's fits of every subset)."""
     rng = np.random.default_rng(5)
     base = np.abs(rng.normal(size=(4, 40)))
     inter = rng.normal(size=40)
@@ -100,16 +108,19 @@ def test_probed_second_leak_found_where_the_additive_model_fails():
             out = out + leaks[0] * leaks[2] * inter
         return np.asarray(out, dtype=np.float64)
 
-    def fit(sub, goal):
-        A = base[list(sub)].T
-        return np.clip(np.linalg.lstsq(A, goal, rcond=None)[0], 0.0, None)
-
     target = sim({0: 3.0, 2: 1.0})
     fits = {}
     for sub in [(0,), (1,), (2,), (3,), (0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]:
-        sizes = fit(sub, target)
+        sizes = np.clip(np.linalg.lstsq(base[list(sub)].T, target, rcond=None)[0], 0.0, None)
         r = target - base[list(sub)].T @ sizes
         fits[sub] = (sizes, float(r @ r))
+    return base, sim, target, fits
+
+
+def test_probed_second_leak_found_where_the_additive_model_fails():
+    # the additive model cannot explain the pair; probing next to the first leak sees
+    # the interaction
+    _, sim, target, fits = _additive_model_misses_an_interaction()
     out = verify_explanations(target, fits, 4, sim, np.full(4, 10.0), top_pairs=0, probe=1.0)
     best = min(out, key=lambda s: out[s].rss)
     assert best == (0, 2)
@@ -131,11 +142,8 @@ def test_threads_size_every_explanation_as_one_thread_does():
     upper = np.full(6, 10.0)
     serial = verify_explanations(target, fits, 6, sim, upper, probe=1.0)
     threaded = verify_explanations(target, fits, 6, sim, upper, probe=1.0, threads=3)
-    assert list(threaded) == list(serial)
     assert len(serial) >= 5  # singles, partners and pairs were sized
-    for sub, fit in serial.items():
-        assert np.array_equal(threaded[sub].sizes, fit.sizes)
-        assert threaded[sub].rss == fit.rss
+    _assert_same_fits(threaded, serial)
 
 
 def test_start_and_difference_steps_in_one_call_size_as_one_at_a_time():
@@ -408,13 +416,17 @@ def _counting(sim):
     return counted, runs
 
 
+def _every_pair(seed, n_loc, n_features, truth, start):
+    """A pair simulator, the target of ``truth``, every pair's ``start`` and the cap."""
+    rng = np.random.default_rng(seed)
+    base = np.abs(rng.normal(size=(n_loc, n_features)))
+    plain = _pair_simulator(base, 0.25 * rng.normal(size=n_features))
+    starts = {(i, j): np.array(start) for i in range(n_loc) for j in range(i + 1, n_loc)}
+    return plain, plain(truth), starts, np.full(n_loc, 9.0)
+
+
 def test_hopeless_explanations_stop_and_the_best_is_sized_as_without_stopping():
-    rng = np.random.default_rng(21)
-    base = np.abs(rng.normal(size=(6, 30)))
-    plain = _pair_simulator(base, 0.2 * rng.normal(size=30))
-    target = plain({1: 2.5, 4: 1.2})
-    starts = {(i, j): np.array([1.0, 1.0]) for i in range(6) for j in range(i + 1, 6)}
-    upper = np.full(6, 10.0)
+    plain, target, starts, upper = _every_pair(21, 6, 30, {1: 2.5, 4: 1.2}, [1.0, 1.0])
     sim_all, runs_all = _counting(plain)
     sim_kept, runs_kept = _counting(plain)
     every = refine_all(starts, target, sim_all, upper, max_iterations=3)
@@ -437,18 +449,10 @@ def test_hopeless_explanations_stop_and_the_best_is_sized_as_without_stopping():
 
 
 def test_stopping_does_not_depend_on_threads():
-    rng = np.random.default_rng(22)
-    base = np.abs(rng.normal(size=(5, 20)))
-    plain = _pair_simulator(base, 0.3 * rng.normal(size=20))
-    target = plain({0: 1.5, 3: 2.0})
-    starts = {(i, j): np.array([1.0, 1.5]) for i in range(5) for j in range(i + 1, 5)}
-    upper = np.full(5, 9.0)
+    plain, target, starts, upper = _every_pair(22, 5, 20, {0: 1.5, 3: 2.0}, [1.0, 1.5])
     serial = refine_all(starts, target, plain, upper, keep_within=3.0)
     threaded = refine_all(starts, target, plain, upper, threads=3, keep_within=3.0)
-    assert list(threaded) == list(serial)
-    for sub, fit in serial.items():
-        assert np.array_equal(threaded[sub].sizes, fit.sizes)
-        assert threaded[sub].rss == fit.rss
+    _assert_same_fits(threaded, serial)
 
 
 def test_a_leader_sized_before_stops_a_hopeless_batch_after_its_first_round():
@@ -473,25 +477,11 @@ def test_starts_judged_by_slopes_skip_hopeless_difference_steps_and_find_the_pai
     # the additive "signature model" misses the interaction of leaks 0 and 2; its
     # slopes judge each start, and only explanations still in the running have their
     # difference steps simulated
-    rng = np.random.default_rng(5)
-    base = np.abs(rng.normal(size=(4, 40)))
-    inter = rng.normal(size=40)
-
-    def plain(leaks):
-        out = sum(size * base[loc] for loc, size in leaks.items())
-        if 0 in leaks and 2 in leaks:
-            out = out + leaks[0] * leaks[2] * inter
-        return np.asarray(out, dtype=np.float64)
+    base, plain, target, fits = _additive_model_misses_an_interaction()
 
     def slopes(sub, sizes):
         return base[list(sub)].T
 
-    target = plain({0: 3.0, 2: 1.0})
-    fits = {}
-    for sub in [(0,), (1,), (2,), (3,), (0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]:
-        sizes = np.clip(np.linalg.lstsq(base[list(sub)].T, target, rcond=None)[0], 0.0, None)
-        r = target - base[list(sub)].T @ sizes
-        fits[sub] = (sizes, float(r @ r))
     upper = np.full(4, 10.0)
     found, sized = {}, {}
     for judged in (False, True):
