@@ -45,6 +45,16 @@ SimulateMany = Callable[[Sequence[Mapping[int, float]]], list[FloatArray | None]
 Slopes = Callable[[Subset, FloatArray], FloatArray]
 """Estimated derivative of the whitened effect of ``subset`` by size at ``sizes``."""
 
+_TOLERANCE = 0.02
+"""Gauss-Newton stops when no size moves by more than this fraction [-]."""
+_MIN_STEP = 1e-4
+"""Smallest finite-difference step [kg/s]."""
+
+
+def _leak_set(subset: Subset, sizes: FloatArray) -> dict[int, float]:
+    """``{location index: size [kg/s]}`` of an explanation."""
+    return dict(zip(subset, (float(v) for v in sizes), strict=True))
+
 
 class SimulatedFit(NamedTuple):
     """An explanation sized against the simulator.
@@ -213,8 +223,8 @@ def refine_by_simulation(
     simulate: SimulatedEffect,
     upper: FloatArray,
     max_iterations: int = 4,
-    tolerance: float = 0.02,
-    min_step: float = 1e-4,
+    tolerance: float = _TOLERANCE,
+    min_step: float = _MIN_STEP,
     simulate_many: SimulateMany | None = None,
 ) -> SimulatedFit | None:
     """Size an explanation against the simulator (Gauss-Newton, Broyden updates).
@@ -271,17 +281,13 @@ def refine_by_simulation(
     ([2.0, 1.0], True)
     """
     search = _SizeSearch(start, target, upper, max_iterations, tolerance, min_step)
-
-    def leaks(x: FloatArray) -> dict[int, float]:
-        return dict(zip(subset, (float(v) for v in x), strict=True))
-
     while calls := search.requests():
         if simulate_many is not None and len(calls) > 1:
-            search.receive(simulate_many([leaks(x) for x in calls]))
+            search.receive(simulate_many([_leak_set(subset, x) for x in calls]))
             continue
         effects: list[FloatArray | None] = []
         for x in calls:  # one at a time: nothing more once the machine cannot run
-            effects.append(simulate(leaks(x)))
+            effects.append(simulate(_leak_set(subset, x)))
             if effects[-1] is None:
                 break
         search.receive(effects + [None] * (len(calls) - len(effects)))
@@ -363,12 +369,16 @@ def refine_all(
             target,
             upper[list(sub)],
             max_iterations,
-            0.02,
-            1e-4,
+            _TOLERANCE,
+            _MIN_STEP,
             None if estimates is None else estimates.get(sub),
         )
         for sub, start in jobs
     ]
+
+    def run(call: tuple[int, FloatArray]) -> FloatArray | None:
+        return simulate(_leak_set(jobs[call[0]][0], call[1]))
+
     while True:
         fits = [s.best.rss for s in searches if s.best is not None]
         bar = keep_within * min([leader, *fits])
@@ -378,11 +388,6 @@ def refine_all(
         calls = [(k, x) for k, search in enumerate(searches) for x in search.requests()]
         if not calls:
             break
-
-        def run(call: tuple[int, FloatArray]) -> FloatArray | None:
-            sub = jobs[call[0]][0]
-            return simulate(dict(zip(sub, (float(v) for v in call[1]), strict=True)))
-
         results = thread_map(run, calls, threads)
         for k, search in enumerate(searches):
             mine = [r for (j, _), r in zip(calls, results, strict=True) if j == k]
