@@ -177,10 +177,13 @@ class LocalisationSettings:
         comes within this multiple of the best simulated residual so far
         (:func:`pneufdd.diagnosis.verify.refine_all`); its start is judged by the
         signature model's slopes before its difference steps are simulated. Beyond
-        2 an explanation decides nothing (an alternative or group member needs at
-        most ``1 + relative_tolerance`` = 1.5 times the best, a single leak outweighs
-        a pair from 1 / (1 - ``added_leak_gain``) = 2 times); 4 leaves a factor 2
-        for what the linear model misses. 0 turns it off (references saved before) [-].
+        2 an explanation changes no reported leak, group or alternative (an
+        alternative or group member needs at most ``1 + relative_tolerance`` = 1.5
+        times the best, a single leak outweighs a pair from 1 / (1 -
+        ``added_leak_gain``) = 2 times), though a group member forced in by
+        :func:`_forced_member` reports the flow of its pair's fit, stopped or not; 4
+        leaves a factor 2 for what the linear model misses. 0 turns it off
+        (references saved before) [-].
 
     Examples
     --------

@@ -313,8 +313,9 @@ def refine_all(
     ``threads > 1``). Between rounds, an explanation stops being sized when neither
     its residual so far nor the one its linearised model predicts for its next step
     comes within ``keep_within`` times the best residual met (``leader`` included):
-    it cannot become the chosen explanation, an alternative or a group member, and
-    its steps would cost simulations that decide nothing. The result does not depend
+    it can no longer become the chosen explanation or an alternative, and its steps
+    would cost simulations that change no reported location or group (a member forced
+    into a group reports its fit's size, stopped or not). The result does not depend
     on ``threads``.
 
     Parameters
