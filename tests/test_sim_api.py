@@ -202,3 +202,34 @@ def test_kept_true_signal_rows_grow_and_keep_what_the_run_wrote() -> None:
     assert rows.shape[1] >= 60
     assert np.all(rows[:2, :30] == 7.0)
     assert buffers.truth_store(3, 40, 60, 60) is rows  # room enough: the same rows
+
+
+def test_kept_noise_streams_give_each_run_its_own_generators_draws() -> None:
+    # runs with one seed reach their sensor noise in one generator state whatever their
+    # leaks (a diagnosis's check); the stream kept for it serves shorter and longer runs
+    sim = importlib.import_module("pneufdd.sim.simulate")
+    # the numpy property the kept streams rely on: normals drawn in pieces or at once
+    pieces = np.random.default_rng(11)
+    whole = np.random.default_rng(11).standard_normal(5000)
+    assert np.array_equal(
+        np.concatenate([pieces.standard_normal(1234), pieces.standard_normal(3766)]), whole
+    )
+
+    def run(slpm: float) -> Recording:
+        leaks = {"DNC_A": f"{slpm}slpm", "supply": "30slpm"}
+        return run_simulation("festo-dsd", cycles=2, leaks=leaks, seed=21).recording
+
+    def same(a: Recording, b: Recording) -> bool:
+        return all(np.array_equal(a.channel(n)[1], b.channel(n)[1]) for n in a.analog_channels)
+
+    alone = {}
+    for slpm in (5.0, 90.0):
+        sim._NOISE = sim._NoiseStreams()  # nothing kept: the draws are made anew
+        alone[slpm] = run(slpm)
+    sizes = {slpm: rec.channel("P_In")[1].size for slpm, rec in alone.items()}
+    assert sizes[5.0] != sizes[90.0]  # the leaks change the cycle's length
+    shorter, longer = sorted(sizes, key=sizes.__getitem__)
+    sim._NOISE = sim._NoiseStreams()
+    # the kept stream is extended for the longer run, then sliced for the shorter
+    for slpm in (shorter, longer, shorter):
+        assert same(run(slpm), alone[slpm]), slpm

@@ -10,7 +10,7 @@ from hypothesis.extra.numpy import arrays
 from scipy.signal import lfilter
 
 from pneufdd.errors import InputError
-from pneufdd.physics.units import kg_s_to_slpm
+from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.sim.description import Sensor
 from pneufdd.sim.sensors import apply_sensor, first_order_recursion
 
@@ -63,3 +63,62 @@ def test_first_order_lag_settles_to_its_input_with_time_constant_tau() -> None:
 def test_first_order_recursion_takes_one_dimension_only() -> None:
     with pytest.raises(InputError, match=r"\(2, 2\)"):
         first_order_recursion(np.ones((2, 2)), 0.5, 0.5)
+
+
+def _numpy_reading(sensor: Sensor, truth: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The sensor formulas as whole-array NumPy operations (the code the kernel replaced)."""
+
+    def quantise(v: np.ndarray, low: float, high: float) -> np.ndarray:
+        step = (high - low) / (2**sensor.bits - 1)
+        return np.round((np.clip(v, low, high) - low) / step) * step + low
+
+    if sensor.kind == "pressure":
+        v = (truth - 101_325.0) * sensor.gain / 1e5 + sensor.offset + sensor.noise * z
+        return quantise(v, sensor.range_low, sensor.range_high) * 1e5 + 101_325.0
+    if sensor.kind == "position":
+        v = truth * sensor.gain * 1e3 + sensor.offset + sensor.noise * z
+        return quantise(v, sensor.range_low, sensor.range_high) * 1e-3
+    slpm = np.asarray(kg_s_to_slpm(truth))
+    if sensor.direction == "forward":
+        slpm = np.maximum(slpm, 0.0)
+    if sensor.time_constant_s > 0.0:
+        a = float(np.exp(-1.0 / (1000.0 * sensor.time_constant_s)))
+        slpm = lfilter([1.0 - a], [1.0, -a], slpm)
+    low = sensor.range_low if sensor.direction == "forward" else -sensor.range_high
+    v = slpm * sensor.gain + sensor.offset + sensor.noise * z
+    return np.asarray(slpm_to_kg_s(quantise(v, low, sensor.range_high)))
+
+
+@given(
+    st.sampled_from(["pressure", "flow", "position"]),
+    st.sampled_from(["forward", "bidirectional"]),
+    st.floats(0.9, 1.1),
+    st.floats(-0.2, 0.2),
+    st.integers(0, 2**32 - 1),
+)
+def test_compiled_reading_is_the_numpy_formula_bit_for_bit(
+    kind: str, direction: str, gain: float, offset: float, seed: int
+) -> None:
+    """One compiled pass gives what the formulas' whole-array NumPy expressions give."""
+    rng = np.random.default_rng(seed)
+    truth = {
+        "pressure": rng.uniform(5e4, 1.3e6, 500),
+        "flow": rng.uniform(-0.005, 0.005, 500),
+        "position": rng.uniform(-0.01, 0.2, 500),
+    }[kind]
+    sensor = Sensor(
+        "S", kind, "supply", 0.0, 200.0 if kind == "position" else 10.0, 0.05, 12,
+        0.015 if kind == "flow" else 0.0, direction, gain, offset,
+    )  # fmt: skip
+    z = rng.standard_normal(truth.size)
+    compiled = apply_sensor(sensor, truth, z, 1000.0)
+    np.testing.assert_array_equal(compiled, _numpy_reading(sensor, truth, z))
+    # a generator as the noise source draws the same normals
+    drawn = apply_sensor(sensor, truth, np.random.default_rng(seed + 1), 1000.0)
+    z_drawn = np.random.default_rng(seed + 1).standard_normal(truth.size)
+    np.testing.assert_array_equal(drawn, _numpy_reading(sensor, truth, z_drawn))
+
+
+def test_noise_draws_of_another_length_are_refused() -> None:
+    with pytest.raises(InputError, match=r"noise draws of sensor 'P'.*\(3,\)"):
+        apply_sensor(PRESSURE, np.full(4, 2e5), np.zeros(3), 1000.0)

@@ -111,6 +111,9 @@ from pneufdd.sim.layout import (
     IS_SAMPLE,
     IS_STEP,
     SAMPLE_DT,
+    SENSOR_FLOW,
+    SENSOR_POSITION,
+    SENSOR_PRESSURE,
     SP_COMP_BAND,
     SP_COMP_PERIOD,
     SP_COMP_PHASE,
@@ -146,7 +149,7 @@ from pneufdd.sim.layout import (
 )
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 
-__all__ = ["SAMPLE_DT", "first_order_recursion_kernel", "run_cycle"]
+__all__ = ["SAMPLE_DT", "first_order_recursion_kernel", "run_cycle", "sensor_reading_kernel"]
 
 F64 = npt.NDArray[np.float64]
 _G = GAMMA_AIR
@@ -716,4 +719,52 @@ def first_order_recursion_kernel(x: F64, gain: float, pole: float) -> F64:
     for k in range(x.size):
         previous = gain * x[k] + pole * previous
         y[k] = previous
+    return y
+
+
+@njit(cache=True, nogil=True)
+def sensor_reading_kernel(
+    x: F64,
+    z: F64,
+    kind: int,
+    gain: float,
+    offset: float,
+    noise: float,
+    low: float,
+    high: float,
+    step: float,
+) -> F64:
+    """What a sensor records for the true signal ``x`` (:func:`pneufdd.sim.sensors.apply_sensor`).
+
+    In the sensor's unit, ``gain * x + offset + noise * z`` clipped to ``[low, high]``
+    and rounded to the nearest multiple of ``step`` above ``low`` (ties to even), then
+    back to SI. One pass over the samples, each operation in the order of
+    ``apply_sensor``'s formulas, so the result is the same bit for bit as the NumPy
+    expression it replaces (``tests/test_sim_sensors.py``).
+    """
+    y = np.empty_like(x)
+    for k in range(x.size):
+        if kind == SENSOR_PRESSURE:
+            v = x[k] - P_ATM
+            v = v * gain
+            v = v / 1e5
+        elif kind == SENSOR_FLOW:
+            v = x[k] * gain
+        else:
+            v = x[k] * gain
+            v = v * 1e3
+        v = v + offset
+        v = v + noise * z[k]
+        v = min(max(v, low), high)
+        v = v - low
+        v = v / step
+        v = np.rint(v)
+        v = v * step
+        v = v + low
+        if kind == SENSOR_PRESSURE:
+            v = v * 1e5
+            v = v + P_ATM
+        elif kind == SENSOR_POSITION:
+            v = v * 1e-3
+        y[k] = v
     return y

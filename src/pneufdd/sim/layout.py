@@ -93,3 +93,12 @@ CM_EXHAUST = 2
 CM_LEAK = 3
 CM_VAC = 4
 CM_SIZE = 5
+
+
+# ``kind`` of :func:`pneufdd.sim.kernel.sensor_reading_kernel`
+SENSOR_PRESSURE = 0
+"""A pressure sensor: absolute pressure [Pa] in, read in bar(g), absolute [Pa] out."""
+SENSOR_FLOW = 1
+"""A flow meter: its (lagged) flow [SLPM] in and out."""
+SENSOR_POSITION = 2
+"""A position sensor: position [m] in, read in [mm], [m] out."""

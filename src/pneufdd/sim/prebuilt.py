@@ -1,7 +1,8 @@
 """The twin's compiled code built ahead of time, so that short commands start at once.
 
 numba compiles the twin's kernels (:func:`pneufdd.sim.kernel.run_cycle`, the sensor
-lag :func:`pneufdd.sim.kernel.first_order_recursion_kernel`) on first use and keeps
+lag :func:`pneufdd.sim.kernel.first_order_recursion_kernel`, the sensor reading
+:func:`pneufdd.sim.kernel.sensor_reading_kernel`) on first use and keeps
 them in its on-disk cache. Loading them from that cache still imports numba and
 prepares its compiler (together about 0.6 s per process, most of a four-cycle
 ``pneufdd simulate``; ``benchmarks/bench_startup.py``). ``pneufdd build-twin`` (or
@@ -90,6 +91,8 @@ class CompiledTwin(NamedTuple):
     """:func:`pneufdd.sim.kernel.run_cycle`."""
     first_order_recursion: Callable[..., Any]
     """:func:`pneufdd.sim.kernel.first_order_recursion_kernel`."""
+    sensor_reading: Callable[..., Any]
+    """:func:`pneufdd.sim.kernel.sensor_reading_kernel`."""
     origin: str
     """``"jit"`` or the path of the prebuilt module."""
 
@@ -166,7 +169,8 @@ def load_prebuilt_twin(directory: Path | None = None) -> ModuleType | None:
     Returns
     -------
     module or None
-        The extension module (functions ``run_cycle`` and ``first_order_recursion``);
+        The extension module (functions ``run_cycle``, ``first_order_recursion`` and
+        ``sensor_reading``);
         None if it was not built for these sources, or does not load on this system.
     """
     path = prebuilt_path(directory)
@@ -184,9 +188,13 @@ def load_prebuilt_twin(directory: Path | None = None) -> ModuleType | None:
 
 
 def _jit_twin() -> CompiledTwin:
-    from pneufdd.sim.kernel import first_order_recursion_kernel, run_cycle
+    from pneufdd.sim.kernel import (
+        first_order_recursion_kernel,
+        run_cycle,
+        sensor_reading_kernel,
+    )
 
-    return CompiledTwin(run_cycle, first_order_recursion_kernel, "jit")
+    return CompiledTwin(run_cycle, first_order_recursion_kernel, sensor_reading_kernel, "jit")
 
 
 Layout = tuple[tuple[str, int, bool, bool], ...]
@@ -241,8 +249,21 @@ def _prebuilt_twin(module: ModuleType) -> CompiledTwin:
             argument_layout((vector, 0.5, 0.5)),
             "first_order_recursion",
         ),
+        _Guarded(
+            module.sensor_reading,
+            argument_layout(_sensor_reading_arguments(vector)),
+            "sensor_reading",
+        ),
         str(module.__file__),
     )
+
+
+def _sensor_reading_arguments(vector: Any) -> tuple[Any, ...]:
+    """Arguments of the kind :func:`pneufdd.sim.sensors.apply_sensor` passes the reading:
+    two read-only float64 vectors (samples and noise draws), an int and six floats."""
+    samples = vector.view()
+    samples.flags.writeable = False
+    return (samples, samples, 0, 1.0, 0.0, 0.0, 0.0, 10.0, 0.1)
 
 
 @functools.cache
@@ -295,6 +316,7 @@ def _signatures() -> dict[str, Any]:
     return {
         "run_cycle": unituple(types.int64, 4)(*args),
         "first_order_recursion": typeof(vector)(typeof(vector), types.float64, types.float64),
+        "sensor_reading": typeof(vector)(*(typeof(a) for a in _sensor_reading_arguments(vector))),
     }
 
 
@@ -332,7 +354,11 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
     import numba
     from numba.core.errors import NumbaPendingDeprecationWarning
 
-    from pneufdd.sim.kernel import first_order_recursion_kernel, run_cycle
+    from pneufdd.sim.kernel import (
+        first_order_recursion_kernel,
+        run_cycle,
+        sensor_reading_kernel,
+    )
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
@@ -356,6 +382,9 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
         )
         compiler.export("first_order_recursion", signatures["first_order_recursion"])(  # type: ignore[no-untyped-call]
             first_order_recursion_kernel.py_func
+        )
+        compiler.export("sensor_reading", signatures["sensor_reading"])(  # type: ignore[no-untyped-call]
+            sensor_reading_kernel.py_func
         )
         with _wrappers_release_gil():
             try:

@@ -20,9 +20,9 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.errors import InputError, describe
-from pneufdd.physics.constants import P_ATM
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.sim.description import Sensor
+from pneufdd.sim.layout import SENSOR_FLOW, SENSOR_POSITION, SENSOR_PRESSURE
 from pneufdd.sim.prebuilt import compiled_twin
 
 __all__ = ["SENSOR_SI_UNIT", "apply_sensor", "first_order_recursion"]
@@ -75,20 +75,16 @@ def first_order_recursion(x: F64, gain: float, pole: float) -> F64:
     return np.asarray(recursion(samples, float(gain), float(pole)))
 
 
-def _quantise(values: F64, low: float, high: float, bits: int) -> F64:
-    """``values`` clipped to ``[low, high]`` and rounded to ``bits`` bits (in place)."""
-    step = (high - low) / (2**bits - 1)
-    # low + round((clip(values) - low) / step) * step, each operation in place
-    np.clip(values, low, high, out=values)
-    values -= low
-    values /= step
-    np.round(values, out=values)
-    values *= step
-    values += low
-    return values
+def _read_only(values: F64) -> F64:
+    """A read-only view of ``values``: the reading's inputs as its compiled form is typed."""
+    view = values.view()
+    view.flags.writeable = False
+    return view
 
 
-def apply_sensor(sensor: Sensor, truth: F64, rng: np.random.Generator, rate_hz: float) -> F64:
+def apply_sensor(
+    sensor: Sensor, truth: F64, noise: np.random.Generator | F64, rate_hz: float
+) -> F64:
     """Return what ``sensor`` records for the true signal ``truth`` (SI in, SI out).
 
     Parameters
@@ -98,8 +94,9 @@ def apply_sensor(sensor: Sensor, truth: F64, rng: np.random.Generator, rate_hz: 
     truth : ndarray
         True signal: absolute pressure [Pa], signed mass flow towards the actuator or
         manifold [kg/s], or position [m].
-    rng : numpy.random.Generator
-        Source of the noise.
+    noise : numpy.random.Generator or ndarray
+        Source of the noise (``truth.size`` standard normal draws are taken from it),
+        or those draws themselves, one per sample [-].
     rate_hz : float
         Sample rate [Hz].
 
@@ -110,42 +107,51 @@ def apply_sensor(sensor: Sensor, truth: F64, rng: np.random.Generator, rate_hz: 
 
     Notes
     -----
-    Each step works in place on one array (a festo-dsd run's channels hold about
-    60,000 samples each; temporaries cost more than the arithmetic); the operations
-    and their order are those of the formulas in the comments, so the values are the
-    same bit for bit.
+    In the sensor's unit (bar(g), SLPM or mm) the reading is
+    ``gain * truth + offset + noise * z``, clipped to the range and quantised to
+    ``bits`` bits over it (round half to even), then converted back to SI. The
+    arithmetic is one compiled pass (:func:`pneufdd.sim.kernel.sensor_reading_kernel`,
+    prebuilt or numba's JIT) whose operations are those of the formulas in their order:
+    the same values, bit for bit, as the NumPy expressions it replaced (a festo-dsd
+    run's channels hold about 60,000 samples each; eight or more whole-array passes and
+    their temporaries cost more than the arithmetic).
     """
     n = truth.size
+    z = noise.standard_normal(n) if isinstance(noise, np.random.Generator) else noise
+    if z.shape != (n,):
+        raise InputError(describe(f"noise draws of sensor {sensor.channel!r}", z.shape, (n,)))
+    reading = compiled_twin().sensor_reading
     if sensor.kind == "pressure":
-        # gain * (truth - P_ATM) / 1e5 + offset + noise * z  [bar(g)]
-        bar_g = np.subtract(truth, P_ATM, dtype=np.float64)
-        bar_g *= sensor.gain
-        bar_g /= 1e5
-        bar_g += sensor.offset
-        bar_g += sensor.noise * rng.standard_normal(n)
-        q = _quantise(bar_g, sensor.range_low, sensor.range_high, sensor.bits)
-        q *= 1e5
-        q += P_ATM
-        return q
-    if sensor.kind == "flow":
+        low, high = sensor.range_low, sensor.range_high
+        kind = SENSOR_PRESSURE
+        x = np.ascontiguousarray(truth, dtype=np.float64)
+    elif sensor.kind == "flow":
         slpm = np.asarray(kg_s_to_slpm(truth), dtype=np.float64)
         if sensor.direction == "forward":
             slpm = np.maximum(slpm, 0.0)
         if sensor.time_constant_s > 0.0:
             a = float(np.exp(-1.0 / (rate_hz * sensor.time_constant_s)))
             slpm = first_order_recursion(slpm, 1.0 - a, a)
-        # gain * slpm + offset + noise * z  [SLPM]
-        reading = np.multiply(slpm, sensor.gain, dtype=np.float64)
-        reading += sensor.offset
-        reading += sensor.noise * rng.standard_normal(n)
         low = sensor.range_low if sensor.direction == "forward" else -sensor.range_high
-        q = _quantise(reading, low, sensor.range_high, sensor.bits)
+        high = sensor.range_high
+        kind = SENSOR_FLOW
+        x = np.ascontiguousarray(slpm, dtype=np.float64)
+    else:
+        low, high = sensor.range_low, sensor.range_high
+        kind = SENSOR_POSITION
+        x = np.ascontiguousarray(truth, dtype=np.float64)
+    step = (high - low) / (2**sensor.bits - 1)
+    q = reading(
+        _read_only(x),
+        _read_only(np.ascontiguousarray(z, dtype=np.float64)),
+        kind,
+        float(sensor.gain),
+        float(sensor.offset),
+        float(sensor.noise),
+        float(low),
+        float(high),
+        float(step),
+    )
+    if kind == SENSOR_FLOW:
         return np.asarray(slpm_to_kg_s(q), dtype=np.float64)
-    # gain * truth * 1e3 + offset + noise * z  [mm]
-    mm = np.multiply(truth, sensor.gain, dtype=np.float64)
-    mm *= 1e3
-    mm += sensor.offset
-    mm += sensor.noise * rng.standard_normal(n)
-    q = _quantise(mm, sensor.range_low, sensor.range_high, sensor.bits)
-    q *= 1e-3
-    return q
+    return np.asarray(q, dtype=np.float64)
