@@ -28,6 +28,8 @@ def model():
         np.array([1e-3, 6e-4]),
         sig.sizes * np.linspace(0.9, 0.1, len(sig.locations))[:, None],
         np.tile([-1e-5, -2e-6], (len(sig.locations), 1)),
+        baseline=np.linspace(1.0, 2.0, len(sig.feature_names)),
+        baseline_run=(2, 123),
     )
     return ReferenceModel.build(
         synth_table(20, seed=3),
@@ -60,8 +62,36 @@ def test_round_trip_is_exact(model, tmp_path):
     assert np.array_equal(
         back.signatures.mean_flow_interaction, model.signatures.mean_flow_interaction
     )
+    assert np.array_equal(back.signatures.baseline, model.signatures.baseline)
+    assert back.signatures.baseline_run == (2, 123)
     assert np.array_equal(back.detector.threshold_, model.detector.threshold_)
     assert not list(tmp_path.glob(".*tmp"))
+
+
+def test_a_reference_without_the_signatures_baseline_still_loads(model, tmp_path):
+    # references saved before the leak-free baseline was kept: the check simulates it
+    path = save_reference(model, tmp_path / "ref.pnref")
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files if k != "sig_baseline"}
+    header = json.loads(str(arrays["header"]))
+    del header["signature_baseline_run"]
+    arrays["header"] = np.array(json.dumps(header))
+    old = tmp_path / "old.pnref"
+
+    def write() -> None:
+        with old.open("wb") as handle:
+            np.savez_compressed(handle, **arrays)
+
+    write()
+    back = load_reference(old)
+    assert back.signatures.baseline is None
+    assert back.signatures.baseline_run is None
+    # a damaged run description is refused, naming the file and the entry
+    header["signature_baseline_run"] = ["2", 123]
+    arrays["header"] = np.array(json.dumps(header))
+    write()
+    with pytest.raises(FileFormatError, match=r"old\.pnref.*signature_baseline_run"):
+        load_reference(old)
 
 
 def test_refuses_to_overwrite(model, tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pneufdd.diagnosis.effects import LeakEffectModel
 from pneufdd.diagnosis.step_summaries import (
     machine_sequence,
     segment_cycles,
@@ -13,7 +14,7 @@ from pneufdd.diagnosis.step_summaries import (
     step_table,
     trace_offsets,
 )
-from pneufdd.diagnosis.twin_effects import compute_signatures
+from pneufdd.diagnosis.twin_effects import SIGNATURE_SEED, TwinLeakEffect, compute_signatures
 from pneufdd.errors import InputError
 from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
@@ -239,3 +240,24 @@ def test_a_ladder_that_stalls_just_above_a_size_that_ran_is_rescaled(monkeypatch
     monkeypatch.setattr(twin_effects, "_mean_features", never)
     with pytest.raises(InputError, match=r"leak signature of machine .festo-dsd. at supply"):
         twin_effects._location_ladder(job)
+
+
+def test_the_check_subtracts_the_signatures_own_leak_free_run(signatures, q_in_features):
+    # the signatures keep their leak-free run; a check of the same cycles and seed takes
+    # it instead of simulating it again, and gets exactly the changes it would compute
+    sig, _ = signatures
+    seq, names = q_in_features
+    assert sig.baseline is not None
+    assert sig.baseline_run == (1, SIGNATURE_SEED)
+    machine = load_machine("festo-dsd")
+    kept = LeakEffectModel.from_description(sig, machine, seq, ["Q_In"], cycles=1).simulator
+    again = TwinLeakEffect(machine, names, seq, ["Q_In"], cycles=1)
+    assert kept is not None
+    leaks = {SUPPLY: float(slpm_to_kg_s(40.0)), Location("DNC", "B"): float(slpm_to_kg_s(20.0))}
+    assert np.array_equal(kept(leaks), again(leaks))
+    assert (kept.simulations, again.simulations) == (1, 2)
+    # another number of cycles is another run: simulated, not taken
+    other = LeakEffectModel.from_description(sig, machine, seq, ["Q_In"], cycles=2).simulator
+    assert other is not None
+    assert other(leaks) is not None
+    assert other.simulations == 2

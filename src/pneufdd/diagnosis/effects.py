@@ -103,8 +103,16 @@ class LeakEffectModel:
         """
         twin = None
         if machine is not None and sequence:
+            # the signatures' leak-free run is the check's own when cycles and seed agree
+            same_run = signatures.baseline_run == (cycles, seed)
             twin = TwinLeakEffect(
-                machine, signatures.feature_names, sequence, channels, cycles, seed
+                machine,
+                signatures.feature_names,
+                sequence,
+                channels,
+                cycles,
+                seed,
+                signatures.baseline if same_run else None,
             )
         return cls(signatures, twin, threads)
 

@@ -97,6 +97,9 @@ def _header(model: ReferenceModel) -> dict[str, Any]:
         "supply_pressure": None if math.isnan(model.supply_pressure) else model.supply_pressure,
         "trace_rate_hz": model.trace_rate_hz,
         "signature_locations": None if sig is None else [str(x) for x in sig.locations],
+        "signature_baseline_run": (
+            None if sig is None or sig.baseline_run is None else list(sig.baseline_run)
+        ),
         "sequence": list(model.sequence),
     }
 
@@ -149,6 +152,8 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
             # float32: 7 significant digits, far beyond the deviations' own precision
             arrays["sig_plant_deviations"] = sig.plant_deviations.astype(np.float32)
             arrays["sig_deviation_sizes"] = sig.deviation_sizes
+        if sig.baseline is not None:
+            arrays["sig_baseline"] = sig.baseline
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
@@ -399,6 +404,17 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                         "f",
                         (None, n_loc, deviation_sizes.size, n_feat),
                     )
+                baseline = None
+                baseline_run = header.get("signature_baseline_run")
+                if baseline_run is not None:  # absent from references saved before it was kept
+                    if not (
+                        isinstance(baseline_run, list)
+                        and len(baseline_run) == 2
+                        and all(isinstance(x, int) for x in baseline_run)
+                    ):
+                        raise _bad(source, "signature_baseline_run", baseline_run, "[cycles, seed]")
+                    baseline = _array(data, source, "sig_baseline", "f", (n_feat,))
+                    baseline_run = tuple(baseline_run)
                 signatures = SignatureSet(
                     tuple(locations),
                     sizes,
@@ -411,6 +427,8 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                     flow_inter,
                     deviations,
                     deviation_sizes,
+                    baseline,
+                    baseline_run,
                 )
             supply = header.get("supply_pressure")
             model = ReferenceModel(

@@ -78,6 +78,13 @@ class SignatureSet:
         Their spread is the covariance of the signatures' error on a real machine.
     deviation_sizes : ndarray, shape (n_dev_sizes,), optional
         Leak sizes of :attr:`plant_deviations`, increasing [kg/s].
+    baseline : ndarray, shape (n_features,), optional
+        Mean features of the twin's leak-free run the deltas are taken from [feature
+        unit]: the simulation check (:class:`~pneufdd.diagnosis.twin_effects.TwinLeakEffect`)
+        subtracts the same run, and takes it from here instead of simulating it again
+        when its cycles and seed are :attr:`baseline_run`.
+    baseline_run : tuple of (int, int), optional
+        Inner cycles averaged and seed of that leak-free run. Both or neither.
 
     Examples
     --------
@@ -103,6 +110,8 @@ class SignatureSet:
     mean_flow_interaction: FloatArray | None = None
     plant_deviations: FloatArray | None = None
     deviation_sizes: FloatArray | None = None
+    baseline: FloatArray | None = None
+    baseline_run: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         locations = tuple(
@@ -187,11 +196,30 @@ class SignatureSet:
                 raise InputError(describe("plant_deviations", "NaN or infinite", "finite"))
             object.__setattr__(self, "plant_deviations", dev)
             object.__setattr__(self, "deviation_sizes", dsz)
+        self._check_baseline(len(names))
         object.__setattr__(self, "locations", locations)
         object.__setattr__(self, "sizes", sizes)
         object.__setattr__(self, "deltas", deltas)
         object.__setattr__(self, "feature_names", names)
         object.__setattr__(self, "nominal_pressure", pressure)
+
+    def _check_baseline(self, n_features: int) -> None:
+        if (self.baseline is None) != (self.baseline_run is None):
+            raise InputError(describe("baseline and baseline_run", "only one", "both or neither"))
+        if self.baseline is None or self.baseline_run is None:
+            return
+        base = np.asarray(self.baseline, dtype=np.float64)
+        if base.shape != (n_features,) or not np.all(np.isfinite(base)):
+            raise InputError(
+                describe("shape of the signatures' baseline", base.shape, [(n_features,)])
+            )
+        run = tuple(int(x) for x in self.baseline_run)
+        if len(run) != 2 or run[0] < 1:
+            raise InputError(
+                describe("baseline_run (cycles, seed)", list(self.baseline_run), "cycles >= 1")
+            )
+        object.__setattr__(self, "baseline", base)
+        object.__setattr__(self, "baseline_run", run)
 
     @property
     def n_features(self) -> int:
@@ -253,6 +281,8 @@ class SignatureSet:
             self.mean_flow_interaction,
             None if self.plant_deviations is None else self.plant_deviations[..., cols],
             self.deviation_sizes,
+            None if self.baseline is None else self.baseline[cols],
+            self.baseline_run,
         )
 
     @property

@@ -478,6 +478,8 @@ def compute_signatures(
         np.asarray(slpm_to_kg_s(np.asarray(INTERACTION_SIZES_SLPM, dtype=np.float64))),
         mean_flow,
         flow_interaction,
+        baseline=base[cols],
+        baseline_run=(cycles, seed),
     )
 
 
@@ -490,7 +492,8 @@ class TwinLeakEffect:
     callable simulates the exact set of leaks asked for, with the same seed as its
     leak-free baseline (common random numbers), and returns the mean feature change
     over the inner cycles, summarised exactly like a measured run. Results are cached
-    per set of sizes (rounded to 1e-4 SLPM); the baseline is simulated once. Calls
+    per set of sizes (rounded to 1e-4 SLPM); the baseline is simulated once, or taken
+    from the signatures that simulated it. Calls
     from several threads at once are safe (the compiled twin releases the GIL).
 
     Parameters
@@ -507,6 +510,10 @@ class TwinLeakEffect:
         Inner cycles averaged per simulation.
     seed : int
         Seed shared by every simulation (common random numbers).
+    baseline : ndarray, optional
+        Mean features of the leak-free run of these cycles and this seed, in the order
+        of ``feature_names`` (:attr:`SignatureSet.baseline`, the same simulation): not
+        simulated again [feature unit].
     """
 
     def __init__(
@@ -517,9 +524,16 @@ class TwinLeakEffect:
         channels: Sequence[str],
         cycles: int = 2,
         seed: int = SIGNATURE_SEED,
+        baseline: npt.NDArray[np.float64] | None = None,
     ) -> None:
         if cycles < 1:
             raise InputError(describe("simulated cycles per leak effect", cycles, ">= 1"))
+        if baseline is not None and np.shape(baseline) != (len(feature_names),):
+            raise InputError(
+                describe(
+                    "shape of the leak-free baseline", np.shape(baseline), [(len(feature_names),)]
+                )
+            )
         self.machine = machine
         self.feature_names = tuple(feature_names)
         self.sequence = tuple(sequence)
@@ -529,7 +543,9 @@ class TwinLeakEffect:
         self.simulations = 0
         self._lock = threading.RLock()
         self._columns: npt.NDArray[np.int64] | None = None
-        self._base: npt.NDArray[np.float64] | None = None
+        self._base: npt.NDArray[np.float64] | None = (
+            None if baseline is None else np.array(baseline, dtype=np.float64)
+        )
         self._cache: dict[tuple[tuple[str, float], ...], npt.NDArray[np.float64] | None] = {}
 
     def _features(self, leaks: Mapping[Location, float]) -> npt.NDArray[np.float64]:
