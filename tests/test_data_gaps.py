@@ -149,3 +149,19 @@ def test_too_few_usable_cycles_are_refused_naming_file_and_channel(tmp_path, cap
     assert "gappy.parquet" in err
     assert "'P_In'" in err
     assert not (tmp_path / "f.csv").exists()
+
+
+def test_repair_without_copy_reads_a_clean_channel_in_place_and_never_writes_it() -> None:
+
+    clean = np.linspace(2e5, 6e5, 50)
+    same, _, count, _ = repair_gaps(clean, 100.0, "Pa", copy=False)
+    assert same is clean
+    assert count == 0
+    # a channel with a gap is repaired in a new array; the caller's samples stay as given
+    gappy = clean.copy()
+    gappy[10] = np.nan
+    repaired, _, count, _ = repair_gaps(gappy, 100.0, "Pa", copy=False)
+    assert count == 1
+    assert not np.shares_memory(repaired, gappy)
+    assert np.isnan(gappy[10])
+    assert repaired[10] == pytest.approx(clean[10])

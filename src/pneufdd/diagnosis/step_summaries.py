@@ -108,38 +108,41 @@ def trace_offsets(cycles: Sequence[Cycle], rate_hz: float) -> IntArray:
     return np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
 
 
-def _summaries(values: FloatArray, start: IntArray, end: IntArray) -> FloatArray:
+def _summaries(values: Sequence[FloatArray], start: IntArray, end: IntArray) -> FloatArray:
     """Mean, minimum and maximum of every step window of channels on one time base.
 
-    ``values``: shape (channels, samples); ``start``, ``end``: window sample bounds,
-    shape (cycles, steps). Returns shape (channels, cycles, steps, 3). All channels are
-    summarised with one running sum and one ``reduceat`` each (row by row the same
-    arithmetic as one channel at a time).
+    ``values``: the channels' samples, all of one length; ``start``, ``end``: window
+    sample bounds, shape (cycles, steps). Returns shape (channels, cycles, steps, 3).
+    Each channel is summarised by one compiled pass that releases the GIL
+    (:func:`pneufdd.signals.windows.window_summaries`: the arithmetic of a running sum
+    and ``reduceat``, bit for bit).
     """
-    k, n = values.shape
+    n = values[0].size
     s = np.clip(start, 0, n - 1)
     e = np.clip(np.maximum(end, start + 1), 1, n)
     e = np.maximum(e, s + 1)
-    csum = np.empty((k, n + 1))
-    csum[:, 0] = 0.0
-    np.cumsum(values, axis=1, out=csum[:, 1:])
-    if not np.all(np.isfinite(csum[:, -1])):
-        # long gaps stay NaN (in skipped cycles only): keep them out of the running sum
-        np.cumsum(np.where(np.isnan(values), 0.0, values), axis=1, out=csum[:, 1:])
-    mean = (csum[:, e] - csum[:, s]) / (e - s)
     bounds = np.stack([s.ravel(), e.ravel()], axis=1).ravel()
-    order_ok = np.all(np.diff(bounds) >= 0)
-    shape = (k, *start.shape)
-    if order_ok and bounds[-1] <= n:
-        idx = bounds.copy()
-        idx[idx >= n] = n - 1
-        lo = np.minimum.reduceat(values, idx, axis=1)[:, 0::2].reshape(shape)
-        hi = np.maximum.reduceat(values, idx, axis=1)[:, 0::2].reshape(shape)
-    else:  # overlapping windows (never for a valid segmentation): slow path
-        pairs = list(zip(s.ravel(), e.ravel(), strict=True))
-        lo = np.array([[row[a:b].min() for a, b in pairs] for row in values]).reshape(shape)
-        hi = np.array([[row[a:b].max() for a, b in pairs] for row in values]).reshape(shape)
-    return np.stack([mean, lo, hi], axis=-1)
+    shape = (len(values), *start.shape, 3)
+    if np.all(np.diff(bounds) >= 0) and bounds[-1] <= n:
+        from pneufdd.signals.windows import window_summaries
+
+        # minimum and maximum over [s, e) with e clipped to the last sample, as reduceat
+        extreme_end = np.minimum(e.ravel(), n - 1)
+        first, last = s.ravel().astype(np.int64), e.ravel().astype(np.int64)
+        rows = [
+            window_summaries(np.ascontiguousarray(row, dtype=np.float64), first, last, extreme_end)
+            for row in values
+        ]
+        return np.stack(rows).reshape(shape)
+    # overlapping windows (never for a valid segmentation): slow path
+    out = np.empty(shape)
+    pairs = list(zip(s.ravel(), e.ravel(), strict=True))
+    for c, row in enumerate(values):
+        csum = np.concatenate([[0.0], np.cumsum(np.where(np.isnan(row), 0.0, row))])
+        out[c, ..., 0] = (csum[e] - csum[s]) / (e - s)
+        out[c, ..., 1] = np.array([row[a:b].min() for a, b in pairs]).reshape(start.shape)
+        out[c, ..., 2] = np.array([row[a:b].max() for a, b in pairs]).reshape(start.shape)
+    return out
 
 
 def _traces(
@@ -208,7 +211,8 @@ def step_table(
     """
     names = tuple(recording.analog_channels if channels is None else channels)
     recording.require(names, "the diagnosis sensor set")
-    repaired, gaps = usable_cycles(recording, cycles, names, where)
+    # read only: a channel without gaps is summarised from the recording's own array
+    repaired, gaps = usable_cycles(recording, cycles, names, where, copy=False)
     cycles = [c for c, ok in zip(cycles, gaps.usable, strict=True) if ok]
     start = np.array([[s.start_s for s in c.steps] for c in cycles], dtype=np.float64)
     end = np.array([[s.end_s for s in c.steps] for c in cycles], dtype=np.float64)
@@ -219,9 +223,9 @@ def step_table(
     column = {name: i for i, name in enumerate(names)}
     for (rate, t0, _), members in recording.time_bases(names).items():
         s_idx, e_idx = sample_bounds(cycles, rate, t0)
-        stacked = np.stack([repaired[m] for m in members])
         columns = [column[m] for m in members]
-        summaries[:, :, columns, :] = np.moveaxis(_summaries(stacked, s_idx, e_idx), 0, 2)
+        found = _summaries([repaired[m] for m in members], s_idx, e_idx)
+        summaries[:, :, columns, :] = np.moveaxis(found, 0, 2)
     if traces is not None and offsets is not None:
         for i, name in enumerate(names):
             info = recording.info(name)

@@ -214,7 +214,11 @@ def check_channels(recording: Recording, analog: Sequence[str], where: str) -> N
 
 
 def repair_gaps(
-    values: npt.ArrayLike, rate_hz: float, unit: str, max_gap_s: float = MAX_REPAIR_S
+    values: npt.ArrayLike,
+    rate_hz: float,
+    unit: str,
+    max_gap_s: float = MAX_REPAIR_S,
+    copy: bool = True,
 ) -> tuple[FloatArray, BoolArray, int, BoolArray]:
     """Apply the gap rule to one channel.
 
@@ -228,6 +232,9 @@ def repair_gaps(
         Its SI unit (selects :data:`PHYSICAL_RANGE`).
     max_gap_s : float
         Longest gap repaired [s].
+    copy : bool
+        False: a channel without gaps comes back as ``values`` itself (float64), not a
+        copy, for callers that only read it.
 
     Returns
     -------
@@ -252,7 +259,7 @@ def repair_gaps(
     finite_range = math.isfinite(low) and math.isfinite(high)
     if finite_range and x.size and low <= float(x.min()) and float(x.max()) <= high:
         none = np.zeros(x.size, dtype=bool)
-        return x.copy(), none, 0, none
+        return (x.copy() if copy else x), none, 0, none
     x = x.copy()
     with np.errstate(invalid="ignore"):
         bad = ~np.isfinite(x) | (x < low) | (x > high)
@@ -283,8 +290,12 @@ def usable_cycles(
     cycles: Sequence[Cycle],
     channels: Sequence[str],
     where: str,
+    copy: bool = True,
 ) -> tuple[dict[str, FloatArray], GapReport]:
     """Repair short gaps in ``channels`` and find the cycles long gaps leave usable.
+
+    ``copy`` False: a channel without gaps is returned as the recording's own array
+    (for callers that only read it; :func:`repair_gaps`).
 
     Returns
     -------
@@ -307,7 +318,7 @@ def usable_cycles(
     bounds: dict[tuple[float, float], tuple[IntArray, IntArray]] = {}
     for name in channels:
         ch = recording.info(name)
-        values, long_gap, count, missing = repair_gaps(ch.values, ch.rate_hz, ch.unit)
+        values, long_gap, count, missing = repair_gaps(ch.values, ch.rate_hz, ch.unit, copy=copy)
         repaired[name] = values
         repaired_total += count
         if n == 0:
