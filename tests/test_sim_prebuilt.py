@@ -103,6 +103,7 @@ def test_prebuilt_twin_is_found_only_under_the_sources_key(built: Path, tmp_path
     assert callable(module.run_cycle)
     assert callable(module.first_order_recursion)
     assert callable(module.sensor_reading)
+    assert callable(module.truth_rows)
     assert prebuilt_path(built).name.startswith("pneufdd_twin_" + build_key()[:24])
     # the same module under another key (other sources) is not loaded
     other = tmp_path / prebuilt_path(built).name.replace(build_key()[:24], "f" * 24)

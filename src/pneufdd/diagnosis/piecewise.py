@@ -69,7 +69,7 @@ class PiecewiseLinear:
     def segment(self, function: int, x: float) -> int:
         """Index of the segment of ``function`` that holds ``x``."""
         k = int(np.searchsorted(self.lo[function], x, side="right")) - 1
-        return int(np.clip(k, 0, self.n_segments - 1))
+        return min(max(k, 0), int(self.n_segments) - 1)
 
     def __call__(self, function: int, x: float) -> FloatArray:
         """Value of ``function`` at ``x`` (negative ``x`` is taken as 0)."""
@@ -254,7 +254,7 @@ class WhitenedEffects(PiecewiseLinear):
             slope = self.slope[loc, k] + extra
             g = float(slope @ slope)
             lo, hi = float(self.lo[loc, k]), float(self.hi[loc, k])
-            a = float(np.clip((c @ slope) / g if g > 0 else lo, lo, hi))
+            a = min(max(float((c @ slope) / g) if g > 0 else lo, lo), hi)  # clipped
             r = c - a * slope
             rss = float(r @ r)
             if rss < best_rss:

@@ -143,13 +143,22 @@ from pneufdd.sim.layout import (
     SS_PHASE_END,
     SS_TIME,
     SS_VAC,
+    TRUTH_CHAMBER_FLOW,
+    TRUTH_NODE_PRESSURE,
+    TRUTH_POSITION,
     VK_BISTABLE,
     VK_CLOSED_CENTRE,
     VK_MONOSTABLE,
 )
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 
-__all__ = ["SAMPLE_DT", "first_order_recursion_kernel", "run_cycle", "sensor_reading_kernel"]
+__all__ = [
+    "SAMPLE_DT",
+    "first_order_recursion_kernel",
+    "run_cycle",
+    "sensor_reading_kernel",
+    "truth_rows_kernel",
+]
 
 F64 = npt.NDArray[np.float64]
 _G = GAMMA_AIR
@@ -768,3 +777,42 @@ def sensor_reading_kernel(
             v = v * 1e-3
         y[k] = v
     return y
+
+
+@njit(cache=True, nogil=True)
+def truth_rows_kernel(
+    p: F64,
+    x: F64,
+    fch: F64,
+    fexh: F64,
+    fr: F64,
+    source: npt.NDArray[np.int64],
+    column: npt.NDArray[np.int64],
+    store: F64,
+    first: int,
+    n: int,
+) -> None:
+    """Copy the true signals of one cycle's ``n`` samples into ``store``.
+
+    Row ``r`` of ``store`` (one recorded sensor) gets, from sample ``first`` on, the
+    column ``column[r]`` of the kernel output that ``source[r]`` names
+    (:data:`pneufdd.sim.layout.TRUTH_NODE_PRESSURE` ...): a pressure, a position, the
+    supply line's flow or a chamber's net flow ``fch - fexh`` (the flow a meter on that
+    line sees, towards the chamber). One compiled pass that releases the GIL, instead
+    of a strided column copy (and a temporary for the flows) per sensor and cycle.
+    """
+    for r in range(source.size):
+        c = column[r]
+        kind = source[r]
+        if kind == TRUTH_NODE_PRESSURE:
+            for k in range(n):
+                store[r, first + k] = p[k, c]
+        elif kind == TRUTH_POSITION:
+            for k in range(n):
+                store[r, first + k] = x[k, c]
+        elif kind == TRUTH_CHAMBER_FLOW:
+            for k in range(n):
+                store[r, first + k] = fch[k, c] - fexh[k, c]
+        else:
+            for k in range(n):
+                store[r, first + k] = fr[k, c]

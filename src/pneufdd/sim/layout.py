@@ -102,3 +102,13 @@ SENSOR_FLOW = 1
 """A flow meter: its (lagged) flow [SLPM] in and out."""
 SENSOR_POSITION = 2
 """A position sensor: position [m] in, read in [mm], [m] out."""
+
+# where a recorded sensor's true signal comes from (:func:`pneufdd.sim.kernel.truth_rows_kernel`)
+TRUTH_NODE_PRESSURE = 0
+"""A node's pressure, a column of the kernel's ``p`` (1: the manifold, 2 + c: chamber c)."""
+TRUTH_POSITION = 1
+"""An actuator's position, a column of ``x``."""
+TRUTH_SUPPLY_FLOW = 2
+"""A supply-line flow, a column of ``fr`` (``FR_LINE``)."""
+TRUTH_CHAMBER_FLOW = 3
+"""A chamber's net flow, column c of ``fch`` minus the same column of ``fexh``."""

@@ -2,7 +2,8 @@
 
 numba compiles the twin's kernels (:func:`pneufdd.sim.kernel.run_cycle`, the sensor
 lag :func:`pneufdd.sim.kernel.first_order_recursion_kernel`, the sensor reading
-:func:`pneufdd.sim.kernel.sensor_reading_kernel`) on first use and keeps
+:func:`pneufdd.sim.kernel.sensor_reading_kernel`, the true-signal copy
+:func:`pneufdd.sim.kernel.truth_rows_kernel`) on first use and keeps
 them in its on-disk cache. Loading them from that cache still imports numba and
 prepares its compiler (together about 0.6 s per process, most of a four-cycle
 ``pneufdd simulate``; ``benchmarks/bench_startup.py``). ``pneufdd build-twin`` (or
@@ -93,6 +94,8 @@ class CompiledTwin(NamedTuple):
     """:func:`pneufdd.sim.kernel.first_order_recursion_kernel`."""
     sensor_reading: Callable[..., Any]
     """:func:`pneufdd.sim.kernel.sensor_reading_kernel`."""
+    truth_rows: Callable[..., Any]
+    """:func:`pneufdd.sim.kernel.truth_rows_kernel`."""
     origin: str
     """``"jit"`` or the path of the prebuilt module."""
 
@@ -169,8 +172,8 @@ def load_prebuilt_twin(directory: Path | None = None) -> ModuleType | None:
     Returns
     -------
     module or None
-        The extension module (functions ``run_cycle``, ``first_order_recursion`` and
-        ``sensor_reading``);
+        The extension module (functions ``run_cycle``, ``first_order_recursion``,
+        ``sensor_reading`` and ``truth_rows``);
         None if it was not built for these sources, or does not load on this system.
     """
     path = prebuilt_path(directory)
@@ -192,9 +195,12 @@ def _jit_twin() -> CompiledTwin:
         first_order_recursion_kernel,
         run_cycle,
         sensor_reading_kernel,
+        truth_rows_kernel,
     )
 
-    return CompiledTwin(run_cycle, first_order_recursion_kernel, sensor_reading_kernel, "jit")
+    return CompiledTwin(
+        run_cycle, first_order_recursion_kernel, sensor_reading_kernel, truth_rows_kernel, "jit"
+    )
 
 
 Layout = tuple[tuple[str, int, bool, bool], ...]
@@ -254,6 +260,11 @@ def _prebuilt_twin(module: ModuleType) -> CompiledTwin:
             argument_layout(_sensor_reading_arguments(vector)),
             "sensor_reading",
         ),
+        _Guarded(
+            module.truth_rows,
+            argument_layout(_truth_rows_arguments(arguments[4])),
+            "truth_rows",
+        ),
         str(module.__file__),
     )
 
@@ -264,6 +275,14 @@ def _sensor_reading_arguments(vector: Any) -> tuple[Any, ...]:
     samples = vector.view()
     samples.flags.writeable = False
     return (samples, samples, 0, 1.0, 0.0, 0.0, 0.0, 10.0, 0.1)
+
+
+def _truth_rows_arguments(outputs: Any) -> tuple[Any, ...]:
+    """Arguments of the kind a simulation passes the true-signal copy: the kernel's
+    output buffers, the rows' sources and columns, the store and two ints."""
+    index = np.zeros(1, dtype=np.int64)
+    store = np.zeros((1, 1))
+    return (outputs.p, outputs.x, outputs.fch, outputs.fexh, outputs.fr, index, index, store, 0, 1)
 
 
 @functools.cache
@@ -317,6 +336,7 @@ def _signatures() -> dict[str, Any]:
         "run_cycle": unituple(types.int64, 4)(*args),
         "first_order_recursion": typeof(vector)(typeof(vector), types.float64, types.float64),
         "sensor_reading": typeof(vector)(*(typeof(a) for a in _sensor_reading_arguments(vector))),
+        "truth_rows": types.none(*(typeof(a) for a in _truth_rows_arguments(arguments[4]))),
     }
 
 
@@ -358,6 +378,7 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
         first_order_recursion_kernel,
         run_cycle,
         sensor_reading_kernel,
+        truth_rows_kernel,
     )
 
     with warnings.catch_warnings():
@@ -385,6 +406,9 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
         )
         compiler.export("sensor_reading", signatures["sensor_reading"])(  # type: ignore[no-untyped-call]
             sensor_reading_kernel.py_func
+        )
+        compiler.export("truth_rows", signatures["truth_rows"])(  # type: ignore[no-untyped-call]
+            truth_rows_kernel.py_func
         )
         with _wrappers_release_gil():
             try:

@@ -339,6 +339,7 @@ def run_simulation(
     total_sub = 0
     params, program, records_state, outputs = _records(plant, state, buf)
     run_cycle = compiled_twin().run_cycle
+    truth_sources = _truth_sources(desc, sensors)
     try:
         for cyc in range(cycles):
             jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], nsteps)
@@ -386,7 +387,7 @@ def run_simulation(
             done = k_start + n  # samples so far: the run's length follows from them
             expected = done * cycles // (cyc + 1) + 1000
             store = pooled.truth_store(n_recorded, k_start, done, expected)
-            chunks.append(_take(desc, sensors, buf, n, k_start, keep_outputs, store))
+            chunks.append(_take(truth_sources, buf, n, k_start, keep_outputs, store))
             if progress is not None:
                 progress(cyc + 1, cycles)
         result = _assemble(
@@ -498,8 +499,7 @@ def _recorded_sensors(
 
 
 def _take(
-    desc: MachineDescription,
-    sensors: Sequence[Sensor | None],
+    truth_sources: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
     buf: _Buffers,
     n: int,
     k0: int,
@@ -509,16 +509,16 @@ def _take(
     """Copy what one cycle produced out of the reusable buffers.
 
     The recorded sensors' true signals go to ``store`` (one row each, samples
-    ``k0 .. k0 + n``); the digital samples are kept, and every internal state when
-    ``keep`` asks for them (memory grows with cycles x samples x states).
+    ``k0 .. k0 + n``; ``truth_sources`` from :func:`_truth_sources`); the digital
+    samples are kept, and every internal state when ``keep`` asks for them (memory
+    grows with cycles x samples x states).
     """
-    p, x, fch, fexh, fr = buf.p[:n], buf.x[:n], buf.fch[:n], buf.fexh[:n], buf.fr[:n]
-    chunk: dict[str, npt.NDArray[Any]] = {}
-    recorded = (sensor for sensor in sensors if sensor is not None)
-    for row, sensor in enumerate(recorded):
-        store[row, k0 : k0 + n] = _truth_for(
-            desc, sensor.kind, sensor.location, p, x, fch, fexh, fr
+    source, column = truth_sources
+    if source.size:
+        compiled_twin().truth_rows(
+            buf.p, buf.x, buf.fch, buf.fexh, buf.fr, source, column, store, k0, n
         )
+    chunk: dict[str, npt.NDArray[Any]] = {}
     first = (-k0) % _DIGITAL_EVERY  # digital samples fall on every 10th global sample
     chunk["cmd"] = buf.cmd[first:n:_DIGITAL_EVERY].copy()
     chunk["sw"] = buf.sw[first:n:_DIGITAL_EVERY].copy()
@@ -534,21 +534,38 @@ def _cat(chunks: list[dict[str, npt.NDArray[Any]]], key: str) -> npt.NDArray[Any
     return np.concatenate([c[key] for c in chunks], axis=0)
 
 
-def _truth_for(
-    desc: MachineDescription, kind: str, location: str, p: Any, x: Any, fch: Any, fexh: Any, fr: Any
-) -> npt.NDArray[np.float64]:
+def _truth_sources(
+    desc: MachineDescription, sensors: Sequence[Sensor | None]
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """Where each recorded sensor's true signal is in the kernel's outputs.
+
+    One (source, column) per recorded sensor, in their order
+    (:func:`pneufdd.sim.kernel.truth_rows_kernel`): a position is a column of ``x``,
+    the supply's pressure the manifold node of ``p`` and its flow the supply line of
+    ``fr``, an actuator line's pressure its chamber's node and its flow the chamber's
+    net flow (in minus exhaust).
+    """
     ids = desc.actuator_ids
-    if kind == "position":
-        return np.asarray(x[:, ids.index(location)], dtype=np.float64)
-    if location == "supply":
-        if kind == "pressure":
-            return np.asarray(p[:, 1], dtype=np.float64)
-        return np.asarray(fr[:, lay.FR_LINE], dtype=np.float64)
-    act, side = location.rsplit("_", 1)
-    c = 2 * ids.index(act) + (0 if side == "A" else 1)
-    if kind == "pressure":
-        return np.asarray(p[:, 2 + c], dtype=np.float64)
-    return np.asarray(fch[:, c] - fexh[:, c], dtype=np.float64)
+    found: list[tuple[int, int]] = []
+    for sensor in sensors:
+        if sensor is None:
+            continue
+        if sensor.kind == "position":
+            found.append((lay.TRUTH_POSITION, ids.index(sensor.location)))
+        elif sensor.location == "supply":
+            if sensor.kind == "pressure":
+                found.append((lay.TRUTH_NODE_PRESSURE, 1))
+            else:
+                found.append((lay.TRUTH_SUPPLY_FLOW, lay.FR_LINE))
+        else:
+            act, side = sensor.location.rsplit("_", 1)
+            c = 2 * ids.index(act) + (0 if side == "A" else 1)
+            if sensor.kind == "pressure":
+                found.append((lay.TRUTH_NODE_PRESSURE, 2 + c))
+            else:
+                found.append((lay.TRUTH_CHAMBER_FLOW, c))
+    table = np.array(found, dtype=np.int64).reshape(-1, 2)
+    return np.ascontiguousarray(table[:, 0]), np.ascontiguousarray(table[:, 1])
 
 
 def _assemble(
