@@ -190,17 +190,21 @@ def load_prebuilt_twin(directory: Path | None = None) -> ModuleType | None:
     return module
 
 
-def _jit_twin() -> CompiledTwin:
-    from pneufdd.sim.kernel import (
-        first_order_recursion_kernel,
-        run_cycle,
-        sensor_reading_kernel,
-        truth_rows_kernel,
-    )
+_KERNELS = {
+    "run_cycle": "run_cycle",
+    "first_order_recursion": "first_order_recursion_kernel",
+    "sensor_reading": "sensor_reading_kernel",
+    "truth_rows": "truth_rows_kernel",
+}
+"""The twin's compiled functions: each a :class:`CompiledTwin` field and an export of the
+prebuilt module, and its name in :mod:`pneufdd.sim.kernel`."""
 
-    return CompiledTwin(
-        run_cycle, first_order_recursion_kernel, sensor_reading_kernel, truth_rows_kernel, "jit"
-    )
+
+def _jit_twin() -> CompiledTwin:
+    from pneufdd.sim import kernel
+
+    functions: dict[str, Any] = {name: getattr(kernel, k) for name, k in _KERNELS.items()}
+    return CompiledTwin(**functions, origin="jit")
 
 
 Layout = tuple[tuple[str, int, bool, bool], ...]
@@ -244,45 +248,42 @@ class _Guarded:
 
 def _prebuilt_twin(module: ModuleType) -> CompiledTwin:
     """The module's functions, each guarded by the layout of the arguments it is typed for."""
+    examples = _example_arguments()
+    guarded: dict[str, Any] = {
+        name: _Guarded(getattr(module, name), argument_layout(examples[name]), name)
+        for name in _KERNELS
+    }
+    return CompiledTwin(**guarded, origin=str(module.__file__))
+
+
+def _example_arguments() -> dict[str, tuple[Any, ...]]:
+    """Arguments of the kind a simulation passes each compiled function.
+
+    The prebuilt module is typed for them (:func:`_signatures`) and guards every call
+    with their layout (:class:`_Guarded`): the kernel's records
+    (:func:`pneufdd.sim.simulate.kernel_arguments`); a float64 vector and two floats
+    for the recursion; two read-only float64 vectors (samples and noise draws), an int
+    and six floats for the sensor reading (:func:`pneufdd.sim.sensors.apply_sensor`);
+    the kernel's output buffers, the rows' sources and columns, the store and two ints
+    for the true-signal copy.
+    """
     from pneufdd.sim.simulate import kernel_arguments
 
     arguments = kernel_arguments()
     vector = arguments[2].jitter
-    return CompiledTwin(
-        _Guarded(module.run_cycle, argument_layout(arguments), "run_cycle"),
-        _Guarded(
-            module.first_order_recursion,
-            argument_layout((vector, 0.5, 0.5)),
-            "first_order_recursion",
-        ),
-        _Guarded(
-            module.sensor_reading,
-            argument_layout(_sensor_reading_arguments(vector)),
-            "sensor_reading",
-        ),
-        _Guarded(
-            module.truth_rows,
-            argument_layout(_truth_rows_arguments(arguments[4])),
-            "truth_rows",
-        ),
-        str(module.__file__),
-    )
-
-
-def _sensor_reading_arguments(vector: Any) -> tuple[Any, ...]:
-    """Arguments of the kind :func:`pneufdd.sim.sensors.apply_sensor` passes the reading:
-    two read-only float64 vectors (samples and noise draws), an int and six floats."""
     samples = vector.view()
     samples.flags.writeable = False
-    return (samples, samples, 0, 1.0, 0.0, 0.0, 0.0, 10.0, 0.1)
-
-
-def _truth_rows_arguments(outputs: Any) -> tuple[Any, ...]:
-    """Arguments of the kind a simulation passes the true-signal copy: the kernel's
-    output buffers, the rows' sources and columns, the store and two ints."""
+    outputs = arguments[4]
     index = np.zeros(1, dtype=np.int64)
-    store = np.zeros((1, 1))
-    return (outputs.p, outputs.x, outputs.fch, outputs.fexh, outputs.fr, index, index, store, 0, 1)
+    return {
+        "run_cycle": tuple(arguments),
+        "first_order_recursion": (vector, 0.5, 0.5),
+        "sensor_reading": (samples, samples, 0, 1.0, 0.0, 0.0, 0.0, 10.0, 0.1),
+        "truth_rows": (
+            *(outputs.p, outputs.x, outputs.fch, outputs.fexh, outputs.fr),
+            *(index, index, np.zeros((1, 1)), 0, 1),
+        ),
+    }
 
 
 @functools.cache
@@ -325,19 +326,17 @@ def _signatures() -> dict[str, Any]:
     import numba
     from numba.core import types
 
-    from pneufdd.sim.simulate import kernel_arguments
-
-    arguments = kernel_arguments()
-    vector = arguments[2].jitter  # a float64 vector, as the recursion takes and returns
+    examples = _example_arguments()
     typeof: Any = numba.typeof
     unituple: Any = types.UniTuple
-    args = [typeof(record) for record in arguments]
-    return {
-        "run_cycle": unituple(types.int64, 4)(*args),
-        "first_order_recursion": typeof(vector)(typeof(vector), types.float64, types.float64),
-        "sensor_reading": typeof(vector)(*(typeof(a) for a in _sensor_reading_arguments(vector))),
-        "truth_rows": types.none(*(typeof(a) for a in _truth_rows_arguments(arguments[4]))),
+    vector = typeof(examples["first_order_recursion"][0])  # what the vector kernels return
+    returns = {
+        "run_cycle": unituple(types.int64, 4),
+        "first_order_recursion": vector,
+        "sensor_reading": vector,
+        "truth_rows": types.none,
     }
+    return {name: returns[name](*map(typeof, examples[name])) for name in _KERNELS}
 
 
 def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> Path:
@@ -374,12 +373,7 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
     import numba
     from numba.core.errors import NumbaPendingDeprecationWarning
 
-    from pneufdd.sim.kernel import (
-        first_order_recursion_kernel,
-        run_cycle,
-        sensor_reading_kernel,
-        truth_rows_kernel,
-    )
+    from pneufdd.sim import kernel
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
@@ -398,18 +392,9 @@ def build_prebuilt_twin(directory: Path | None = None, force: bool = False) -> P
         compiler = CC(name)  # type: ignore[no-untyped-call]
         compiler.output_dir = str(workspace)
         compiler.target_cpu = ""  # the platform's generic CPU: portable, same numbers
-        compiler.export("run_cycle", signatures["run_cycle"])(  # type: ignore[no-untyped-call]
-            run_cycle.py_func
-        )
-        compiler.export("first_order_recursion", signatures["first_order_recursion"])(  # type: ignore[no-untyped-call]
-            first_order_recursion_kernel.py_func
-        )
-        compiler.export("sensor_reading", signatures["sensor_reading"])(  # type: ignore[no-untyped-call]
-            sensor_reading_kernel.py_func
-        )
-        compiler.export("truth_rows", signatures["truth_rows"])(  # type: ignore[no-untyped-call]
-            truth_rows_kernel.py_func
-        )
+        for name, function in _KERNELS.items():
+            export = compiler.export(name, signatures[name])  # type: ignore[no-untyped-call]
+            export(getattr(kernel, function).py_func)
         with _wrappers_release_gil():
             try:
                 compiler.compile()
