@@ -66,6 +66,20 @@ def test_tally_counts_what_the_issue_asks():
             False,
         )
     )
+    # both lines of one actuator, read as a supply leak (listed as the alternative)
+    t.add(
+        RunOutcome(
+            "pair",
+            {"X_A": 1e-3, "X_B": 2e-3},
+            True,
+            10,
+            10,
+            (_leak("supply", ["supply"], [2e-3], 0.97),),
+            (("X_A", "X_B"),),
+            0.5,
+            False,
+        )
+    )
     f = t.figures()
     assert f["detected"] == pytest.approx(2 / 3)
     assert f["in_group"] == pytest.approx(2 / 3)
@@ -76,11 +90,14 @@ def test_tally_counts_what_the_issue_asks():
     assert f["cycle_free_flagged"] == pytest.approx(0.1)
     assert f["pairs_both"] == 0.0
     assert f["pairs_both_or_alternative"] == 1.0  # one alternative holds both
-    # reliability: 4 reported leaks, the spurious supply one is false
-    assert f["confident_true"] == pytest.approx(3 / 4)
+    assert f["pair_runs_one_actuator"] == 1  # X_A + X_B; X_A + supply is not
+    assert f["pairs_one_actuator_both"] == 0.0
+    assert "pairs on both lines of one actuator, both found: 0.00 % (0/1)" in "\n".join(t.lines())
+    # reliability: 5 reported leaks, the spurious supply one and the pair's are false
+    assert f["confident_true"] == pytest.approx(3 / 5)
     rows = {round(low, 2): (n, share) for low, _, n, share, _ in t.reliability()}
     assert rows[0.9] == (2, 0.5)  # 0.92 true, 0.91 false
-    assert rows[0.95] == (2, 1.0)  # 0.95, 0.99
+    assert rows[0.95] == (3, 2 / 3)  # 0.95, 0.99 true; 0.97 false
     checks = t.checks({"in_group": 0.98, "size_error_p90": 0.25})
     assert checks == {"in_group >= 0.98": False, "size_error_p90 <= 0.25": True}
 

@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from pneufdd.location import Location
+
 __all__ = [
     "CONFIDENCE_BINS",
     "RunOutcome",
@@ -104,6 +106,14 @@ def outcome_from_record(record: Mapping[str, Any]) -> RunOutcome:
     )
 
 
+def _one_actuator(locations: set[str]) -> bool:
+    """True when ``locations`` are the extend and the retract line of one actuator."""
+    if len(locations) != 2:
+        return False
+    a, b = (Location.parse(name) for name in sorted(locations))
+    return a.same_actuator(b) and a.side != b.side
+
+
 def _pct(a: int, b: int) -> str:
     return "n/a" if b == 0 else f"{100.0 * a / b:.2f} % ({a}/{b})"
 
@@ -128,6 +138,8 @@ class Tally:
     pairs: int = 0
     pairs_both: int = 0
     pairs_both_alt: int = 0
+    pairs_one_actuator: int = 0
+    pairs_one_actuator_both: int = 0
     pair_group_sizes: list[int] = field(default_factory=list)
     seconds: list[float] = field(default_factory=list)
     simulated: int = 0
@@ -173,6 +185,12 @@ class Tally:
         groups = [set(leak.group) for leak in run.leaks]
         both = run.detected and all(any(loc in g for g in groups) for loc in locations)
         self.pairs_both += int(both)
+        if _one_actuator(locations):
+            # counted apart too: with a 5/2 valve one of the two lines is pressurised
+            # at almost every moment, so at the supply meter such a pair can draw air
+            # much like a supply leak (docs/evaluation.md)
+            self.pairs_one_actuator += 1
+            self.pairs_one_actuator_both += int(both)
         self.pair_group_sizes.extend(len(g) for g in groups)
         alternative = any(locations <= set(alt) for alt in run.alternatives)
         self.pairs_both_alt += int(both or (run.detected and alternative))
@@ -200,6 +218,8 @@ class Tally:
             "pair_runs": self.pairs,
             "pairs_both": rate(self.pairs_both, self.pairs),
             "pairs_both_or_alternative": rate(self.pairs_both_alt, self.pairs),
+            "pair_runs_one_actuator": self.pairs_one_actuator,
+            "pairs_one_actuator_both": rate(self.pairs_one_actuator_both, self.pairs_one_actuator),
             "mean_group_pairs": (
                 float(np.mean(self.pair_group_sizes)) if self.pair_group_sizes else None
             ),
@@ -257,6 +277,8 @@ class Tally:
             f"{_pct(self.cycle_free_flagged, self.cycle_free)}",
             f"two leaks, both found:                {_pct(self.pairs_both, self.pairs)}",
             f"  ... or one alternative explanation: {_pct(self.pairs_both_alt, self.pairs)}",
+            "  pairs on both lines of one actuator, both found: "
+            f"{_pct(self.pairs_one_actuator_both, self.pairs_one_actuator)}",
             f"  mean group size on pair runs:       {_num(f['mean_group_pairs'], 3)}",
             f"diagnosis time per run, mean / max:   {_num(f['seconds_mean'], 2)} s / "
             f"{_num(f['seconds_max'], 2)} s; checked by simulation "
