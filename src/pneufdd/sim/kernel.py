@@ -32,7 +32,10 @@ volume and pressure (``chamber_volume_kernel``, ``chamber_pressure_kernel``) and
 Karnopp friction (``friction_force_kernel``); :mod:`pneufdd.sim.rhs` uses the same
 functions. The body stays one loop on purpose: split into compiled stage functions
 (measured, issue 13) the cycle took 43 % longer, because numba passes and
-reference-counts every array argument of every stage call once per sub-step.
+reference-counts every array argument of every stage call once per sub-step; with
+the stages inlined (``inline="always"``) about 50 % longer, the stages' array
+bindings keeping reference counts, and with reference counting off 3-6 % longer
+(``docs/twin.md``, Numerics).
 For the same reason the kernel's own helpers take scalars only and are inlined
 (``inline="always"``), and so are the small private helpers of the flow kernels and
 the chamber volume/pressure kernels (:func:`pneufdd.physics._jit.njit_inline`);
