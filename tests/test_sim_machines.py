@@ -256,3 +256,18 @@ def test_leak_of_3_30_150_slpm_runs_and_shows(
         else:
             assert rise[-1] <= 1.05 * size, (size, rise[-1])
     assert 0.0 < rise[0] < rise[1] < rise[2], rise
+
+
+def test_example_machine_segments_like_its_description() -> None:
+    """docs/examples/pick-place.toml (every actuator kind but `linear`, a 5/3
+    closed-centre axis held by `until`, a pulsed bistable valve, an ejector) loads,
+    runs and segments into every step of its description in every cycle."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "examples" / "pick-place.toml"
+    desc = load_machine(str(path))
+    assert [a.id for a in desc.actuators] == ["X", "Z", "ROT", "GRIP"]
+    rec = simulate(desc, cycles=3, seed=SEED)
+    seg = segment(rec, sequence_from_machine(desc))
+    assert [len(c.steps) for c in seg.complete] == [len(desc.steps)] * 3
+    assert not seg.rejected, [c.reason for c in seg.rejected]
