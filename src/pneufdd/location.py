@@ -99,6 +99,16 @@ class Location:
         """True when both are lines of one actuator (not the supply)."""
         return self.actuator is not None and self.actuator == other.actuator
 
+    def is_other_line(self, other: Location) -> bool:
+        """True when ``other`` is this actuator's other line (extend against retract).
+
+        >>> Location("DNC", "A").is_other_line(Location("DNC", "B"))
+        True
+        >>> Location("DNC", "A").is_other_line(Location("DNC", "A")), SUPPLY.is_other_line(SUPPLY)
+        (False, False)
+        """
+        return self.same_actuator(other) and self.side != other.side
+
     def __str__(self) -> str:
         return SUPPLY_NAME if self.actuator is None else f"{self.actuator}_{self.side}"
 

@@ -140,7 +140,7 @@ def same_actuator_pair(locations: Sequence[Location], subset: Subset) -> bool:
     if len(subset) != 2:
         return False
     a, b = (locations[i] for i in subset)
-    return a.same_actuator(b) and a.side != b.side
+    return a.is_other_line(b)
 
 
 def ambiguity_group(

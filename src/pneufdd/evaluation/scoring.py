@@ -111,7 +111,7 @@ def _one_actuator(locations: set[str]) -> bool:
     if len(locations) != 2:
         return False
     a, b = (Location.parse(name) for name in sorted(locations))
-    return a.same_actuator(b) and a.side != b.side
+    return a.is_other_line(b)
 
 
 def _pct(a: int, b: int) -> str:
