@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from pneufdd.calibration.calibrate import calibrate_machine
-from pneufdd.diagnosis.pipeline import build_reference_from_recordings, diagnose_recording
+from pneufdd.diagnosis.recordings import build_reference_from_recordings, diagnose_recording
 from pneufdd.sim import as_exported, builtin_machines, load_machine, simulate, vary_machine
 
 

@@ -33,7 +33,7 @@ CYCLES = 10  # judged cycles per test run
 
 def _plant(job: tuple[int, int, int]) -> dict[str, Any]:
     from pneufdd.calibration.calibrate import calibrate_machine
-    from pneufdd.diagnosis.residuals import ResidualDetector, TwinReplay
+    from pneufdd.diagnosis.detection.residuals import ResidualDetector, TwinReplay
     from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
 
     seed, free_runs, leak_runs = job

@@ -21,7 +21,7 @@ SEED = 9_500_000  # this benchmark's seeds (below the development and campaign r
 
 def _case() -> tuple[Any, Any]:
     """A supply-only reference with every location's signatures, and the leaky run."""
-    from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
+    from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
     from pneufdd.sim import simulate
 
     model = build_reference_from_recordings(

@@ -69,7 +69,7 @@ def _looped(rec: Recording, loops: int, chunk_s: float = 1.0) -> Iterator[object
 
 
 def run() -> list[BenchResult]:
-    from pneufdd.diagnosis.pipeline import build_reference_from_recordings
+    from pneufdd.diagnosis.recordings import build_reference_from_recordings
     from pneufdd.monitor.database import HistoryDatabase
     from pneufdd.monitor.live import MachineMonitor, run_stream
     from pneufdd.sim import simulate

@@ -27,8 +27,8 @@ SEED = 96_200_000
 
 
 def reference(out: Path) -> Path:
-    from pneufdd.diagnosis.pipeline import build_reference_from_recordings
-    from pneufdd.diagnosis.pnref import save_reference
+    from pneufdd.diagnosis.recordings import build_reference_from_recordings
+    from pneufdd.diagnosis.reference.file import save_reference
     from pneufdd.sim import simulate
 
     path = out / "ref.pnref"
@@ -57,8 +57,8 @@ def _monitor(model, url: str):  # type: ignore[no-untyped-def]
 def delay(out: Path) -> None:
     """Detection delay of leaks appearing mid-run; location against pneufdd diagnose."""
     from pneufdd.diagnosis.engine import diagnose
-    from pneufdd.diagnosis.pipeline import run_table
-    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.diagnosis.recordings import run_table
+    from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.live import run_stream
     from pneufdd.monitor.sources import ReplaySource
     from pneufdd.sim import simulate
@@ -97,7 +97,7 @@ def delay(out: Path) -> None:
         # pneufdd diagnose on the leaky cycles of the same run
         table = run_table(model, rec)
         keep = table.step_start[:, 0] >= appear - 1e-9
-        from pneufdd.diagnosis.steps import StepTable
+        from pneufdd.features.step_table import StepTable
 
         leaky = StepTable(
             table.machine,
@@ -146,7 +146,7 @@ def delay(out: Path) -> None:
 
 def false_alarms(out: Path, cycles: int = 2000, per_run: int = 200) -> None:
     """Alarms over ``cycles`` leak-free cycles streamed as one machine's history."""
-    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.live import run_stream
     from pneufdd.monitor.sources import ReplaySource
     from pneufdd.sim import simulate
@@ -200,7 +200,7 @@ def false_alarms(out: Path, cycles: int = 2000, per_run: int = 200) -> None:
 
 def life(out: Path) -> None:
     """A leak appears, grows and is repaired: what the history shows."""
-    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.live import run_stream
     from pneufdd.monitor.sources import ReplaySource
     from pneufdd.sim import simulate

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.steps import StepTable
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.features.step_table import StepTable
 
 N_STEPS = 12
 CHANNELS = ("P_In", "Q_In", "P_X_A", "Q_X_A")

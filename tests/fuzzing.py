@@ -1856,7 +1856,7 @@ def _readable(path: Path) -> bool:
         elif path.suffix == ".parquet":
             Recording.read(path)
         elif path.suffix == ".pnref":
-            from pneufdd.diagnosis.pnref import load_reference
+            from pneufdd.diagnosis.reference.file import load_reference
 
             load_reference(path)
         elif path.suffix in (".csv", ".html", ".toml"):

@@ -9,8 +9,8 @@ from __future__ import annotations
 import functools
 from datetime import UTC, datetime
 
-from pneufdd.diagnosis.pipeline import build_reference_from_recordings
-from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.recordings import build_reference_from_recordings
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.recording import Recording
 from pneufdd.sim import simulate
 from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak

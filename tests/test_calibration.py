@@ -19,7 +19,7 @@ from pneufdd.calibration.calibrate import (
 from pneufdd.calibration.draft import DRAFT_MODEL
 from pneufdd.calibration.valve import identify_paths
 from pneufdd.cli.app import main
-from pneufdd.diagnosis.pnref import load_reference
+from pneufdd.diagnosis.reference.file import load_reference
 from pneufdd.recording.plc_export import write_plc_csv
 from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
 from pneufdd.sim.compile import series_cv, tube_cv

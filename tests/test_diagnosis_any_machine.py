@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from pneufdd.cli.app import main
-from pneufdd.diagnosis.pnref import load_reference
+from pneufdd.diagnosis.reference.file import load_reference
 from pneufdd.recording import Recording
 from pneufdd.sim import as_exported, simulate
 

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from pneufdd.cli.app import main
-from pneufdd.diagnosis.pnref import load_reference
+from pneufdd.diagnosis.reference.file import load_reference
 from pneufdd.sim import simulate
 
 SEED = 31_000  # this file's seeds: SEED + k

@@ -12,9 +12,9 @@ from pneufdd.diagnosis.cost import (
     CostSettings,
     annual_cost,
 )
+from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.diagnosis.engine import diagnose
-from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import ChannelError, InputError, MachineError
 from pneufdd.location import Location
 

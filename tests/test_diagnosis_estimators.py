@@ -7,8 +7,8 @@ import pytest
 from scipy import stats
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from pneufdd.diagnosis.band import BandDetector
-from pneufdd.diagnosis.statistic import (
+from pneufdd.diagnosis.detection.band import BandDetector
+from pneufdd.diagnosis.detection.statistic import (
     CycleDistanceDetector,
     recording_correlation,
     scaled_chi2_fit,

@@ -8,11 +8,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from _diag_synth import synth_signatures
-from pneufdd.diagnosis.effects import LeakEffectModel
-from pneufdd.diagnosis.localisation import LocalisationSettings
-from pneufdd.diagnosis.localisation import locate as locate_effects
-from pneufdd.diagnosis.piecewise import WhitenedEffects
-from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.piecewise import WhitenedEffects
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.localisation.search import LocalisationSettings
+from pneufdd.diagnosis.localisation.search import locate as locate_effects
 from pneufdd.errors import InputError
 
 

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from _diag_synth import synth_signatures, synth_table
-from pneufdd.diagnosis.effects import LeakEffectModel
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.effects.twin import TwinLeakEffect
 from pneufdd.diagnosis.engine import whitener
-from pneufdd.diagnosis.localisation import LocalisationSettings, locate
-from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.twin_effects import TwinLeakEffect
+from pneufdd.diagnosis.localisation.search import LocalisationSettings, locate
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError
 from pneufdd.location import SUPPLY, Location
 from pneufdd.signals.segmentation import sequence_from_machine

@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from pneufdd.diagnosis.twin_effects import DRAFTED_UNCERTAINTY_SCALE, plausible_plant
+from pneufdd.diagnosis.effects.twin import DRAFTED_UNCERTAINTY_SCALE, plausible_plant
 from pneufdd.sim import load_machine, vary_machine
 from pneufdd.sim.description import DRAFT_MODEL
 

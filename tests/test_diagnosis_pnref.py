@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from _diag_synth import synth_description, synth_signatures, synth_table
-from pneufdd.diagnosis.pnref import FORMAT_VERSION, load_reference, save_reference
-from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.reference.file import FORMAT_VERSION, load_reference, save_reference
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import FileFormatError, InputError
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from pneufdd.diagnosis.residuals import ResidualDetector, TwinReplay
+from pneufdd.diagnosis.detection.residuals import ResidualDetector, TwinReplay
 from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
 
 

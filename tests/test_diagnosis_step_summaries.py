@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pneufdd.diagnosis.effects import LeakEffectModel
-from pneufdd.diagnosis.step_summaries import (
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.twin import SIGNATURE_SEED, TwinLeakEffect, compute_signatures
+from pneufdd.errors import InputError
+from pneufdd.features.step_summaries import (
     machine_sequence,
     segment_cycles,
     sequence_from_records,
@@ -14,8 +16,6 @@ from pneufdd.diagnosis.step_summaries import (
     step_table,
     trace_offsets,
 )
-from pneufdd.diagnosis.twin_effects import SIGNATURE_SEED, TwinLeakEffect, compute_signatures
-from pneufdd.errors import InputError
 from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.sim import MachineStalledError, load_machine, run_simulation, simulate
@@ -191,8 +191,8 @@ def test_a_plausible_plant_that_cannot_run_leak_free_is_left_out():
     # Such a plant says nothing about leak effects: it is left out (None), not an error.
     import copy
 
-    from pneufdd.diagnosis.step_summaries import machine_sequence
-    from pneufdd.diagnosis.twin_effects import _plant_effects
+    from pneufdd.diagnosis.effects.twin import _plant_effects
+    from pneufdd.features.step_summaries import machine_sequence
 
     machine = load_machine("press-fit-cell")
     raw = copy.deepcopy(machine.raw)
@@ -216,7 +216,7 @@ def test_a_ladder_that_stalls_just_above_a_size_that_ran_is_rescaled(monkeypatch
     # festo-dsd handling axis, seeds 430M, stalled at 122 SLPM after running at 120).
     # The twin cannot be made to stall that sharply on demand, so its feature
     # function stands in for it here; the ladder is then scaled to end at 100 SLPM
-    import pneufdd.diagnosis.twin_effects as twin_effects
+    import pneufdd.diagnosis.effects.twin as twin_effects
 
     def features(machine, leaks, cycles, seed, sequence, channels, leak_flows=True):
         (slpm,) = leaks.values()

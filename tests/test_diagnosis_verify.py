@@ -11,13 +11,17 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pneufdd.diagnosis.effects import LeakEffectModel
-from pneufdd.diagnosis.localisation import LocalisationSettings, locate
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.step_summaries import machine_sequence, segment_cycles, step_table
-from pneufdd.diagnosis.twin_effects import TwinLeakEffect
-from pneufdd.diagnosis.verify import refine_all, refine_by_simulation, verify_explanations
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.effects.twin import TwinLeakEffect
+from pneufdd.diagnosis.localisation.check import (
+    refine_all,
+    refine_by_simulation,
+    verify_explanations,
+)
+from pneufdd.diagnosis.localisation.search import LocalisationSettings, locate
 from pneufdd.errors import InputError
+from pneufdd.features.step_summaries import machine_sequence, segment_cycles, step_table
 from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.sim import load_machine, simulate
@@ -352,10 +356,10 @@ def test_diagnose_checks_two_large_leaks_by_simulation_end_to_end():
     signature fit misfits, the engine simulates the best explanations and reports
     both leaks within 10 % of the truth, and says so.
     """
+    from pneufdd.diagnosis.effects.twin import compute_signatures
     from pneufdd.diagnosis.engine import diagnose
-    from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
-    from pneufdd.diagnosis.step_summaries import sequence_from_records
-    from pneufdd.diagnosis.twin_effects import compute_signatures
+    from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+    from pneufdd.features.step_summaries import sequence_from_records
 
     leak_free = simulate("festo-dsd", cycles=14, seed=7_200_001)
     model = build_reference_from_recordings(

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from pneufdd.cli.app import main
-from pneufdd.diagnosis.pnref import load_reference
+from pneufdd.diagnosis.reference.file import load_reference
 from pneufdd.errors import InputError
 from pneufdd.evaluation import CampaignDesign, RunOutcome, Tally, rescore, run_campaign
 from pneufdd.evaluation.scoring import ReportedLeak
@@ -197,8 +197,8 @@ def test_a_run_whose_leaks_leave_no_complete_cycle_is_not_judged(tmp_path):
     # Found by an acceptance campaign (which then stopped with an error): on this
     # festo-dsd plant, 5-turn leaks on HMPL_V_B and DGPL_A keep the vacuum switch
     # S_VAC from falling in step 8, so the PLC sequence never completes a cycle.
-    from pneufdd.diagnosis.pipeline import build_reference_from_recordings
-    from pneufdd.diagnosis.pnref import save_reference
+    from pneufdd.diagnosis.recordings import build_reference_from_recordings
+    from pneufdd.diagnosis.reference.file import save_reference
     from pneufdd.evaluation.campaign import Job, run_job
     from pneufdd.sim import load_machine, simulate
     from pneufdd.sim.variation import machine_to_toml, vary_machine

@@ -103,7 +103,7 @@ def test_a_run_left_without_a_complete_cycle_is_not_labelled(tmp_path):
     # festo-dsd plant of evaluation campaign 270M (scale 2): a 5-turn supply leak keeps
     # the vacuum switch S_VAC on, so no cycle completes; the campaign lists such a run
     # as not judged, and the labelling must skip it rather than stop
-    from pneufdd.diagnosis.residuals import TwinReplay
+    from pneufdd.diagnosis.detection.residuals import TwinReplay
     from pneufdd.evaluation.labelled import _plant_rows
     from pneufdd.sim import load_machine, machine_to_toml, vary_machine
 

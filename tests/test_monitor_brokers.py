@@ -239,7 +239,7 @@ def _as_plc_tags(rec: Recording) -> Recording:
 
 @pytest.fixture(scope="module")
 def tag_reference():
-    from pneufdd.diagnosis.pipeline import build_reference_from_recordings
+    from pneufdd.diagnosis.recordings import build_reference_from_recordings
     from pneufdd.sim import simulate
 
     refs = [_as_plc_tags(simulate("festo-dsd", cycles=8, seed=41_000 + i)) for i in range(2)]

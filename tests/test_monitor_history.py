@@ -22,7 +22,7 @@ import pytest
 
 from monitor_data import SEED, leak_run, reference
 from pneufdd.cli.app import main
-from pneufdd.diagnosis.pnref import save_reference
+from pneufdd.diagnosis.reference.file import save_reference
 from pneufdd.monitor.database import SCHEMA_VERSION, HistoryDatabase
 
 

@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 from monitor_data import free_run, reference
-from pneufdd.diagnosis.pipeline import run_table
+from pneufdd.diagnosis.recordings import run_table
 from pneufdd.monitor.cycles import CycleStreamer, needed_channels
 from pneufdd.monitor.samples import SampleAssembler, SampleBatch
 from pneufdd.monitor.sequential import CusumDetector, CusumState

@@ -8,7 +8,7 @@ import pytest
 
 from _diag_synth import synth_signatures, synth_table
 from pneufdd.diagnosis.engine import diagnose
-from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import FileFormatError
 from pneufdd.monitor import append_history, location_trends, read_history
 

@@ -12,7 +12,7 @@ import pytest
 from _diag_synth import synth_signatures, synth_table
 from pneufdd.diagnosis.cost import COST_BASIS_CONTINUOUS
 from pneufdd.diagnosis.engine import diagnose
-from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.report import render_report, write_report
 
 VOID = {"meta", "img", "br", "hr", "link", "input"}

@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares, lsq_linear
 
+from pneufdd.array_types import FloatArray
 from pneufdd.calibration.friction import FrictionIdentification, identify_friction
 from pneufdd.calibration.valve import PathIdentification, identify_paths, valve_cv_for_path
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
@@ -57,7 +58,6 @@ __all__ = [
     "volume_start",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 AIR_REL_SIGMA = 0.02
 """Relative uncertainty of a step's mean supply air (meter span error, averaging) [-]."""

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.identification.supply import fit_supply_path
 from pneufdd.physics.constants import P_ATM, PSI
@@ -50,7 +51,6 @@ from pneufdd.sim.description import DRAFT_MODEL
 
 __all__ = ["DEFAULTS", "DraftedMachine", "draft_machine"]
 
-FloatArray = npt.NDArray[np.float64]
 
 ASSUMED = "assumed"
 

@@ -31,8 +31,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError
 from pneufdd.identification.friction import (
     Stroke,
@@ -47,7 +47,6 @@ from pneufdd.sim.description import Actuator
 
 __all__ = ["FrictionIdentification", "actuator_strokes", "identify_friction", "stroke_speed"]
 
-FloatArray = npt.NDArray[np.float64]
 
 SETTLE_FRACTION = 0.03
 """A stroke has arrived when the position stays within this part of its travel of

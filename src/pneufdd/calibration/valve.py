@@ -33,8 +33,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from pneufdd.array_types import BoolArray, FloatArray
 from pneufdd.errors import InputError
 from pneufdd.identification.valve import fit_valve
 from pneufdd.recording.model import Recording
@@ -45,8 +45,6 @@ from pneufdd.sim.description import Actuator
 
 __all__ = ["PathIdentification", "connected_to_supply", "identify_paths", "valve_cv_for_path"]
 
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 
 MIN_FLOW_FRACTION = 0.2
 """Smallest flow used, as a part of the line's peak flow [-]."""

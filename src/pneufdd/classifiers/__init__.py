@@ -19,7 +19,7 @@ estimator                          method
 =================================  =====================================================
 
 The physics-residual detector (section 4.1) needs the twin and lives in
-:mod:`pneufdd.diagnosis.residuals`. This package sits at the level of
+:mod:`pneufdd.diagnosis.detection.residuals`. This package sits at the level of
 ``diagnosis`` in the import order.
 """
 
@@ -32,7 +32,7 @@ from pneufdd.classifiers.templates import MinimumDistanceClassifier
 from pneufdd.classifiers.vector_map import VectorizedMap
 from pneufdd.classifiers.voronoi import VoronoiNeighbourClassifier, VoronoiSearch, voronoi_boxes
 from pneufdd.classifiers.wavelet import WaveletTransformer
-from pneufdd.diagnosis.band import BandDetector
+from pneufdd.diagnosis.detection.band import BandDetector
 
 __all__ = [
     "BandDetector",

@@ -28,9 +28,10 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from pneufdd.array_types import FloatArray
+
 __all__ = ["GaussianBayesClassifier"]
 
-FloatArray = npt.NDArray[np.float64]
 COVARIANCES = ("full", "diagonal", "pooled")
 
 

@@ -20,11 +20,10 @@ from sklearn.neighbors import NearestNeighbors
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from pneufdd.array_types import FloatArray
 from pneufdd.classifiers._common import check_metric, pooled_whitener
 
 __all__ = ["NearestNeighbourClassifier"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class NearestNeighbourClassifier(ClassifierMixin, BaseEstimator):  # type: ignore[misc]

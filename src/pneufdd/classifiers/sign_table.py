@@ -25,9 +25,9 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-__all__ = ["SignTableClassifier"]
+from pneufdd.array_types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
+__all__ = ["SignTableClassifier"]
 
 
 class SignTableClassifier(ClassifierMixin, BaseEstimator):  # type: ignore[misc]

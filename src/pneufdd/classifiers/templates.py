@@ -27,11 +27,10 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from pneufdd.array_types import FloatArray
 from pneufdd.classifiers._common import check_metric, pooled_whitener
 
 __all__ = ["MinimumDistanceClassifier"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class MinimumDistanceClassifier(ClassifierMixin, BaseEstimator):  # type: ignore[misc]

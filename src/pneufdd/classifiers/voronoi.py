@@ -40,10 +40,10 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from pneufdd.array_types import FloatArray, IntArray
+
 __all__ = ["VoronoiNeighbourClassifier", "VoronoiSearch", "voronoi_boxes"]
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 _MAX_DELAUNAY_DIM = 6
 """Above this dimension the Delaunay triangulation costs more than it saves."""

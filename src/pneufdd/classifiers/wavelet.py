@@ -19,11 +19,11 @@ import pywt
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from pneufdd.array_types import FloatArray
 from pneufdd.features.wavelet import SUMMARIES, summarise
 
 __all__ = ["WaveletTransformer"]
 
-FloatArray = npt.NDArray[np.float64]
 MODE = "symmetric"
 
 

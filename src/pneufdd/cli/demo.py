@@ -46,8 +46,8 @@ def demo(
     from pneufdd.cli.diagnose import leak_table
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.diagnosis.engine import diagnose
-    from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
-    from pneufdd.diagnosis.pnref import save_reference
+    from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+    from pneufdd.diagnosis.reference.file import save_reference
     from pneufdd.physics.leaks import leak_mass_flow
     from pneufdd.physics.units import kg_s_to_slpm, psig_to_pa
     from pneufdd.report.html import render_report, write_text_atomic

@@ -134,8 +134,8 @@ def diagnose(
 
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.diagnosis.cost import CostSettings
-    from pneufdd.diagnosis.pipeline import diagnose_recording
-    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.diagnosis.recordings import diagnose_recording
+    from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.physics.units import kg_s_to_slpm
 
     inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}

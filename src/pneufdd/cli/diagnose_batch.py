@@ -44,7 +44,7 @@ def run_batch(
     from rich.console import Console
 
     from pneufdd.diagnosis.batch import diagnose_runs
-    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.diagnosis.reference.file import load_reference
 
     if report is not None:
         raise InputError(

@@ -59,7 +59,7 @@ def monitor_command(
     """Watch a machine: score every cycle, declare leaks sequentially, record the history."""
     from rich.console import Console
 
-    from pneufdd.diagnosis.pnref import load_reference
+    from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.alarms import AlarmSinks
     from pneufdd.monitor.cycles import needed_channels
     from pneufdd.monitor.database import open_history

@@ -88,9 +88,9 @@ def build(
     from rich.console import Console
 
     from pneufdd.cli.progress_bar import progress_bars
-    from pneufdd.diagnosis.pipeline import build_reference, parse_channels
-    from pneufdd.diagnosis.pnref import save_reference
-    from pneufdd.diagnosis.reference import RECOMMENDED_REFERENCE_CYCLES
+    from pneufdd.diagnosis.recordings import build_reference, parse_channels
+    from pneufdd.diagnosis.reference.file import save_reference
+    from pneufdd.diagnosis.reference.model import RECOMMENDED_REFERENCE_CYCLES
 
     console = Console(stderr=True)
     inputs: dict[str, str | Path | None] = {f"RECORDINGS[{i}]": r for i, r in enumerate(recordings)}

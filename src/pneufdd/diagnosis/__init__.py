@@ -7,22 +7,26 @@ users need only :class:`pneufdd.LeakDiagnoser`.
 
 from __future__ import annotations
 
-from pneufdd.diagnosis.band import BandDetector
 from pneufdd.diagnosis.cost import CostedLeak, CostSettings, annual_cost, equivalent_orifice_mm
-from pneufdd.diagnosis.effects import LeakEffectModel
+from pneufdd.diagnosis.detection.band import BandDetector
+from pneufdd.diagnosis.detection.statistic import CycleDistanceDetector
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.diagnosis.engine import Diagnosis, diagnose
-from pneufdd.diagnosis.localisation import (
+from pneufdd.diagnosis.localisation.model_choice import Explanation
+from pneufdd.diagnosis.localisation.search import (
     LeakEstimate,
     Localisation,
     LocalisationSettings,
     locate,
 )
-from pneufdd.diagnosis.model_choice import Explanation
-from pneufdd.diagnosis.pnref import load_reference, save_reference
-from pneufdd.diagnosis.reference import MIN_REFERENCE_CYCLES, DetectionSettings, ReferenceModel
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.statistic import CycleDistanceDetector
-from pneufdd.diagnosis.steps import StepTable
+from pneufdd.diagnosis.reference.file import load_reference, save_reference
+from pneufdd.diagnosis.reference.model import (
+    MIN_REFERENCE_CYCLES,
+    DetectionSettings,
+    ReferenceModel,
+)
+from pneufdd.features.step_table import StepTable
 
 __all__ = [
     "MIN_REFERENCE_CYCLES",

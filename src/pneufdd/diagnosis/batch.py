@@ -20,10 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from pneufdd.diagnosis.cost import CostSettings
-from pneufdd.diagnosis.localisation import LocalisationSettings
-from pneufdd.diagnosis.pipeline import diagnose_recording
-from pneufdd.diagnosis.pnref import load_reference
-from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.localisation.search import LocalisationSettings
+from pneufdd.diagnosis.recordings import diagnose_recording
+from pneufdd.diagnosis.reference.file import load_reference
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, PneufddError, describe
 from pneufdd.parallel import available_cores, executor, map_unordered, positive_count
 from pneufdd.recording.io import SUFFIXES

@@ -27,13 +27,13 @@ from dataclasses import replace
 from pathlib import Path
 
 from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.effects.twin import SIGNATURE_SIZES_SLPM, UNCERTAINTY_PLANTS
 from pneufdd.diagnosis.engine import Diagnosis, diagnose
-from pneufdd.diagnosis.localisation import LocalisationSettings
+from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.machine import MachineLike
-from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
-from pneufdd.diagnosis.pnref import load_reference, save_reference
-from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
-from pneufdd.diagnosis.twin_effects import SIGNATURE_SIZES_SLPM, UNCERTAINTY_PLANTS
+from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.reference.file import load_reference, save_reference
+from pneufdd.diagnosis.reference.model import DetectionSettings, ReferenceModel
 from pneufdd.errors import InputError, describe
 from pneufdd.progress import Progress
 from pneufdd.recording.model import Recording

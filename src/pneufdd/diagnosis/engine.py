@@ -1,12 +1,12 @@
 """Diagnose a run against a reference: detect, locate, size and cost leaks.
 
 1. **Detect** (section 5.3.2 and 4.4.1): the per-cycle statistic of
-   :class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`, decided over the whole
+   :class:`~pneufdd.diagnosis.detection.statistic.CycleDistanceDetector`, decided over the whole
    run (mean of its cycles); the band method of eq. 5.21 is reported alongside.
 2. **Locate and size** (sections 5.3.1.2-5.3.1.5, eqs. 5.23-5.24): the run's mean
    feature change is decomposed into non-negative leak effects
-   (:func:`~pneufdd.diagnosis.localisation.locate`) of the reference's
-   :class:`~pneufdd.diagnosis.effects.LeakEffectModel`.
+   (:func:`~pneufdd.diagnosis.localisation.search.locate`) of the reference's
+   :class:`~pneufdd.diagnosis.effects.model.LeakEffectModel`.
 3. **Cost** (eq. 1.1): :mod:`pneufdd.diagnosis.cost`.
 """
 
@@ -18,23 +18,23 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.cost import CostedLeak, CostSettings, cost_leaks
-from pneufdd.diagnosis.effects import LeakEffectModel
-from pneufdd.diagnosis.localisation import (
+from pneufdd.diagnosis.detection.residuals import SupplyCheck, supply_check
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.localisation.model_choice import Explanation
+from pneufdd.diagnosis.localisation.search import (
     LeakEstimate,
     Localisation,
     LocalisationSettings,
     Whitener,
     locate,
 )
-from pneufdd.diagnosis.model_choice import Explanation
-from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.residuals import SupplyCheck, supply_check
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.steps import StepTable
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
+from pneufdd.features.step_table import StepTable
 from pneufdd.location import SUPPLY
 from pneufdd.parallel import resolve_threads
 from pneufdd.physics.units import kg_s_to_slpm
@@ -44,9 +44,6 @@ if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = ["Diagnosis", "diagnose", "run_whitener", "whitener"]
-
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -86,7 +83,7 @@ class Diagnosis:
         Plain-language remarks (missing signatures, unexplained deviations...).
     startup_cycles : int
         Complete cycles at the start of the run left out as start-up cycles
-        (:attr:`~pneufdd.diagnosis.reference.DetectionSettings.startup_cycles`).
+        (:attr:`~pneufdd.diagnosis.reference.model.DetectionSettings.startup_cycles`).
     cycles_skipped : tuple of (int, str)
         Complete cycles of the run left out by the gap rule
         (:mod:`pneufdd.signals.quality`): each one's number and the channel whose
@@ -96,7 +93,7 @@ class Diagnosis:
     supply : SupplyCheck, optional
         The eq. 4.19-4.21 verdict on the supply flow and pressure against the
         reference (None without supply sensors):
-        :func:`pneufdd.diagnosis.residuals.supply_check`.
+        :func:`pneufdd.diagnosis.detection.residuals.supply_check`.
     """
 
     detected: bool

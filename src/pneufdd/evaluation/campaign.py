@@ -33,20 +33,20 @@ from typing import Any
 
 import numpy as np
 
-from pneufdd.diagnosis.engine import diagnose
-from pneufdd.diagnosis.pipeline import build_reference_from_recordings, run_table
-from pneufdd.diagnosis.pnref import load_reference, save_reference
-from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.step_summaries import machine_sequence
-from pneufdd.diagnosis.steps import feature_names
-from pneufdd.diagnosis.twin_effects import (
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.effects.twin import (
     UNCERTAINTY_PLANTS,
     compute_signatures,
     signature_spread,
 )
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.reference.file import load_reference, save_reference
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.evaluation.scoring import Tally, outcome_from_record
+from pneufdd.features.step_summaries import machine_sequence
+from pneufdd.features.step_table import feature_names
 from pneufdd.location import locations_of
 from pneufdd.parallel import available_cores, executor, map_unordered, resolve_workers
 from pneufdd.physics.leaks import leak_mass_flow

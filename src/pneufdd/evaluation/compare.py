@@ -58,15 +58,13 @@ from pneufdd.classifiers import (
     VectorizedMap,
     VoronoiNeighbourClassifier,
 )
-from pneufdd.diagnosis.residuals import ResidualDetector
+from pneufdd.diagnosis.detection.residuals import ResidualDetector
 from pneufdd.errors import InputError, describe
 from pneufdd.evaluation.campaign import channel_sets
 from pneufdd.evaluation.labelled import LABEL_COLUMNS, feature_channels, read_manifest
 from pneufdd.sim import load_machine
 
 __all__ = ["METHODS", "Comparison", "compare", "confusion_figures"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def _classifier(clf: BaseEstimator, scale: bool = True) -> Pipeline:

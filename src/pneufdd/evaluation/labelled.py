@@ -10,7 +10,7 @@ plant under ``<campaign>/labelled/``:
   plant's reference recordings (``kind == "reference"``);
 * the feature columns of :func:`pneufdd.features.feature_matrix` (groups ``motion``,
   ``air``, ``table44``, every actuator; NaN where the machine lacks the channels);
-* the physics residuals of :class:`pneufdd.diagnosis.residuals.TwinReplay`
+* the physics residuals of :class:`pneufdd.diagnosis.detection.residuals.TwinReplay`
   (``res_Q_stepNN`` [kg/s], ``res_P_stepNN`` [Pa]) against the twin - the
   description as written - run leak-free with the machine's ``twin_seed``;
 * labels: ``location`` (``none``, ``DNC_A``, ...), ``level`` (``DNC_A@2``), the
@@ -34,11 +34,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pneufdd.diagnosis.residuals import TwinReplay
-from pneufdd.diagnosis.step_summaries import machine_sequence
+from pneufdd.diagnosis.detection.residuals import TwinReplay
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.features import feature_matrix
 from pneufdd.features.registry import REGISTRY
+from pneufdd.features.step_summaries import machine_sequence
 from pneufdd.physics.leaks import leak_mass_flow
 from pneufdd.physics.units import psig_to_pa
 from pneufdd.progress import Progress, counter

@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 import pandas as pd
 
 from pneufdd.classifiers import SignTableClassifier, VectorizedMap
@@ -29,8 +28,6 @@ from pneufdd.signals.segmentation import sequence_from_machine
 from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
 
 __all__ = ["VectorSumCheck", "vector_sum_check"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass

@@ -16,7 +16,6 @@ are standard litres ``SL`` on the dissertation's basis (0 degC, 1013 mbar,
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
 from pneufdd.features.context import CycleView
 from pneufdd.features.motion import MOTIONS, exhaust_line, supply_line
@@ -24,8 +23,6 @@ from pneufdd.features.registry import Unavailable, register
 from pneufdd.physics.constants import DISSERTATION_STANDARD
 
 __all__ = ["consumed", "exhausted", "kg_to_sl", "min_supply_pressure"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def kg_to_sl(mass: float) -> float:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, UnitError, describe
 from pneufdd.features.registry import Unavailable
 from pneufdd.recording.model import Recording
@@ -34,7 +35,6 @@ from pneufdd.signals.segmentation import DEFAULT_SWITCH_DWELL_S, Cycle, Step
 
 __all__ = ["CycleView", "Options", "RecordingData", "Stroke"]
 
-FloatArray = npt.NDArray[np.float64]
 
 EXPECTED_UNIT = {"P": "Pa", "Q": "kg/s", "X": "m"}
 DIRECTIONS = ("both", "forward", "reverse")

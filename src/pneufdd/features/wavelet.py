@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 import pywt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 from pneufdd.features.context import CycleView
 from pneufdd.features.motion import MOTIONS
@@ -34,7 +35,6 @@ from pneufdd.signals.filtering import fill_gaps
 
 __all__ = ["BANDS", "LEVEL", "SIGNALS", "SUMMARIES", "check_wavelet", "decompose", "summarise"]
 
-FloatArray = npt.NDArray[np.float64]
 
 LEVEL = 3
 BANDS = ("cA1", "cA2", "cA3", "cD1", "cD2", "cD3")

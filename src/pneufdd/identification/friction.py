@@ -16,9 +16,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 from scipy.signal import savgol_filter
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 from pneufdd.physics.friction import piston_force
 
@@ -29,8 +29,6 @@ __all__ = [
     "fit_breakaway_friction",
     "fit_sliding_friction",
 ]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

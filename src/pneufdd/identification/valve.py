@@ -16,14 +16,13 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 from pneufdd.physics.constants import ISA_STANDARD, T_ROOM
 from pneufdd.physics.flow import isa_mass_flow
 from pneufdd.physics.units import bar_gauge_to_pa
 
 __all__ = ["ValveFit", "fit_valve", "nominal_flow_l_min", "zero_flow_drop"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

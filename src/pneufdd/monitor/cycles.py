@@ -2,9 +2,9 @@
 
 The streamer keeps a short buffer of grid samples (from a little before the last
 completed cycle's end to now) and segments it with the reference's PLC sequence
-exactly as :func:`pneufdd.diagnosis.pipeline.run_table` segments a file
+exactly as :func:`pneufdd.diagnosis.recordings.run_table` segments a file
 (:func:`pneufdd.signals.segmentation.segment`, then
-:func:`pneufdd.diagnosis.step_summaries.step_table`). A cycle is complete when a
+:func:`pneufdd.features.step_summaries.step_table`). A cycle is complete when a
 later step has started (its last step ends at the next step's start, section
 5.3.1.1); then it is summarised, the buffer is cut just before its end, and the
 cycle is passed on. At the end of a replay the last cycle is closed as a file's last
@@ -23,19 +23,18 @@ from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 
 import numpy as np
-import numpy.typing as npt
 
-from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.step_summaries import sequence_from_records, step_table
-from pneufdd.diagnosis.steps import StepTable
+from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, describe
+from pneufdd.features.step_summaries import sequence_from_records, step_table
+from pneufdd.features.step_table import StepTable
 from pneufdd.monitor.samples import GridBlock
 from pneufdd.recording.model import ANALOG, DIGITAL, Channel, Recording
 from pneufdd.signals.segmentation import Cycle, StepSpec, segment
 
 __all__ = ["CompletedCycle", "CycleStreamer", "needed_channels"]
 
-FloatArray = npt.NDArray[np.float64]
 MARGIN_S = 0.2
 """Samples kept before the last completed cycle's end [s]."""
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.diagnosis.engine import Diagnosis, diagnose
-from pneufdd.diagnosis.reference import ReferenceModel
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, describe
 from pneufdd.monitor.alarms import Alarm
 from pneufdd.monitor.cycles import CompletedCycle, CycleStreamer, concatenate_rows, needed_channels

@@ -23,11 +23,10 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 
 __all__ = ["GridBlock", "SampleAssembler", "SampleBatch"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class SampleBatch(NamedTuple):

@@ -1,6 +1,7 @@
 """Sequential decision on per-cycle scores: a CUSUM with a known in-control run length.
 
-The per-cycle statistic ``T`` of :class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`
+The per-cycle statistic ``T`` of
+:class:`~pneufdd.diagnosis.detection.statistic.CycleDistanceDetector`
 is, on leak-free cycles, close to a scaled chi-square :math:`g\\chi^2_h` (Box fit of the
 reference's **cross-validated** scores, so the fit describes cycles the model has not
 seen). A leak raises ``T``; the test is designed for a scale change ``rho``:
@@ -183,7 +184,7 @@ class CusumDetector:
     def from_reference(
         cls, detector: Any, arl0: float = 1.0e6, rho: float | None = None
     ) -> CusumDetector:
-        """From a fitted :class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`."""
+        """From a fitted :class:`~pneufdd.diagnosis.detection.statistic.CycleDistanceDetector`."""
         return cls(
             detector.chi2_scale_, detector.chi2_dof_, detector.threshold_, arl0=arl0, rho=rho
         )

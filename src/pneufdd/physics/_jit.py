@@ -16,6 +16,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 
 __all__ = [
@@ -31,7 +32,6 @@ __all__ = [
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-FloatArray = npt.NDArray[np.float64]
 FloatOrArray = float | FloatArray
 
 

@@ -17,6 +17,7 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import UnitError, describe
 from pneufdd.physics.constants import (
     ANR,
@@ -319,8 +320,6 @@ def kg_s_to_scfm(mass_flow: Num) -> Num:
 # ---------------------------------------------------------------------------
 # Channel unit registry: what a Recording or a reader accepts.
 # ---------------------------------------------------------------------------
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 from matplotlib.figure import Figure
 
+from pneufdd.array_types import FloatArray
 from pneufdd.physics.units import kg_s_to_slpm, pa_to_psig
 
 __all__ = [
@@ -33,8 +34,6 @@ __all__ = [
     "step_trace_figure",
     "to_png",
 ]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def display_values(values: npt.ArrayLike, unit: str) -> tuple[FloatArray, str]:

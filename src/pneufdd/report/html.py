@@ -20,9 +20,9 @@ import numpy as np
 from pneufdd import __version__
 from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
 from pneufdd.diagnosis.engine import Diagnosis, check_compatible
-from pneufdd.diagnosis.reference import ReferenceModel
-from pneufdd.diagnosis.steps import StepTable
+from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import FileExistsInputError, describe
+from pneufdd.features.step_table import StepTable
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.report.figures import (
     band_figure,

@@ -16,12 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import IntArray
 from pneufdd.errors import InputError, describe
 from pneufdd.recording.model import Recording
 
 __all__ = ["Edges", "debounce", "debounced_edges", "debounced_edges_many", "edge_times", "edges"]
-
-IntArray = npt.NDArray[np.int64]
 
 
 def debounce(values: npt.ArrayLike, fs: float, min_dwell_s: float) -> npt.NDArray[np.uint8]:

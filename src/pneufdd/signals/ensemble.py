@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import Cycle
@@ -36,7 +37,6 @@ __all__ = [
     "step_ensembles",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_WINDOW_S = 300.0
 """Averaging window of section 4.4.1: the last five minutes of a run [s]."""

@@ -21,11 +21,11 @@ import numpy as np
 import numpy.typing as npt
 from scipy import signal
 
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 
 __all__ = ["DEFAULT_CUTOFF_HZ", "Kinematics", "fill_gaps", "kinematics", "lowpass"]
 
-FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_CUTOFF_HZ = 40.0
 """Default LVDT cut-off [Hz]: well above a 0.3 s stroke's content, below the noise."""

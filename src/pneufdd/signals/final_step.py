@@ -26,14 +26,13 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
+
+from pneufdd.array_types import FloatArray
 
 if TYPE_CHECKING:
     from pneufdd.signals.segmentation import Cycle, StepSpec
 
 __all__ = ["close_final_step", "settled_at"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def settled_at(

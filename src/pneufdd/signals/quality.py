@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import BoolArray, FloatArray, IntArray
 from pneufdd.errors import ChannelError, NoCompleteCycleError, UnitError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import Cycle
@@ -57,9 +58,6 @@ __all__ = [
     "usable_cycles",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
-IntArray = npt.NDArray[np.int64]
 
 MAX_REPAIR_S = 0.05
 """Longest run of missing samples repaired by interpolation [s]."""

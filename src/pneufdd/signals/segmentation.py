@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray, IntArray
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.digital import Edges, debounced_edges_many
@@ -61,9 +62,6 @@ SWITCH_PREFIX = "S_"
 RELEASE = ":off"
 DEFAULT_VALVE_DWELL_S = 0.015
 DEFAULT_SWITCH_DWELL_S = 0.025
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def actuator_of(valve: str) -> str:

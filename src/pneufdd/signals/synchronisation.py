@@ -17,14 +17,12 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray, IntArray
 from pneufdd.errors import InputError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.segmentation import Cycle
 
 __all__ = ["align_cycles", "reference_lengths", "sample_bounds", "synchronise"]
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def _analog(recording: Recording, channel: str) -> tuple[FloatArray, float, float]:

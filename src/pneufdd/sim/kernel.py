@@ -63,7 +63,7 @@ solenoid waits for its release, or after a solenoid changed.
 
 The kernel releases the GIL (``nogil``): the diagnosis's simulation checks run
 independent explanations on several threads of one process
-(:mod:`pneufdd.diagnosis.verify`).
+(:mod:`pneufdd.diagnosis.localisation.check`).
 
 The PLC (section 3.2.3) runs every millisecond: a step starts by applying its
 valve commands, ends when all awaited switches (and its dwell timer) are

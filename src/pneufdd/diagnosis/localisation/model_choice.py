@@ -20,9 +20,9 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
-from pneufdd.diagnosis.piecewise import WhitenedEffects
+from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.effects.piecewise import WhitenedEffects
 from pneufdd.location import SUPPLY, Location
 
 __all__ = [
@@ -36,7 +36,6 @@ __all__ = [
     "same_actuator_pair",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 Subset = tuple[int, ...]
 Fits = dict[Subset, tuple[FloatArray, float]]
 """``subset of location indices -> (sizes [kg/s], whitened residual [-])``."""

@@ -17,8 +17,14 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.diagnosis.cost import CostSettings
+from pneufdd.diagnosis.effects.twin import (
+    SIGNATURE_SIZES_SLPM,
+    UNCERTAINTY_PLANTS,
+    compute_signatures,
+    signature_spread,
+)
 from pneufdd.diagnosis.engine import Diagnosis, diagnose
-from pneufdd.diagnosis.localisation import LocalisationSettings
+from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.machine import (
     MachineLike,
     check_plc_channels,
@@ -26,22 +32,7 @@ from pneufdd.diagnosis.machine import (
     recording_machine_name,
     resolve_machine,
 )
-from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
-from pneufdd.diagnosis.step_summaries import (
-    machine_sequence,
-    segment_cycles,
-    sequence_from_records,
-    sequence_to_records,
-    step_table,
-    trace_offsets,
-)
-from pneufdd.diagnosis.steps import StepTable
-from pneufdd.diagnosis.twin_effects import (
-    SIGNATURE_SIZES_SLPM,
-    UNCERTAINTY_PLANTS,
-    compute_signatures,
-    signature_spread,
-)
+from pneufdd.diagnosis.reference.model import DetectionSettings, ReferenceModel
 from pneufdd.errors import (
     ChannelError,
     InputError,
@@ -50,6 +41,15 @@ from pneufdd.errors import (
     describe,
     naming,
 )
+from pneufdd.features.step_summaries import (
+    machine_sequence,
+    segment_cycles,
+    sequence_from_records,
+    sequence_to_records,
+    step_table,
+    trace_offsets,
+)
+from pneufdd.features.step_table import StepTable
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import check_channels
@@ -122,10 +122,10 @@ def build_reference_from_recordings(
         Simulated cycles per signature point.
     signature_sizes : sequence of float, optional
         Signature ladder [SLPM at nominal supply pressure]; the default ladder of
-        :mod:`pneufdd.diagnosis.twin_effects` when omitted.
+        :mod:`pneufdd.diagnosis.effects.twin` when omitted.
     uncertainty_plants : int
         Plausible plants drawn around the description to measure the signatures'
-        model uncertainty (:func:`~pneufdd.diagnosis.twin_effects.signature_spread`);
+        model uncertainty (:func:`~pneufdd.diagnosis.effects.twin.signature_spread`);
         0 trusts the twin exactly (as if the machine matched its description).
     settings : DetectionSettings, optional
         Detector tuning.

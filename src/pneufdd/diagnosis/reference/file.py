@@ -61,9 +61,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from pneufdd.diagnosis.localisation import LocalisationSettings
-from pneufdd.diagnosis.reference import DetectionSettings, ReferenceModel
-from pneufdd.diagnosis.signatures import SignatureSet
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.localisation.search import LocalisationSettings
+from pneufdd.diagnosis.reference.model import DetectionSettings, ReferenceModel
 from pneufdd.errors import (
     FileExistsInputError,
     FileFormatError,

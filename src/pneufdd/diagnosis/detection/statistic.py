@@ -2,7 +2,7 @@
 
 Each cycle is summarised by its per-step feature vector (step durations and the
 mean/min/max of each analog channel over each step, see
-:class:`~pneufdd.diagnosis.steps.StepTable`). The vector is standardised with the
+:class:`~pneufdd.features.step_table.StepTable`). The vector is standardised with the
 leak-free reference (eq. 5.1-5.2: :math:`z = (x - \\bar S) / \\bar\\sigma`).
 
 The house-air supply of section 4.4.1 fluctuates slowly; it moves all pressures and
@@ -84,6 +84,8 @@ from scipy import stats
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from pneufdd.array_types import FloatArray
+
 __all__ = [
     "MIN_GROUPS_FOR_GROUPED_CV",
     "RUN_STATISTICS",
@@ -100,8 +102,6 @@ RUN_STATISTICS = ("median", "mean")
 MIN_GROUPS_FOR_GROUPED_CV = 3
 """Fewest recordings for leave-one-recording-out cross-validation: with two, each
 model would learn from half the reference and overstate the spread [-]."""
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def scaled_chi2_fit(values: npt.ArrayLike) -> tuple[float, float]:

@@ -13,10 +13,10 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from pneufdd.diagnosis.steps import StepTable
+from pneufdd.array_types import FloatArray, IntArray
 from pneufdd.errors import InputError, NoCompleteCycleError, describe, naming
+from pneufdd.features.step_table import StepTable
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import usable_cycles
 from pneufdd.signals.segmentation import (
@@ -37,9 +37,6 @@ __all__ = [
     "step_table",
     "trace_offsets",
 ]
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def machine_sequence(machine: MachineDescription | None) -> tuple[StepSpec, ...] | None:

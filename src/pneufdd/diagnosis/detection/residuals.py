@@ -40,8 +40,9 @@ from scipy import stats
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from pneufdd.diagnosis.step_summaries import machine_sequence, segment_cycles, step_table
+from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
+from pneufdd.features.step_summaries import machine_sequence, segment_cycles, step_table
 from pneufdd.recording.model import Recording
 from pneufdd.sim import MachineDescription, load_machine, simulate
 
@@ -54,7 +55,6 @@ __all__ = [
     "supply_check",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 RESIDUAL_CHANNELS = ("Q_In", "P_In")
 """Supply flow and supply pressure: the current and voltage of eq. 4.21."""
 
@@ -316,7 +316,7 @@ def supply_check(
     Parameters
     ----------
     feature_names : sequence of str
-        Names of the feature columns (:func:`pneufdd.diagnosis.steps.feature_names`).
+        Names of the feature columns (:func:`pneufdd.features.step_table.feature_names`).
     reference : array_like, shape (n_reference_cycles, n_features)
         Leak-free cycles.
     run : array_like, shape (n_cycles, n_features)

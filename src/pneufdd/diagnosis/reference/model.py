@@ -6,7 +6,7 @@ It holds what section 5.3 compares new cycles against:
   (eq. 5.21, Fig. 5.13), per analog channel;
 - the per-cycle feature vectors of the reference cycles (step durations, mean/min/max
   of each analog channel over each step) from which the detectors of
-  :mod:`pneufdd.diagnosis.statistic` are fitted (deterministically, so they are refit
+  :mod:`pneufdd.diagnosis.detection.statistic` are fitted (deterministically, so they are refit
   on load rather than stored);
 - the machine's name and **description** (the TOML mapping of
   ``docs/machine-format.md``): its digital twin computes the leak signatures, checks
@@ -15,10 +15,10 @@ It holds what section 5.3 compares new cycles against:
 - the sensor set (analog channels used; the PLC's digital signals are always used,
   for segmentation and step timing);
 - optionally the leak signatures of every candidate location
-  (:class:`~pneufdd.diagnosis.signatures.SignatureSet`), computed once per machine and
+  (:class:`~pneufdd.diagnosis.effects.signatures.SignatureSet`), computed once per machine and
   sensor set.
 
-It is saved to a portable ``.pnref`` file by :mod:`pneufdd.diagnosis.pnref`.
+It is saved to a portable ``.pnref`` file by :mod:`pneufdd.diagnosis.reference.file`.
 """
 
 from __future__ import annotations
@@ -32,19 +32,19 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from pneufdd.diagnosis.band import BandDetector
-from pneufdd.diagnosis.effects import LeakEffectModel
-from pneufdd.diagnosis.localisation import LocalisationSettings
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.statistic import RUN_STATISTICS, CycleDistanceDetector
-from pneufdd.diagnosis.step_summaries import sequence_from_records
-from pneufdd.diagnosis.steps import StepTable, feature_floor, feature_names
+from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.detection.band import BandDetector
+from pneufdd.diagnosis.detection.statistic import RUN_STATISTICS, CycleDistanceDetector
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.errors import InputError, MachineError, describe
+from pneufdd.features.step_summaries import sequence_from_records
+from pneufdd.features.step_table import StepTable, feature_floor, feature_names
 from pneufdd.sim import MachineDescription, parse_description
 
 __all__ = ["MIN_REFERENCE_CYCLES", "DetectionSettings", "ReferenceModel"]
 
-FloatArray = npt.NDArray[np.float64]
 
 MIN_REFERENCE_CYCLES = 10
 """Fewest leak-free cycles a reference may be built from."""
@@ -85,13 +85,13 @@ class DetectionSettings:
         before this setting existed read as 0.
     run_statistic : {"median", "mean"}
         How a run's cycle statistics are combined
-        (:class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`): the median, so
+        (:class:`~pneufdd.diagnosis.detection.statistic.CycleDistanceDetector`): the median, so
         that a few odd leak-free cycles do not flag a run. References saved before this
         setting existed read ``"mean"``.
     run_correlation : bool
         Let the run threshold count a run's cycles as correlated, by the intra-class
         correlation of the reference's held-out statistics within a recording
-        (:class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`). References saved
+        (:class:`~pneufdd.diagnosis.detection.statistic.CycleDistanceDetector`). References saved
         before this setting existed read ``False``.
     """
 
@@ -182,7 +182,7 @@ class ReferenceModel:
     cycle_recording : ndarray of int, shape (n_cycles,), optional
         Index (in :attr:`sources`) of the recording each reference cycle came from;
         the detector's cross-validation leaves out one recording at a time when there
-        are three or more (:mod:`pneufdd.diagnosis.statistic`). None for references
+        are three or more (:mod:`pneufdd.diagnosis.detection.statistic`). None for references
         saved before it was stored, or built from one table of unknown origin.
     """
 

@@ -9,24 +9,24 @@ two leaks (eqs. 5.23-5.24, generalised from the 2-D vectorized map to all featur
     \\Delta x \\approx \\sum_{l \\in M} e_l(a_l), \\qquad a_l \\ge 0,
 
 where :math:`e_l(a)` is location ``l``'s effect at size ``a``
-(:class:`~pneufdd.diagnosis.effects.LeakEffectModel`). The fit is weighted
+(:class:`~pneufdd.diagnosis.effects.model.LeakEffectModel`). The fit is weighted
 (``whiten``): each feature divided by its reference spread, the house-air
 fluctuation directions projected out (the space of
-:class:`~pneufdd.diagnosis.statistic.CycleDistanceDetector`), the residual scaled to
+:class:`~pneufdd.diagnosis.detection.statistic.CycleDistanceDetector`), the residual scaled to
 unit variance for a run mean of ``m`` cycles. Steps:
 
 1. **Signature fits** of every set of one or two locations, exact for the piecewise
-   linear effects (:class:`~pneufdd.diagnosis.piecewise.WhitenedEffects`).
+   linear effects (:class:`~pneufdd.diagnosis.effects.piecewise.WhitenedEffects`).
 2. **Interaction**: the best pairs are refit with their bilinear interaction
    (:meth:`LeakEffectModel.pair_coupling`), so their effects are not taken as additive.
-3. **Model choice** (:func:`~pneufdd.diagnosis.model_choice.choose_leak_count`).
-4. **Check by simulation** (:mod:`pneufdd.diagnosis.verify`): when even that leaves a
+3. **Model choice** (:func:`~pneufdd.diagnosis.localisation.model_choice.choose_leak_count`).
+4. **Check by simulation** (:mod:`pneufdd.diagnosis.localisation.check`): when even that leaves a
    residual well above the noise (typically two large leaks), the best explanations
    are simulated with the digital twin and chosen among by their simulated residual.
 5. **Ambiguity groups and confidence**
-   (:func:`~pneufdd.diagnosis.model_choice.ambiguity_group`) and **alternative
-   explanations** (:func:`~pneufdd.diagnosis.model_choice.alternative_explanations`,
-   :func:`~pneufdd.diagnosis.model_choice.both_lines_alternatives`).
+   (:func:`~pneufdd.diagnosis.localisation.model_choice.ambiguity_group`) and **alternative
+   explanations** (:func:`~pneufdd.diagnosis.localisation.model_choice.alternative_explanations`,
+   :func:`~pneufdd.diagnosis.localisation.model_choice.both_lines_alternatives`).
 """
 
 from __future__ import annotations
@@ -37,10 +37,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
-import numpy.typing as npt
 
-from pneufdd.diagnosis.effects import LeakEffectModel
-from pneufdd.diagnosis.model_choice import (
+from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.piecewise import WhitenedEffects
+from pneufdd.diagnosis.localisation.check import SimulatedEffect, refine_all, verify_explanations
+from pneufdd.diagnosis.localisation.model_choice import (
     Best,
     Explanation,
     Fits,
@@ -51,14 +53,11 @@ from pneufdd.diagnosis.model_choice import (
     choose_leak_count,
     same_actuator_pair,
 )
-from pneufdd.diagnosis.piecewise import WhitenedEffects
-from pneufdd.diagnosis.verify import SimulatedEffect, refine_all, verify_explanations
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
 __all__ = ["LeakEstimate", "Localisation", "LocalisationSettings", "locate"]
 
-FloatArray = npt.NDArray[np.float64]
 Whitener = Callable[[FloatArray], FloatArray]
 
 
@@ -82,7 +81,7 @@ class LocalisationSettings:
     first_leak_gain : float
         When no model passes ``min_relative_gain``, the best single leak is still
         reported if it passes the information criterion and lowers the residual by
-        this fraction (:func:`~pneufdd.diagnosis.model_choice.choose_leak_count`); its
+        this fraction (:func:`~pneufdd.diagnosis.localisation.model_choice.choose_leak_count`); its
         confidence is then low. 0: on a scale-2 press-fit-cell plant of acceptance
         campaign 390M, a 230 SLPM PRESS_A leak was detected, and PRESS_A fitted best,
         but it explained 20 % of the deviation and nothing was located. 1 turns the
@@ -175,7 +174,7 @@ class LocalisationSettings:
         With simulated explanations, one stops being sized by simulation when neither
         its simulated residual nor the one a linear model predicts for its next step
         comes within this multiple of the best simulated residual so far
-        (:func:`pneufdd.diagnosis.verify.refine_all`); its start is judged by the
+        (:func:`pneufdd.diagnosis.localisation.check.refine_all`); its start is judged by the
         signature model's slopes before its difference steps are simulated. Beyond
         2 an explanation changes no reported leak, group or alternative (an
         alternative or group member needs at most ``1 + relative_tolerance`` = 1.5
@@ -308,7 +307,7 @@ class Localisation:
         without line sensors), best first; empty when the chosen one stands alone.
     simulated : bool
         True when the explanations were checked and sized by simulation
-        (:mod:`pneufdd.diagnosis.verify`); ``rss`` is then the simulated residual.
+        (:mod:`pneufdd.diagnosis.localisation.check`); ``rss`` is then the simulated residual.
     """
 
     leaks: tuple[LeakEstimate, ...]
@@ -579,7 +578,7 @@ def locate(
 
     Examples
     --------
-    >>> from pneufdd.diagnosis.signatures import SignatureSet
+    >>> from pneufdd.diagnosis.effects.signatures import SignatureSet
     >>> sig = SignatureSet(("supply", "X_A"), np.array([[4.0], [4.0]]),
     ...     np.array([[[4.0, 4.0, 4.0]], [[0.0, 8.0, 0.0]]]), ("f1", "f2", "f3"),
     ...     np.array([6e5, 6e5]))

@@ -25,9 +25,9 @@ import numpy.typing as npt
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-__all__ = ["BandDetector"]
+from pneufdd.array_types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
+__all__ = ["BandDetector"]
 
 
 class BandDetector(BaseEstimator):  # type: ignore[misc]

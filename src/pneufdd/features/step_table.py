@@ -9,7 +9,7 @@ section 5.3.1.1 (Figs. 5.6 -> 5.7): step ``j`` of any cycle is comparable with s
 
 The diagnosis engine only ever sees step tables; turning a
 :class:`~pneufdd.recording.Recording` into one is the job of a thin adapter
-(:mod:`pneufdd.diagnosis.step_summaries`) over the segmentation of :mod:`pneufdd.signals`.
+(:mod:`pneufdd.features.step_summaries`) over the segmentation of :mod:`pneufdd.signals`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray, IntArray
 from pneufdd.errors import ChannelError, InputError, describe
 
 __all__ = [
@@ -29,8 +29,6 @@ __all__ = [
     "feature_names",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 STATISTICS: tuple[str, ...] = ("mean", "min", "max")
 """Per-step summaries of every analog channel, in this order."""

@@ -11,7 +11,7 @@ linear in the size (the flow meters saturate, leaks slow actuators), so the effe
 any size is interpolated piecewise linearly through the computed sizes and the origin.
 
 Signatures are computed once per machine and sensor set, with the simulator (see
-:mod:`pneufdd.diagnosis.twin_effects`), and stored in the reference file.
+:mod:`pneufdd.diagnosis.effects.twin`), and stored in the reference file.
 """
 
 from __future__ import annotations
@@ -21,15 +21,13 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
-import numpy.typing as npt
 
-from pneufdd.diagnosis.piecewise import PiecewiseLinear
+from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.effects.piecewise import PiecewiseLinear
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
 __all__ = ["SignatureSet"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,13 +72,13 @@ class SignatureSet:
         drawn around the description (:func:`pneufdd.sim.vary_machine`; a real machine
         differs from its catalogue description), the effect of the same leak minus
         the signature's, at every location and at :attr:`deviation_sizes`
-        (:func:`~pneufdd.diagnosis.twin_effects.signature_spread`) [feature unit].
+        (:func:`~pneufdd.diagnosis.effects.twin.signature_spread`) [feature unit].
         Their spread is the covariance of the signatures' error on a real machine.
     deviation_sizes : ndarray, shape (n_dev_sizes,), optional
         Leak sizes of :attr:`plant_deviations`, increasing [kg/s].
     baseline : ndarray, shape (n_features,), optional
         Mean features of the twin's leak-free run the deltas are taken from [feature
-        unit]: the simulation check (:class:`~pneufdd.diagnosis.twin_effects.TwinLeakEffect`)
+        unit]: the simulation check (:class:`~pneufdd.diagnosis.effects.twin.TwinLeakEffect`)
         subtracts the same run, and takes it from here instead of simulating it again
         when its cycles and seed are :attr:`baseline_run`.
     baseline_run : tuple of (int, int), optional

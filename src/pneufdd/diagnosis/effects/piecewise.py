@@ -1,7 +1,7 @@
 """Leak effects as piecewise-linear functions of the leak size.
 
 A leak's effect on the features is simulated at a ladder of sizes
-(:class:`~pneufdd.diagnosis.signatures.SignatureSet`); between them it is interpolated
+(:class:`~pneufdd.diagnosis.effects.signatures.SignatureSet`); between them it is interpolated
 linearly, through the origin (no leak, no effect), and beyond the largest size the
 last segment is extended. :class:`PiecewiseLinear` is that one interpolation, used
 for the raw signatures and for their whitened form alike.
@@ -20,9 +20,10 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.array_types import FloatArray
+
 __all__ = ["PiecewiseLinear", "WhitenedEffects"]
 
-FloatArray = npt.NDArray[np.float64]
 Whitener = Callable[[FloatArray], FloatArray]
 
 

@@ -1,6 +1,6 @@
 """Check the best leak explanations by simulating them (analysis by synthesis).
 
-The signature model of :mod:`pneufdd.diagnosis.localisation` interpolates single-leak
+The signature model of :mod:`pneufdd.diagnosis.localisation.search` interpolates single-leak
 effects and adds a bilinear interaction measured at one pair of sizes. Two large
 leaks together break it: a supply drawn down by one leak changes how every other
 line fills, exhausts and times out, so the effects are far from additive (on
@@ -29,14 +29,13 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import lsq_linear
 
+from pneufdd.array_types import FloatArray
 from pneufdd.parallel import thread_map
 
 __all__ = ["SimulatedFit", "refine_all", "refine_by_simulation", "verify_explanations"]
 
-FloatArray = npt.NDArray[np.float64]
 Subset = tuple[int, ...]
 SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
 """Whitened effect of leaks ``{location index: size [kg/s]}`` by simulation, or None."""

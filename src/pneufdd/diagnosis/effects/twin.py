@@ -36,9 +36,9 @@ import numpy as np
 import numpy.typing as npt
 from scipy.integrate import cumulative_trapezoid
 
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.step_summaries import segment_cycles, step_table
+from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
+from pneufdd.features.step_summaries import segment_cycles, step_table
 from pneufdd.location import SUPPLY, Location, locations_of
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.progress import Progress, counter

@@ -1,16 +1,16 @@
 """The leak-effect model: how leaks change one machine's features.
 
-Location and sizing (:mod:`pneufdd.diagnosis.localisation`) ask one question: *what
+Location and sizing (:mod:`pneufdd.diagnosis.localisation.search`) ask one question: *what
 does a set of leaks do to the per-step features of this machine and sensor set?*
 :class:`LeakEffectModel` answers it in two ways, behind one interface:
 
-- from the **signatures** (:class:`~pneufdd.diagnosis.signatures.SignatureSet`):
+- from the **signatures** (:class:`~pneufdd.diagnosis.effects.signatures.SignatureSet`):
   single leaks interpolated piecewise linearly in their size, a pair as the sum of
   two single effects plus a bilinear interaction (:meth:`LeakEffectModel.pair_coupling`);
   instantaneous, computed once when the reference is built;
 - by **simulation** (:meth:`LeakEffectModel.simulate`) of any set of leaks with the
   digital twin of the machine description the reference carries
-  (:class:`~pneufdd.diagnosis.twin_effects.TwinLeakEffect`); seconds per call, used
+  (:class:`~pneufdd.diagnosis.effects.twin.TwinLeakEffect`); seconds per call, used
   only when the signatures do not explain a run.
 
 The model is built from a reference (:meth:`ReferenceModel.leak_effects`), i.e. from
@@ -22,10 +22,10 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-import numpy.typing as npt
 
-from pneufdd.diagnosis.signatures import SignatureSet
-from pneufdd.diagnosis.twin_effects import SIGNATURE_SEED, TwinLeakEffect
+from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.effects.twin import SIGNATURE_SEED, TwinLeakEffect
 from pneufdd.location import SUPPLY, Location
 from pneufdd.parallel import positive_count
 from pneufdd.physics.units import slpm_to_kg_s
@@ -34,7 +34,6 @@ from pneufdd.sim import MachineDescription
 
 __all__ = ["LeakEffectModel", "Simulator"]
 
-FloatArray = npt.NDArray[np.float64]
 Simulator = Callable[[Mapping[Location, float]], FloatArray | None]
 """Feature change of a set of leaks ``{location: nominal flow [kg/s]}``, or None when
 the machine cannot run with them [feature unit]."""
