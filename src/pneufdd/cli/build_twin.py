@@ -17,7 +17,7 @@ def build_twin(
         typer.Option(
             "--dir",
             help="Where to keep it (default: $PNEUFDD_PREBUILT_DIR, else "
-            "$NUMBA_CACHE_DIR/pneufdd-prebuilt, else ~/.cache/pneufdd/prebuilt).",
+            "~/.cache/pneufdd/prebuilt).",
         ),
     ] = None,
     force: Annotated[bool, typer.Option(help="Compile even if it is up to date.")] = False,

@@ -28,9 +28,12 @@ a process that finds a current one uses it and never imports numba for the twin.
   sets the same "release the GIL" flag as the JIT's ``nogil=True`` (numba's
   ``Flags.release_gil``), so the diagnosis's simulation checks still run in
   parallel on threads.
-* **Where.** ``$PNEUFDD_PREBUILT_DIR``, else ``$NUMBA_CACHE_DIR/pneufdd-prebuilt``
-  (the Makefile keeps numba's cache in ``.numba_cache``), else
-  ``~/.cache/pneufdd/prebuilt`` (``$XDG_CACHE_HOME`` respected). Building replaces
+* **Where.** ``$PNEUFDD_PREBUILT_DIR``, else ``~/.cache/pneufdd/prebuilt``
+  (``$XDG_CACHE_HOME`` respected): one place for ``make`` and a plain shell alike.
+  numba's own cache directory (``$NUMBA_CACHE_DIR``, which the Makefile sets to
+  ``.numba_cache``) plays no part, so a twin built by ``make demo`` is found by a
+  ``pneufdd`` started from any shell. Checkouts of different sources may share the
+  directory: each module's name holds its sources' hash. Building replaces
   the older builds in that directory; the new file is written aside and renamed, so
   a process never loads a half-written module. ``PNEUFDD_PREBUILT=0`` makes every
   process use the JIT.
@@ -104,8 +107,6 @@ def prebuilt_directory() -> Path:
     """The directory that holds the prebuilt twin (see the module's notes)."""
     if os.environ.get(DIRECTORY_ENV):
         return Path(os.environ[DIRECTORY_ENV])
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return Path(os.environ["NUMBA_CACHE_DIR"]) / "pneufdd-prebuilt"
     cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(cache) / "pneufdd" / "prebuilt"
 
