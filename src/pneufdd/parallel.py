@@ -160,7 +160,8 @@ class _OneBlasThread(Generic[T, R]):
 
     A Dask nanny starts its worker processes with ``OPENBLAS_NUM_THREADS=1``; with more
     threads NumPy's matrix products sum in another order, and a campaign's leak sizes
-    and confidences differed from a cluster's in the last bit (campaign 660M, stop 29).
+    and confidences differed from a cluster's in the last bit (measured on 142 of 1,266
+    records of one campaign; docs/scale-out.md).
     """
 
     def __init__(self, function: Callable[[T], R]) -> None:

@@ -13,7 +13,7 @@ tube.
 
 Why: the step durations and the supply air per step cannot tell a large valve from
 a small one when throttles set the speed, and a drafted actuator's valve is sized
-with its cylinder. On press-fit-cell's development plant 490M that gave the ram a
+with its cylinder. On a varied press-fit-cell plant that gave the ram a
 path Cv of 0.99 where the plant's is 0.60: the twin's fill peak ran into the
 drafted 500 SLPM flow sensor's range, and a leak behind the closed-centre valve
 was sized 32 % too large.
