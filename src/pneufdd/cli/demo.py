@@ -65,7 +65,7 @@ def demo(
         highlight=False,
     )
     with progress_bars() as progress:
-        # several recordings at different house-air states, as docs/diagnosis.md
+        # several recordings at different house-air states, as docs/reference.md
         # ("Reference length") recommends; the first cycle of each is a start-up cycle
         per_recording = max(-(-reference_cycles // DEMO_REFERENCE_RECORDINGS), 5)
         refs = []

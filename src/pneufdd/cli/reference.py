@@ -147,7 +147,7 @@ def build(
         console.print(
             f"note: {model.n_cycles} reference cycles; at least "
             f"{RECOMMENDED_REFERENCE_CYCLES} in several recordings are recommended, or rare "
-            "leak-free cycles may be flagged as leaks (docs/diagnosis.md, 'Reference length')",
+            "leak-free cycles may be flagged as leaks (docs/reference.md, 'Reference length')",
             highlight=False,
             markup=False,
         )

@@ -188,7 +188,7 @@ class Tally:
         if _one_actuator(locations):
             # counted apart too: with a 5/2 valve one of the two lines is pressurised
             # at almost every moment, so at the supply meter such a pair can draw air
-            # much like a supply leak (docs/diagnosis.md, campaign report)
+            # much like a supply leak (docs/results/710M.md)
             self.pairs_one_actuator += 1
             self.pairs_one_actuator_both += int(both)
         self.pair_group_sizes.extend(len(g) for g in groups)

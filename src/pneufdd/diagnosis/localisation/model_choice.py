@@ -302,7 +302,7 @@ def both_lines_alternatives(
     lines of HMPL_HZ (199 SLPM each) fitted as a 99 SLPM supply leak; the additive
     residuals of the nine actuators' pairs lay within a factor 1.5 of each other, and
     the best was HMPL_VS's, so one alternative named the wrong actuator
-    (``docs/diagnosis.md``).
+    (``docs/localisation.md``, "Alternative explanations").
     """
     if SUPPLY not in locations or max_count < 1:
         return ()

@@ -54,7 +54,7 @@ RECOMMENDED_REFERENCE_CYCLES = 100
 """Leak-free cycles a reference should hold, in several recordings [-].
 
 Rare leak-free cycle modes (parallel motions finishing in the other order, a timer one
-scan short) are learned only when the reference holds some (``docs/diagnosis.md``,
+scan short) are learned only when the reference holds some (``docs/reference.md``,
 "Reference length")."""
 
 
@@ -71,7 +71,7 @@ class DetectionSettings:
         The default, 0.1 %, is a fifth of the acceptance limit of 0.5 % leak-free runs
         flagged: the threshold is estimated from a few dozen reference cycles, and a
         design rate equal to the limit would exceed it on every other reference
-        (``docs/diagnosis.md``, "Run decision"). References saved before read 0.5 %.
+        (``docs/detection.md``, "Run decision"). References saved before read 0.5 %.
     band_eps : float
         Band width of eq. 5.3 in standard deviations (2 or 3) [-].
     band_alarm_fraction : float
