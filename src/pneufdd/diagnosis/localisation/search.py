@@ -41,7 +41,12 @@ import numpy as np
 from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.piecewise import WhitenedEffects
-from pneufdd.diagnosis.localisation.check import SimulatedEffect, refine_all, verify_explanations
+from pneufdd.diagnosis.localisation.check import (
+    SimulatedEffect,
+    SimulationCheckSettings,
+    refine_all,
+    verify_explanations,
+)
 from pneufdd.diagnosis.localisation.model_choice import (
     Best,
     Explanation,
@@ -382,19 +387,22 @@ def _check_by_simulation(
     if pairs_too:
         for sub in itertools.combinations(range(n_loc), 2):
             fits.setdefault(sub, model.fit(sub))
+    check = SimulationCheckSettings(
+        partners=3 if pairs_too else 0,
+        probed_locations=settings.probes,
+        top_pairs=3 if pairs_too else 0,
+        min_pair_flow=settings.min_flow,
+        keep_within=settings.keep_within or math.inf,
+    )
     checked = verify_explanations(
         target,
         fits,
         n_loc,
         simulate,
         model.size_cap,
-        settings.min_flow,
-        top_pairs=3 if pairs_too else 0,
-        partners=3 if pairs_too else 0,
-        probes=settings.probes,
-        threads=threads,
-        keep_within=settings.keep_within or math.inf,
+        check,
         slopes=_slopes(model) if settings.keep_within else None,
+        threads=threads,
     )
     if not checked:
         return None
