@@ -15,6 +15,7 @@ from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.diagnosis.effects.twin import TwinLeakEffect
 from pneufdd.diagnosis.localisation.check import (
+    SimulationCheckSettings,
     refine_all,
     refine_by_simulation,
     verify_explanations,
@@ -125,7 +126,8 @@ def test_probed_second_leak_found_where_the_additive_model_fails():
     # the additive model cannot explain the pair; probing next to the first leak sees
     # the interaction
     _, sim, target, fits = _additive_model_misses_an_interaction()
-    out = verify_explanations(target, fits, 4, sim, np.full(4, 10.0), top_pairs=0, probe=1.0)
+    settings = SimulationCheckSettings(top_pairs=0, probe_size=1.0)
+    out = verify_explanations(target, fits, 4, sim, np.full(4, 10.0), settings)
     best = min(out, key=lambda s: out[s].rss)
     assert best == (0, 2)
     assert out[best].sizes == pytest.approx([3.0, 1.0], rel=0.01)
@@ -144,8 +146,9 @@ def test_threads_size_every_explanation_as_one_thread_does():
         r = target - base[list(sub)].T @ sizes
         fits[sub] = (sizes, float(r @ r))
     upper = np.full(6, 10.0)
-    serial = verify_explanations(target, fits, 6, sim, upper, probe=1.0)
-    threaded = verify_explanations(target, fits, 6, sim, upper, probe=1.0, threads=3)
+    settings = SimulationCheckSettings(probe_size=1.0)
+    serial = verify_explanations(target, fits, 6, sim, upper, settings)
+    threaded = verify_explanations(target, fits, 6, sim, upper, settings, threads=3)
     assert len(serial) >= 5  # singles, partners and pairs were sized
     _assert_same_fits(threaded, serial)
 
@@ -496,8 +499,7 @@ def test_starts_judged_by_slopes_skip_hopeless_difference_steps_and_find_the_pai
             4,
             sim,
             upper,
-            probe=1.0,
-            keep_within=4.0,
+            SimulationCheckSettings(probe_size=1.0, keep_within=4.0),
             slopes=slopes if judged else None,
         )
         best = min(out, key=lambda s: out[s].rss)
@@ -521,3 +523,23 @@ def test_references_saved_before_size_every_explanation_to_the_end():
     assert old.keep_within == 0.0
     new = LocalisationSettings()
     assert LocalisationSettings.from_dict(new.to_dict()) == new
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"top_singles": -1},
+        {"partners": 1.5},
+        {"probed_locations": True},
+        {"max_iterations": -2},
+        {"probe_size": 0.0},
+        {"probe_size": math.nan},
+        {"min_pair_flow": -1e-5},
+        {"keep_within": 0.5},
+        {"keep_within": math.nan},
+    ],
+)
+def test_check_settings_refuse_what_cannot_be_checked(bad):
+    (name,) = bad
+    with pytest.raises(InputError, match=f"check setting {name}"):
+        SimulationCheckSettings(**bad)

@@ -631,6 +631,155 @@ def _applied(
     return raw
 
 
+def _line_pressure_channels(
+    machine: MachineDescription, recordings: Sequence[Recording], fit_line_pressures: bool
+) -> tuple[str, ...]:
+    """The line pressure channels every recording holds (none unless they are fitted)."""
+    return tuple(
+        s.channel
+        for s in machine.sensors
+        if fit_line_pressures
+        and s.kind == "pressure"
+        and s.location != "supply"
+        and all(s.channel in r.channels for r in recordings)
+    )
+
+
+def _with_friction(
+    raw: dict[str, Any], identified: Mapping[str, FrictionIdentification]
+) -> dict[str, Any]:
+    """A copy of the description ``raw`` with the friction identified from strokes."""
+    base = copy.deepcopy(raw)
+    for ident, found in identified.items():
+        table = _actuator_table(base, ident)
+        table["static_friction_n"] = found.static_friction_n
+        table["coulomb_friction_n"] = found.coulomb_friction_n
+        table["viscous_friction_n_s_m"] = found.viscous_friction_n_s_m
+    return base
+
+
+class _TwinFit:
+    """The maximum a posteriori fit of the parameters with the twin in the loop.
+
+    The unknowns ``z`` are the parameters in prior standard deviations; the residual
+    is the weighted misfit of the twin's evidence (:func:`_residuals`) followed by
+    ``z`` (the Gaussian prior). Twin runs are cached by parameter values and counted
+    in :attr:`evaluations`; a description the twin cannot run gets a large residual.
+    """
+
+    def __init__(
+        self,
+        base: dict[str, Any],
+        params: Sequence[Parameter],
+        measured: Evidence,
+        lines: tuple[str, ...],
+        seed: int,
+        max_evaluations: int,
+        progress: Callable[[str, int, int], None] | None,
+    ) -> None:
+        self.base = base
+        self.params = params
+        self.measured = measured
+        self.lines = lines
+        self.seed = seed
+        self.max_evaluations = max_evaluations
+        self.progress = progress
+        self.sigma = np.array([p.prior_sigma for p in params])
+        self.evaluations = 0
+        self._cache: dict[bytes, FloatArray] = {}
+
+    def residual(self, z: FloatArray, free: npt.NDArray[np.bool_]) -> FloatArray:
+        """Weighted misfit and prior term of the ``free`` parameters at ``z`` [-]."""
+        values = np.zeros(len(self.params))
+        values[free] = z * self.sigma[free]
+        key = values.tobytes()
+        if key not in self._cache:
+            self.evaluations += 1
+            if self.progress is not None:
+                self.progress("calibrating (twin runs)", self.evaluations, 0)
+            try:
+                sim = simulate_evidence(
+                    _applied(self.base, self.params, values), self.lines, self.seed
+                )
+                self._cache[key] = _residuals(self.measured, sim)
+            except (MachineStalledError, InputError):
+                n = _residuals(
+                    self.measured, simulate_evidence(self.base, self.lines, self.seed)
+                ).size
+                self._cache[key] = np.full(n, 1e3)
+        out: FloatArray = np.concatenate([self._cache[key], z])
+        return out
+
+    def jacobian(self, z: FloatArray, free: npt.NDArray[np.bool_]) -> FloatArray:
+        """Forward-difference Jacobian of :meth:`residual` [-]."""
+        # forward differences of DIFF_STEP prior sigmas: large enough to see through
+        # the twin's 1 ms step timing, small against the prior
+        r0 = self.residual(z, free)
+        columns = []
+        for k in range(z.size):
+            step = np.zeros(z.size)
+            step[k] = DIFF_STEP
+            columns.append((self.residual(z + step, free) - r0) / DIFF_STEP)
+        out: FloatArray = np.stack(columns, axis=1)
+        return out
+
+    def fit(
+        self, free: npt.NDArray[np.bool_], start: FloatArray
+    ) -> tuple[FloatArray, FloatArray, float]:
+        """Fit the ``free`` parameters from ``start``.
+
+        Returns every parameter [prior sigmas] (0 when not free), its standard error
+        [prior sigmas] (1 when not free) and the misfit per degree of freedom [-].
+        """
+        sol = least_squares(
+            self.residual,
+            start[free],
+            jac=self.jacobian,
+            args=(free,),
+            method="trf",
+            max_nfev=self.max_evaluations,
+            x_scale=1.0,
+        )
+        jac = np.asarray(sol.jac)
+        dof = max(jac.shape[0] - jac.shape[1], 1)
+        chi2 = 2.0 * float(sol.cost) / dof
+        cov = np.linalg.pinv(jac.T @ jac)
+        z = np.zeros(len(self.params))
+        z[free] = sol.x
+        std = np.full(len(self.params), 1.0)  # in prior units: uninformed = 1
+        std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        return z, std, chi2
+
+    def fit_informed(
+        self, start: FloatArray, informed_ratio: float
+    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
+        """Fit every parameter, then refit only those the data informed.
+
+        Returns the parameters and their standard errors [prior sigmas] and which are
+        informed; the others are left at their prior (0, standard error 1).
+        """
+        z, std, chi2 = self.fit(np.ones(len(self.params), dtype=bool), start)
+        # informed: the data (not the prior) set it; judged on the posterior of the
+        # weighted problem, before any inflation for misfit
+        informed = std <= informed_ratio
+        if not np.all(informed) and np.any(informed):
+            z, std_refit, chi2 = self.fit(informed, np.where(informed, z, 0.0))
+            std = np.where(informed, std_refit, 1.0)
+        elif not np.any(informed):
+            z = np.zeros(len(self.params))
+        z = np.where(informed, z, 0.0)
+        # reported standard errors: inflated by the misfit where the twin cannot
+        # explain the data to within the measurement uncertainty
+        std = np.where(informed, std * math.sqrt(max(1.0, chi2)), std)
+        return z, std, informed
+
+
+def _cost(measured: Evidence, sim: Evidence) -> float:
+    """Weighted misfit (sum of squares) of the twin's evidence [-]."""
+    r = _residuals(measured, sim)
+    return float(np.dot(r, r))
+
+
 def calibrate_machine(
     machine: MachineDescription | str | dict[str, Any],
     recordings: Sequence[Recording],
@@ -669,96 +818,20 @@ def calibrate_machine(
     CalibrationResult
     """
     before = load_machine(machine)
-    lines = tuple(
-        s.channel
-        for s in before.sensors
-        if fit_line_pressures
-        and s.kind == "pressure"
-        and s.location != "supply"
-        and all(s.channel in r.channels for r in recordings)
-    )
+    lines = _line_pressure_channels(before, recordings, fit_line_pressures)
     measured = measure_evidence(recordings, before, lines)
     identified = identify_friction(before, recordings) if fit_line_pressures else {}
     paths = identify_paths(before, recordings) if fit_line_pressures else {}
     params = machine_parameters(
         before, lines, tuple(identified), {k: p.path_cv for k, p in paths.items()}
     )
-    sigma = np.array([p.prior_sigma for p in params])
-    base = copy.deepcopy(before.raw)
-    for ident, found in identified.items():
-        table = _actuator_table(base, ident)
-        table["static_friction_n"] = found.static_friction_n
-        table["coulomb_friction_n"] = found.coulomb_friction_n
-        table["viscous_friction_n_s_m"] = found.viscous_friction_n_s_m
-    evaluations = 0
-    cache: dict[bytes, FloatArray] = {}
-
-    def residual(z: FloatArray, free: npt.NDArray[np.bool_]) -> FloatArray:
-        nonlocal evaluations
-        values = np.zeros(len(params))
-        values[free] = z * sigma[free]
-        key = values.tobytes()
-        if key not in cache:
-            evaluations += 1
-            if progress is not None:
-                progress("calibrating (twin runs)", evaluations, 0)
-            try:
-                sim = simulate_evidence(_applied(base, params, values), lines, seed)
-                cache[key] = _residuals(measured, sim)
-            except (MachineStalledError, InputError):
-                n = _residuals(measured, simulate_evidence(base, lines, seed)).size
-                cache[key] = np.full(n, 1e3)
-        out: FloatArray = np.concatenate([cache[key], z])
-        return out
-
-    def jacobian(z: FloatArray, free: npt.NDArray[np.bool_]) -> FloatArray:
-        # forward differences of DIFF_STEP prior sigmas: large enough to see through
-        # the twin's 1 ms step timing, small against the prior
-        r0 = residual(z, free)
-        columns = []
-        for k in range(z.size):
-            step = np.zeros(z.size)
-            step[k] = DIFF_STEP
-            columns.append((residual(z + step, free) - r0) / DIFF_STEP)
-        out: FloatArray = np.stack(columns, axis=1)
-        return out
-
-    def fit(free: npt.NDArray[np.bool_], start: FloatArray) -> tuple[FloatArray, FloatArray, float]:
-        sol = least_squares(
-            residual,
-            start[free],
-            jac=jacobian,
-            args=(free,),
-            method="trf",
-            max_nfev=max_evaluations,
-            x_scale=1.0,
-        )
-        jac = np.asarray(sol.jac)
-        dof = max(jac.shape[0] - jac.shape[1], 1)
-        chi2 = 2.0 * float(sol.cost) / dof
-        cov = np.linalg.pinv(jac.T @ jac)
-        z = np.zeros(len(params))
-        z[free] = sol.x
-        std = np.full(len(params), 1.0)  # in prior units: uninformed = 1
-        std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        return z, std, chi2
-
-    everything = np.ones(len(params), dtype=bool)
+    base = _with_friction(before.raw, identified)
+    twin = _TwinFit(base, params, measured, lines, seed, max_evaluations, progress)
     start = load_machine(_applied(base, params, np.zeros(len(params))))
-    z, std, chi2 = fit(everything, volume_start(start, params, measured, seed))
-    # informed: the data (not the prior) set it; judged on the posterior of the
-    # weighted problem, before any inflation for misfit
-    informed = std <= informed_ratio
-    if not np.all(informed) and np.any(informed):
-        z, std_refit, chi2 = fit(informed, np.where(informed, z, 0.0))
-        std = np.where(informed, std_refit, 1.0)
-    elif not np.any(informed):
-        z = np.zeros(len(params))
-    z = np.where(informed, z, 0.0)
-    # reported standard errors: inflated by the misfit where the twin cannot
-    # explain the data to within the measurement uncertainty
-    std = np.where(informed, std * math.sqrt(max(1.0, chi2)), std)
-    values = z * sigma
+    z, std, informed = twin.fit_informed(
+        volume_start(start, params, measured, seed), informed_ratio
+    )
+    values = z * twin.sigma
     after = load_machine(_applied(base, params, values))
     sim_before = simulate_evidence(before, lines, seed)
     sim_after = simulate_evidence(after, lines, seed)
@@ -768,8 +841,6 @@ def calibrate_machine(
         )
         for p, v, s, i in zip(params, values, std, informed, strict=True)
     )
-    r0 = _residuals(measured, sim_before)
-    r1 = _residuals(measured, sim_after)
     return CalibrationResult(
         before=before,
         after=after,
@@ -777,9 +848,9 @@ def calibrate_machine(
         simulated_before=sim_before,
         simulated_after=sim_after,
         estimates=estimates,
-        evaluations=evaluations,
-        cost_before=float(np.dot(r0, r0)),
-        cost_after=float(np.dot(r1, r1)),
+        evaluations=twin.evaluations,
+        cost_before=_cost(measured, sim_before),
+        cost_after=_cost(measured, sim_after),
         friction=tuple(identified.values()),
         paths=tuple(paths.values()),
     )

@@ -307,6 +307,233 @@ def _releases(recording: Recording, ids: Sequence[str]) -> frozenset[str]:
     return frozenset(out)
 
 
+def _step_times(
+    recording: Recording, sequence: Sequence[StepSpec]
+) -> tuple[FloatArray, FloatArray]:
+    """Start and end of every step of the complete cycles (cycles x steps) [s]."""
+    cycles = list(segment(recording, sequence).complete)
+    if not cycles:
+        raise InputError(describe("complete cycles of the first recording", 0, ">= 1"))
+    starts = np.array([[s.start_s for s in c.steps] for c in cycles])
+    ends = np.array([[s.end_s for s in c.steps] for c in cycles])
+    return starts, ends
+
+
+def _draft_machine_table(
+    recording: Recording, name: str, n_recordings: int, notes: dict[str, str]
+) -> dict[str, Any]:
+    """The ``[machine]`` table: name, title and a PLC scan time within the sampling."""
+    rate = recording.rate(recording.digital_channels[0])
+    notes["machine.scan_time_s"] = ASSUMED
+    return {
+        "name": name,
+        "title": f"{name}: drafted from {n_recordings} recording(s) by pneufdd machine draft",
+        "scan_time_s": round(min(0.005, 0.5 / rate), 4),
+    }
+
+
+def _supply_set_point(recording: Recording) -> tuple[float, float, str]:
+    """Regulator set point [psig], supply line Cv [-] and how they were found.
+
+    From ``P_In`` against ``Q_In`` (eq. 4.20) when both are recorded, else the set
+    point from the highest ``P_In``; otherwise the defaults.
+    """
+    sup = DEFAULTS["supply"]
+    set_psig, line_cv, how = sup["regulator_set_psig"], sup["line_cv"], ASSUMED
+    if "P_In" in recording.channels and "Q_In" in recording.channels:
+        p = recording.channel("P_In")[1].astype(np.float64)
+        q = recording.channel("Q_In")[1].astype(np.float64)
+        n = min(p.size, q.size)
+        fit = fit_supply_path(p[:n], q[:n])
+        if np.isfinite(fit.path_cv) and np.isfinite(fit.path_set_point_pa):
+            set_psig = (fit.path_set_point_pa - P_ATM) / PSI
+            line_cv = fit.path_cv
+            how = "from P_In against Q_In (eq. 4.20)"
+    elif "P_In" in recording.channels:
+        p = recording.channel("P_In")[1].astype(np.float64)
+        set_psig = (float(np.nanpercentile(p, 99)) - P_ATM) / PSI
+        how = "from the highest P_In"
+    return set_psig, line_cv, how
+
+
+def _draft_supply(recording: Recording, notes: dict[str, str]) -> dict[str, Any]:
+    """The ``[supply]`` table: set point and line from the signals, the rest assumed."""
+    sup = DEFAULTS["supply"]
+    set_psig, line_cv, how = _supply_set_point(recording)
+    set_psig = float(np.clip(set_psig, 5.0, 140.0))
+    supply: dict[str, Any] = {}
+    supply["house_psig"] = round(set_psig + sup["house_margin_psi"], 2)
+    notes["supply.house_psig"] = ASSUMED
+    supply["regulator_set_psig"] = round(set_psig, 2)
+    notes["supply.regulator_set_psig"] = how
+    for key in ("regulator_cv", "reservoir_volume_l"):
+        supply[key] = sup[key]
+        notes[f"supply.{key}"] = ASSUMED
+    supply["line_cv"] = round(float(np.clip(line_cv, 0.02, 50.0)), 4)
+    notes["supply.line_cv"] = how
+    supply["manifold_volume_l"] = sup["manifold_volume_l"]
+    notes["supply.manifold_volume_l"] = ASSUMED
+    return supply
+
+
+def _draft_vacuum(ident: str, notes: dict[str, str]) -> dict[str, Any]:
+    """The ``[vacuum]`` table of the ejector ``ident``: every value assumed."""
+    for key in DEFAULTS["vacuum"]:
+        notes[f"vacuum.{key}"] = ASSUMED
+    return {"id": ident, **DEFAULTS["vacuum"]}
+
+
+def _draft_actuator(
+    recording: Recording, i: int, ident: str, notes: dict[str, str]
+) -> dict[str, Any]:
+    """The ``i``-th ``[[actuator]]``: stroke from its position, valve kind from its
+    solenoids (and line pressures), initial position from its switches."""
+    rec = recording
+    act: dict[str, Any] = {"id": ident, "model": DRAFT_MODEL}
+    for key, value in DEFAULTS["actuator"].items():
+        act[key] = value
+        notes[f"actuator[{i}].{key}"] = ASSUMED
+    if f"X_{ident}" in rec.channels:
+        x = rec.channel(f"X_{ident}")[1].astype(np.float64) * 1e3
+        lo, hi = np.nanpercentile(x, [1, 99])
+        act["stroke_mm"] = round(float(hi - lo), 1)
+        notes[f"actuator[{i}].stroke_mm"] = f"from X_{ident}"
+    has_b = f"U_{ident}_B" in rec.channels
+    closed = _closed_centre(rec, ident) if has_b else None
+    kind = "5/2-bistable" if has_b else "5/2-monostable"
+    if closed:
+        kind = "5/3-closed-centre"
+    at_b = f"S_{ident}_B" in rec.channels and int(rec.channel(f"S_{ident}_B")[1][0]) == 1
+    act["initial"] = "extended" if at_b and has_b else "retracted"
+    notes[f"actuator[{i}].initial"] = "from the switches at the start"
+    act["valve"] = {"kind": kind, **DEFAULTS["valve"]}
+    valve_how = (
+        "kind from the solenoids and line pressures"
+        if closed is not None
+        else "kind from the solenoids"
+    )
+    notes[f"actuator[{i}].valve"] = f"{valve_how}; cv, xt assumed"
+    return act
+
+
+def _sensor_location(channel: str, ids: Sequence[str]) -> str | None:
+    """``supply`` or ``<ACT>[_A/_B]`` of a pressure, flow or position channel, else None."""
+    if channel in ("P_In", "Q_In"):
+        return "supply"
+    if (channel[:2] in ("P_", "Q_") and channel[2:-2] in ids) or (
+        channel.startswith("X_") and channel[2:] in ids
+    ):
+        return channel[2:]
+    return None
+
+
+def _shown_range(kind: str, values: FloatArray) -> tuple[FloatArray, list[float]]:
+    """Values in the sensor's display unit (bar gauge, SLPM, mm) and a standard range
+    above them."""
+    if kind == "pressure":
+        shown = (values - P_ATM) / 1e5
+        return shown, [0.0, 10.0 if np.nanmax(shown) < 9.5 else 16.0]
+    if kind == "flow":
+        shown = np.asarray(kg_s_to_slpm(values))
+        top = float(np.nanmax(shown))
+        return shown, [0.0, float(next((r for r in (50, 200, 500, 1000, 5000) if r > top), 10000))]
+    shown = values * 1e3
+    lo, hi = float(np.nanmin(shown)), float(np.nanmax(shown))
+    pad = 0.15 * (hi - lo) + 5.0
+    return shown, [round(lo - pad, 1), round(hi + pad, 1)]
+
+
+def _draft_sensors(
+    recording: Recording, ids: Sequence[str], notes: dict[str, str]
+) -> list[dict[str, Any]]:
+    """The ``[[sensor]]`` tables of the analog channels the twin can simulate; noise
+    from the sample-to-sample scatter, range assumed."""
+    sensors: list[dict[str, Any]] = []
+    for channel in recording.analog_channels:
+        values = recording.channel(channel)[1].astype(np.float64)
+        location = _sensor_location(channel, ids)
+        if location is None:
+            continue
+        kind = {"P": "pressure", "Q": "flow", "X": "position"}[channel[0]]
+        shown, rng = _shown_range(kind, values)
+        diffs = np.diff(shown[np.isfinite(shown)])
+        noise = float(np.median(np.abs(diffs)) / 0.6745 / np.sqrt(2.0)) if diffs.size else 0.0
+        sensor: dict[str, Any] = {"channel": channel, "kind": kind, "location": location}
+        sensor["range"] = rng
+        sensor["noise"] = round(noise, 4)
+        k = len(sensors)
+        notes[f"sensor[{k}].range"] = ASSUMED + " (a standard range above the data)"
+        notes[f"sensor[{k}].noise"] = "from the sample-to-sample scatter"
+        if kind == "flow":
+            sensor["direction"] = "forward" if np.nanmin(shown) > -0.5 else "bidirectional"
+            sensor["time_constant_s"] = 0.015
+            notes[f"sensor[{k}].time_constant_s"] = ASSUMED
+        sensors.append(sensor)
+    return sensors
+
+
+def _valve_actions(
+    recording: Recording,
+    spec: StepSpec,
+    ids: Sequence[str],
+    starts: FloatArray,
+    ends: FloatArray,
+) -> list[dict[str, Any]]:
+    """A step's ``do`` list: each solenoid set until its end switch, for a time or
+    held, and each released one reset."""
+    do: list[dict[str, Any]] = []
+    for event in sorted(spec.valves):
+        if event.endswith(RELEASE):
+            do.append({"reset": event.removesuffix(RELEASE)})
+            continue
+        ident, _, side = event[2:].rpartition("_")
+        arrival = None
+        if ident in ids and side in "AB":
+            target = f"S_{ident}_{'B' if side == 'A' else 'A'}"
+            arrival = target if target in recording.channels else None
+        mode, width = _release_mode(recording, event, starts, ends, arrival)
+        if mode == "until" and arrival is not None:
+            do.append({"set": event, "until": arrival})
+        elif mode == "pulse":
+            do.append({"set": event, "for_s": width})
+        else:
+            do.append({"set": event})
+    return do
+
+
+def _draft_step(
+    recording: Recording,
+    j: int,
+    spec: StepSpec,
+    ids: Sequence[str],
+    starts: FloatArray,
+    ends: FloatArray,
+) -> dict[str, Any]:
+    """The ``j``-th ``[[step]]``: its valve actions, the switch edges it awaits and its
+    dwell timer (the median gap from the last awaited edge to the step's end), from
+    its ``starts`` and ``ends`` in every cycle [s]."""
+    rising = sorted(s for s, state in spec.switches if state == 1)
+    falling = sorted(s for s, state in spec.switches if state == 0)
+    do = _valve_actions(recording, spec, ids, starts, ends)
+    step: dict[str, Any] = {"name": f"step {j + 1}: " + ", ".join(sorted(spec.valves))}
+    step["do"] = do
+    until = sorted(a["until"] for a in do if "until" in a)
+    awaited: list[tuple[str, int]] = [(s, 1) for s in rising]
+    if rising != until:
+        step["wait"] = rising
+    if not rising and falling:
+        step["wait_off"] = falling
+        awaited = [(s, 0) for s in falling]
+    gaps = [
+        ends[c] - _awaited_edge_times(recording, awaited, starts[c], ends[c])
+        for c in range(len(starts))
+    ]
+    dwell = _median(gaps)
+    if dwell >= 0.03:
+        step["dwell_s"] = round(dwell, 2)
+    return step
+
+
 def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> DraftedMachine:
     """Draft a machine description from leak-free recordings of a plant.
 
@@ -335,162 +562,16 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
     rec = recordings[0]
     ids, vacuum = _actuators(rec)
     sequence: tuple[StepSpec, ...] = learn_sequence(rec, release=_releases(rec, ids))
-    seg = segment(rec, sequence)
-    cycles = list(seg.complete)
-    if not cycles:
-        raise InputError(describe("complete cycles of the first recording", 0, ">= 1"))
-    starts = np.array([[s.start_s for s in c.steps] for c in cycles])
-    ends = np.array([[s.end_s for s in c.steps] for c in cycles])
+    starts, ends = _step_times(rec, sequence)
     notes: dict[str, str] = {}
     data: dict[str, Any] = {}
-    rate = rec.rate(rec.digital_channels[0])
-    data["machine"] = {
-        "name": name,
-        "title": f"{name}: drafted from {len(recordings)} recording(s) by pneufdd machine draft",
-        "scan_time_s": round(min(0.005, 0.5 / rate), 4),
-    }
-    notes["machine.scan_time_s"] = ASSUMED
-    # ------------------------------------------------------------ supply
-    sup = DEFAULTS["supply"]
-    supply: dict[str, Any] = {}
-    set_psig, line_cv, how = sup["regulator_set_psig"], sup["line_cv"], ASSUMED
-    if "P_In" in rec.channels and "Q_In" in rec.channels:
-        p = rec.channel("P_In")[1].astype(np.float64)
-        q = rec.channel("Q_In")[1].astype(np.float64)
-        n = min(p.size, q.size)
-        fit = fit_supply_path(p[:n], q[:n])
-        if np.isfinite(fit.path_cv) and np.isfinite(fit.path_set_point_pa):
-            set_psig = (fit.path_set_point_pa - P_ATM) / PSI
-            line_cv = fit.path_cv
-            how = "from P_In against Q_In (eq. 4.20)"
-    elif "P_In" in rec.channels:
-        p = rec.channel("P_In")[1].astype(np.float64)
-        set_psig = (float(np.nanpercentile(p, 99)) - P_ATM) / PSI
-        how = "from the highest P_In"
-    set_psig = float(np.clip(set_psig, 5.0, 140.0))
-    supply["house_psig"] = round(set_psig + sup["house_margin_psi"], 2)
-    notes["supply.house_psig"] = ASSUMED
-    supply["regulator_set_psig"] = round(set_psig, 2)
-    notes["supply.regulator_set_psig"] = how
-    for key in ("regulator_cv", "reservoir_volume_l"):
-        supply[key] = sup[key]
-        notes[f"supply.{key}"] = ASSUMED
-    supply["line_cv"] = round(float(np.clip(line_cv, 0.02, 50.0)), 4)
-    notes["supply.line_cv"] = how
-    supply["manifold_volume_l"] = sup["manifold_volume_l"]
-    notes["supply.manifold_volume_l"] = ASSUMED
-    data["supply"] = supply
+    data["machine"] = _draft_machine_table(rec, name, len(recordings), notes)
+    data["supply"] = _draft_supply(rec, notes)
     if vacuum is not None:
-        data["vacuum"] = {"id": vacuum, **DEFAULTS["vacuum"]}
-        for key in DEFAULTS["vacuum"]:
-            notes[f"vacuum.{key}"] = ASSUMED
-    # ------------------------------------------------------------ actuators
-    actuators = []
-    for i, ident in enumerate(ids):
-        d = DEFAULTS["actuator"]
-        act: dict[str, Any] = {"id": ident, "model": DRAFT_MODEL}
-        for key, value in d.items():
-            act[key] = value
-            notes[f"actuator[{i}].{key}"] = ASSUMED
-        if f"X_{ident}" in rec.channels:
-            x = rec.channel(f"X_{ident}")[1].astype(np.float64) * 1e3
-            lo, hi = np.nanpercentile(x, [1, 99])
-            act["stroke_mm"] = round(float(hi - lo), 1)
-            notes[f"actuator[{i}].stroke_mm"] = f"from X_{ident}"
-        has_b = f"U_{ident}_B" in rec.channels
-        closed = _closed_centre(rec, ident) if has_b else None
-        kind = "5/2-bistable" if has_b else "5/2-monostable"
-        if closed:
-            kind = "5/3-closed-centre"
-        at_b = f"S_{ident}_B" in rec.channels and int(rec.channel(f"S_{ident}_B")[1][0]) == 1
-        act["initial"] = "extended" if at_b and has_b else "retracted"
-        notes[f"actuator[{i}].initial"] = "from the switches at the start"
-        act["valve"] = {"kind": kind, **DEFAULTS["valve"]}
-        valve_how = (
-            "kind from the solenoids and line pressures"
-            if closed is not None
-            else "kind from the solenoids"
-        )
-        notes[f"actuator[{i}].valve"] = f"{valve_how}; cv, xt assumed"
-        actuators.append(act)
-    data["actuator"] = actuators
-    # ------------------------------------------------------------ sensors
-    sensors: list[dict[str, Any]] = []
-    for name_ in rec.analog_channels:
-        values = rec.channel(name_)[1].astype(np.float64)
-        if name_ in ("P_In", "Q_In"):
-            location = "supply"
-        elif (name_[:2] in ("P_", "Q_") and name_[2:-2] in ids) or (
-            name_.startswith("X_") and name_[2:] in ids
-        ):
-            location = name_[2:]
-        else:
-            continue
-        kind = {"P": "pressure", "Q": "flow", "X": "position"}[name_[0]]
-        if kind == "pressure":
-            shown = (values - P_ATM) / 1e5
-            rng = [0.0, 10.0 if np.nanmax(shown) < 9.5 else 16.0]
-        elif kind == "flow":
-            shown = np.asarray(kg_s_to_slpm(values))
-            top = float(np.nanmax(shown))
-            rng = [0.0, float(next((r for r in (50, 200, 500, 1000, 5000) if r > top), 10000))]
-        else:
-            shown = values * 1e3
-            lo, hi = float(np.nanmin(shown)), float(np.nanmax(shown))
-            pad = 0.15 * (hi - lo) + 5.0
-            rng = [round(lo - pad, 1), round(hi + pad, 1)]
-        diffs = np.diff(shown[np.isfinite(shown)])
-        noise = float(np.median(np.abs(diffs)) / 0.6745 / np.sqrt(2.0)) if diffs.size else 0.0
-        sensor: dict[str, Any] = {"channel": name_, "kind": kind, "location": location}
-        sensor["range"] = rng
-        sensor["noise"] = round(noise, 4)
-        k = len(sensors)
-        notes[f"sensor[{k}].range"] = ASSUMED + " (a standard range above the data)"
-        notes[f"sensor[{k}].noise"] = "from the sample-to-sample scatter"
-        if kind == "flow":
-            sensor["direction"] = "forward" if np.nanmin(shown) > -0.5 else "bidirectional"
-            sensor["time_constant_s"] = 0.015
-            notes[f"sensor[{k}].time_constant_s"] = ASSUMED
-        sensors.append(sensor)
-    data["sensor"] = sensors
-    # ------------------------------------------------------------ sequence
-    steps = []
-    for j, spec in enumerate(sequence):
-        do: list[dict[str, Any]] = []
-        rising = sorted(s for s, state in spec.switches if state == 1)
-        falling = sorted(s for s, state in spec.switches if state == 0)
-        for event in sorted(spec.valves):
-            if event.endswith(RELEASE):
-                do.append({"reset": event.removesuffix(RELEASE)})
-                continue
-            ident, _, side = event[2:].rpartition("_")
-            arrival = None
-            if ident in ids and side in "AB":
-                target = f"S_{ident}_{'B' if side == 'A' else 'A'}"
-                arrival = target if target in rec.channels else None
-            mode, width = _release_mode(rec, event, starts[:, j], ends[:, j], arrival)
-            if mode == "until" and arrival is not None:
-                do.append({"set": event, "until": arrival})
-            elif mode == "pulse":
-                do.append({"set": event, "for_s": width})
-            else:
-                do.append({"set": event})
-        step: dict[str, Any] = {"name": f"step {j + 1}: " + ", ".join(sorted(spec.valves))}
-        step["do"] = do
-        until = sorted(a["until"] for a in do if "until" in a)
-        awaited: list[tuple[str, int]] = [(s, 1) for s in rising]
-        if rising != until:
-            step["wait"] = rising
-        if not rising and falling:
-            step["wait_off"] = falling
-            awaited = [(s, 0) for s in falling]
-        gaps = [
-            ends[c, j] - _awaited_edge_times(rec, awaited, starts[c, j], ends[c, j])
-            for c in range(len(cycles))
-        ]
-        dwell = _median(gaps)
-        if dwell >= 0.03:
-            step["dwell_s"] = round(dwell, 2)
-        steps.append(step)
-    data["step"] = steps
+        data["vacuum"] = _draft_vacuum(vacuum, notes)
+    data["actuator"] = [_draft_actuator(rec, i, ident, notes) for i, ident in enumerate(ids)]
+    data["sensor"] = _draft_sensors(rec, ids, notes)
+    data["step"] = [
+        _draft_step(rec, j, spec, ids, starts[:, j], ends[:, j]) for j, spec in enumerate(sequence)
+    ]
     return DraftedMachine(data, notes)

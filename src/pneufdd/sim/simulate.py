@@ -262,6 +262,147 @@ def _check_args(cycles: int, seed: int | None, max_cycle_s: float) -> None:
         raise InputError(describe("max_cycle_s", max_cycle_s, "> 0 [s]"))
 
 
+class _CycleLoop:
+    """One run's state from cycle to cycle, and what its cycles produced.
+
+    Holds the compiled kernel's records over the plant, the machine state and the
+    output buffers (from the pool: sized for :data:`BUFFER_START_S`, grown to
+    ``max_cycle_s`` when a cycle overflows them), the house-air drift carried over
+    cycles, and each cycle's samples, step starts and strokes. Every random
+    quantity comes from ``rng``, in the order of the cycles.
+    """
+
+    def __init__(
+        self,
+        desc: MachineDescription,
+        plant: Plant,
+        state: dict[str, npt.NDArray[Any]],
+        sensors: Sequence[Sensor | None],
+        rng: np.random.Generator,
+        cycles: int,
+        max_cycle_s: float,
+    ) -> None:
+        self.desc, self.plant, self.state, self.rng = desc, plant, state, rng
+        self.cycles, self.max_cycle_s = cycles, max_cycle_s
+        na = len(desc.actuators)
+        nsteps = len(desc.steps)
+        self.dims = (2 + 2 * na, na, plant.n_solenoids, plant.n_switches, nsteps)
+        self.n_max = int(max_cycle_s / SAMPLE_DT) + 2
+        self.n_buf = min(self.n_max, int(BUFFER_START_S / SAMPLE_DT) + 2)
+        self.start_shape: BufferShape = (self.n_buf, *self.dims)
+        self.buf = self.pooled = _POOL.take(self.start_shape)
+        self.n_recorded = sum(sensor is not None for sensor in sensors)
+        self.n_ou = int(max_cycle_s / 0.1) + 4
+        drift_std = plant.sp[lay.SP_DRIFT_STD]
+        self.ou_now = rng.normal(0.0, drift_std) if drift_std > 0 else 0.0
+        self.chunks: list[dict[str, npt.NDArray[Any]]] = []
+        self.step_start = np.zeros((cycles, nsteps))
+        self.strokes: list[Stroke] = []
+        self.total_sub = 0
+        self.timeline: list[dict[str, Any]] = []
+        self.params, self.program, self.records_state, self.outputs = _records(
+            plant, state, self.buf
+        )
+        self._run_cycle = compiled_twin().run_cycle
+        self.truth_sources = _truth_sources(desc, sensors)
+
+    def release(self) -> None:
+        """Give the pooled buffers back (the run's result holds copies)."""
+        _POOL.give(self.start_shape, self.pooled)
+
+    def _draws(self, cyc: int) -> CycleDraws:
+        """The random quantities of cycle ``cyc``: scan jitter, friction, house drift."""
+        desc, plant, rng = self.desc, self.plant, self.rng
+        jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], len(desc.steps))
+        if cyc == self.cycles - 1:
+            jitter[-1] += RUN_END_IDLE_S
+        na = len(desc.actuators)
+        fric = np.clip(1.0 + desc.friction_scatter * rng.standard_normal(na), 0.5, 1.5)
+        tau = desc.supply.house_drift_time_s
+        ou = _ou_grid(rng, self.ou_now, plant.sp[lay.SP_DRIFT_STD], tau, self.n_ou)
+        return CycleDraws(jitter, fric, ou)
+
+    def _run_kernel(self, draws: CycleDraws) -> tuple[int, int, int, int]:
+        """One cycle of the kernel: ``(samples, status, strokes, substeps)``."""
+        start_state = {name: arr.copy() for name, arr in self.state.items()}
+        run = self._run_cycle
+        n, status, n_ev, nsub = run(
+            self.params, self.program, draws, self.records_state, self.outputs
+        )
+        while status != 0 and self.n_buf < self.n_max:
+            # buffers full before max_cycle_s: same cycle again, from the same state
+            for name, arr in start_state.items():
+                self.state[name][...] = arr
+            self.n_buf = self.n_max
+            self.buf = _Buffers(self.n_buf, *self.dims)
+            self.outputs = Outputs(*(getattr(self.buf, name) for name in Outputs._fields))
+            n, status, n_ev, nsub = run(
+                self.params, self.program, draws, self.records_state, self.outputs
+            )
+        return n, status, n_ev, nsub
+
+    def _cycle_strokes(self, cyc: int, n_ev: int) -> list[Stroke]:
+        """The strokes the kernel completed in cycle ``cyc`` (``n_ev`` of them)."""
+        buf = self.buf
+        return [
+            Stroke(
+                self.desc.actuators[int(buf.ev_act[e])].id,
+                int(buf.ev_dir[e]),
+                float(buf.ev_t0[e, 0]),
+                float(buf.ev_t1[e]),
+                int(np.searchsorted(self.step_start[: cyc + 1, 0], buf.ev_t0[e, 1], "right")) - 1,
+                float(buf.ev_t0[e, 1]),
+            )
+            for e in range(n_ev)
+        ]
+
+    def cycle(
+        self,
+        cyc: int,
+        specs: list[LeakSpec],
+        schedule: LeakSchedule | None,
+        keep_outputs: bool,
+    ) -> None:
+        """Simulate cycle ``cyc`` and keep what it produced.
+
+        Raises
+        ------
+        MachineStalledError
+            If the cycle does not end within ``max_cycle_s``.
+        """
+        state = self.state
+        draws = self._draws(cyc)
+        t_start = float(state["ss"][lay.SS_TIME])
+        k_start = int(state["istate"][lay.IS_SAMPLE])
+        if schedule is not None:
+            self.timeline += _apply_schedule(self.plant, self.desc, specs, schedule, t_start, cyc)
+        n, status, n_ev, nsub = self._run_kernel(draws)
+        self.total_sub += nsub
+        if status != 0:
+            step_now = int(state["istate"][lay.IS_STEP])
+            raise MachineStalledError(
+                _stall_message(self.desc, cyc, step_now, len(specs), self.max_cycle_s)
+            )
+        elapsed = float(state["ss"][lay.SS_TIME]) - t_start
+        self.ou_now = float(np.interp(elapsed / 0.1, np.arange(self.n_ou), draws.ou))
+        self.step_start[cyc] = self.buf.step_t
+        self.strokes += self._cycle_strokes(cyc, n_ev)
+        done = k_start + n  # samples so far: the run's length follows from them
+        expected = done * self.cycles // (cyc + 1) + 1000
+        store = self.pooled.truth_store(self.n_recorded, k_start, done, expected)
+        self.chunks.append(_take(self.truth_sources, self.buf, n, k_start, keep_outputs, store))
+
+
+def _with_schedule(
+    result: SimulationResult, schedule: LeakSchedule, timeline: list[dict[str, Any]]
+) -> SimulationResult:
+    """``result`` with the leak schedule and its timeline in the metadata."""
+    meta = dict(result.recording.metadata)
+    meta["leak_schedule"] = schedule.as_metadata()
+    meta["leak_timeline"] = timeline
+    return replace(result, recording=result.recording.with_metadata(meta))
+
+
 def run_simulation(
     machine: MachineLike,
     cycles: int = 1,
@@ -319,100 +460,33 @@ def run_simulation(
     plant = compile_plant(desc, specs, resolution)
     if schedule is not None:
         schedule.check(desc, specs)
-    timeline: list[dict[str, Any]] = []
     rng = np.random.default_rng(seed)
     state = initial_state(desc, plant)
     plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
-    na = len(desc.actuators)
-    nn = 2 + 2 * na
-    nsteps = len(desc.steps)
-    n_max = int(max_cycle_s / SAMPLE_DT) + 2
-    n_buf = min(n_max, int(BUFFER_START_S / SAMPLE_DT) + 2)
-    start_shape: BufferShape = (n_buf, nn, na, plant.n_solenoids, plant.n_switches, nsteps)
-    buf = pooled = _POOL.take(start_shape)
-    n_recorded = sum(sensor is not None for sensor in sensors)
-    n_ou = int(max_cycle_s / 0.1) + 4
-    ou_now = rng.normal(0.0, plant.sp[lay.SP_DRIFT_STD]) if plant.sp[lay.SP_DRIFT_STD] > 0 else 0.0
-    chunks: list[dict[str, npt.NDArray[Any]]] = []
-    step_start = np.zeros((cycles, nsteps))
-    strokes: list[Stroke] = []
-    total_sub = 0
-    params, program, records_state, outputs = _records(plant, state, buf)
-    run_cycle = compiled_twin().run_cycle
-    truth_sources = _truth_sources(desc, sensors)
+    run = _CycleLoop(desc, plant, state, sensors, rng, cycles, max_cycle_s)
     try:
         for cyc in range(cycles):
-            jitter = rng.uniform(0.0, plant.sp[lay.SP_SCAN], nsteps)
-            if cyc == cycles - 1:
-                jitter[-1] += RUN_END_IDLE_S
-            fric = np.clip(1.0 + desc.friction_scatter * rng.standard_normal(na), 0.5, 1.5)
-            tau = desc.supply.house_drift_time_s
-            ou = _ou_grid(rng, ou_now, plant.sp[lay.SP_DRIFT_STD], tau, n_ou)
-            t_start = float(state["ss"][lay.SS_TIME])
-            k_start = int(state["istate"][lay.IS_SAMPLE])
-            if schedule is not None:
-                timeline += _apply_schedule(plant, desc, specs, schedule, t_start, cyc)
-            draws = CycleDraws(jitter, fric, ou)
-            start_state = {name: arr.copy() for name, arr in state.items()}
-            n, status, n_ev, nsub = run_cycle(params, program, draws, records_state, outputs)
-            while status != 0 and n_buf < n_max:
-                # buffers full before max_cycle_s: same cycle again, from the same state
-                for name, arr in start_state.items():
-                    state[name][...] = arr
-                n_buf = n_max
-                buf = _Buffers(n_buf, nn, na, plant.n_solenoids, plant.n_switches, nsteps)
-                outputs = Outputs(*(getattr(buf, name) for name in Outputs._fields))
-                n, status, n_ev, nsub = run_cycle(params, program, draws, records_state, outputs)
-            total_sub += nsub
-            if status != 0:
-                step_now = int(state["istate"][lay.IS_STEP])
-                raise MachineStalledError(
-                    _stall_message(desc, cyc, step_now, len(specs), max_cycle_s)
-                )
-            elapsed = float(state["ss"][lay.SS_TIME]) - t_start
-            ou_now = float(np.interp(elapsed / 0.1, np.arange(n_ou), ou))
-            step_start[cyc] = buf.step_t
-            for e in range(n_ev):
-                strokes.append(
-                    Stroke(
-                        desc.actuators[int(buf.ev_act[e])].id,
-                        int(buf.ev_dir[e]),
-                        float(buf.ev_t0[e, 0]),
-                        float(buf.ev_t1[e]),
-                        int(np.searchsorted(step_start[: cyc + 1, 0], buf.ev_t0[e, 1], "right"))
-                        - 1,
-                        float(buf.ev_t0[e, 1]),
-                    )
-                )
-            done = k_start + n  # samples so far: the run's length follows from them
-            expected = done * cycles // (cyc + 1) + 1000
-            store = pooled.truth_store(n_recorded, k_start, done, expected)
-            chunks.append(_take(truth_sources, buf, n, k_start, keep_outputs, store))
+            run.cycle(cyc, specs, schedule, keep_outputs)
             if progress is not None:
                 progress(cyc + 1, cycles)
         result = _assemble(
             desc,
             sensors,
-            pooled.truth,
+            run.pooled.truth,
             int(state["istate"][lay.IS_SAMPLE]),
             plant,
             specs,
-            chunks,
-            step_start,
-            strokes,
+            run.chunks,
+            run.step_start,
+            run.strokes,
             rng,
             seed,
             cycles,
-            total_sub,
+            run.total_sub,
         )
     finally:
-        _POOL.give(start_shape, pooled)
-    if schedule is None:
-        return result
-    meta = dict(result.recording.metadata)
-    meta["leak_schedule"] = schedule.as_metadata()
-    meta["leak_timeline"] = timeline
-    return replace(result, recording=result.recording.with_metadata(meta))
+        run.release()
+    return result if schedule is None else _with_schedule(result, schedule, run.timeline)
 
 
 def _apply_schedule(

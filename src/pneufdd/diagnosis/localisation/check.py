@@ -26,15 +26,23 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
 from pneufdd.array_types import FloatArray
+from pneufdd.errors import InputError, describe
 from pneufdd.parallel import thread_map
 
-__all__ = ["SimulatedFit", "refine_all", "refine_by_simulation", "verify_explanations"]
+__all__ = [
+    "SimulatedFit",
+    "SimulationCheckSettings",
+    "refine_all",
+    "refine_by_simulation",
+    "verify_explanations",
+]
 
 Subset = tuple[int, ...]
 SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
@@ -402,35 +410,246 @@ def _pair_rss(fits: Mapping[Subset, tuple[FloatArray, float]], a: int, b: int) -
     return math.inf if fit is None else fit[1]
 
 
+_COUNTS = ("top_singles", "partners", "probed_locations", "top_pairs", "max_iterations")
+"""The settings of :class:`SimulationCheckSettings` that count something."""
+
+
+@dataclass(frozen=True)
+class SimulationCheckSettings:
+    """Which explanations :func:`verify_explanations` checks, and how far it sizes them.
+
+    Attributes
+    ----------
+    top_singles : int
+        Best single leaks of the signature model sized by simulation (step 1) [-].
+    partners : int
+        Best pairs found by probing beside the best single leak that are then sized
+        by simulation (step 2) [-].
+    probed_locations : int
+        Second leaks probed in step 2: the locations whose signature-model pair with
+        the first leak fits best (0: every location) [-].
+    probe_size : float
+        Size at which second leaks are probed (40 SLPM by default) [kg/s].
+    top_pairs : int
+        Best pairs of the signature model sized by simulation (step 3) [-].
+    min_pair_flow : float
+        Smallest leak of a signature-model pair worth checking in step 3 [kg/s].
+    max_iterations : int
+        Gauss-Newton steps per explanation at most [-].
+    keep_within : float
+        An explanation stops being sized when it cannot come within this ratio of
+        the best simulated residual so far (:func:`refine_all`; inf: never) [-].
+
+    Examples
+    --------
+    >>> SimulationCheckSettings(top_pairs=0).partners
+    3
+    >>> SimulationCheckSettings(keep_within=0.5)
+    Traceback (most recent call last):
+    ...
+    pneufdd.errors.InputError: check setting keep_within: received 0.5; allowed: >= 1 (inf: off)
+    """
+
+    top_singles: int = 2
+    partners: int = 3
+    probed_locations: int = 0
+    probe_size: float = 8.6e-4
+    top_pairs: int = 3
+    min_pair_flow: float = 0.0
+    max_iterations: int = 3
+    keep_within: float = math.inf
+
+    def __post_init__(self) -> None:
+        for name in _COUNTS:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise InputError(describe(f"check setting {name}", value, "an integer >= 0"))
+        if not (math.isfinite(self.probe_size) and self.probe_size > 0):
+            raise InputError(
+                describe("check setting probe_size", self.probe_size, "a finite size > 0 [kg/s]")
+            )
+        if not (math.isfinite(self.min_pair_flow) and self.min_pair_flow >= 0):
+            raise InputError(
+                describe("check setting min_pair_flow", self.min_pair_flow, "a finite flow >= 0")
+            )
+        if not self.keep_within >= 1:
+            raise InputError(
+                describe("check setting keep_within", self.keep_within, ">= 1 (inf: off)")
+            )
+
+
+def _best_first(
+    model_fits: Mapping[Subset, tuple[FloatArray, float]],
+    n_leaks: int,
+    min_flow: float | None = None,
+) -> list[Subset]:
+    """Subsets of ``n_leaks`` locations, smallest signature-model residual first.
+
+    With ``min_flow``, only those whose sizes are all at least that [kg/s].
+    """
+    return [
+        sub
+        for _, sub in sorted(
+            (fit[1], sub)
+            for sub, fit in model_fits.items()
+            if len(sub) == n_leaks and (min_flow is None or np.all(fit[0] >= min_flow))
+        )
+    ]
+
+
+def _probed_locations(
+    model_fits: Mapping[Subset, tuple[FloatArray, float]],
+    first: int,
+    n_locations: int,
+    probes: int,
+) -> list[int]:
+    """The second leaks to probe beside ``first``: all, or the ``probes`` best partners."""
+    others = [o for o in range(n_locations) if o != first]
+    if 0 < probes < len(others):
+        # the signature model's best partners of the first leak
+        others.sort(key=lambda o: _pair_rss(model_fits, first, o))
+        others = others[:probes]
+    return others
+
+
+class _Check:
+    """The explanations of one run sized by simulation so far, in the order sized."""
+
+    def __init__(
+        self,
+        target: FloatArray,
+        simulate: SimulatedEffect,
+        upper: FloatArray,
+        settings: SimulationCheckSettings,
+        slopes: Slopes | None,
+        threads: int,
+    ) -> None:
+        self.target = target
+        self.simulate = simulate
+        self.upper = upper
+        self.settings = settings
+        self.slopes = slopes
+        self.threads = threads
+        self.checked: dict[Subset, SimulatedFit] = {}
+
+    def size(
+        self,
+        candidates: Iterable[tuple[Subset, FloatArray]],
+        measured: Mapping[Subset, FloatArray] | None = None,
+    ) -> None:
+        """Size the ``(subset, start)`` not sized yet as one batch (:func:`refine_all`).
+
+        ``measured``: Jacobians measured by earlier simulations, used instead of the
+        signature model's slopes to judge a start.
+        """
+        todo: dict[Subset, FloatArray] = {}
+        for sub, start in candidates:
+            if sub not in self.checked and sub not in todo:
+                todo[sub] = start
+        estimates = None
+        if self.slopes is not None:
+            known = measured or {}
+            estimates = {
+                sub: known[sub] if sub in known else self.slopes(sub, start)
+                for sub, start in todo.items()
+            }
+        leader = min((fit.rss for fit in self.checked.values()), default=math.inf)
+        self.checked.update(
+            refine_all(
+                todo,
+                self.target,
+                self.simulate,
+                self.upper,
+                self.settings.max_iterations,
+                self.threads,
+                self.settings.keep_within,
+                leader,
+                estimates,
+            )
+        )
+
+    def partners_of_best_single(
+        self, model_fits: Mapping[Subset, tuple[FloatArray, float]], n_locations: int
+    ) -> tuple[list[tuple[Subset, FloatArray]], dict[Subset, FloatArray]]:
+        """Step 2: the best pairs found by probing beside the best single leak.
+
+        Returns their starts ``(pair, sizes [kg/s])``, best first, and the Jacobian
+        each probe measured [1/(kg/s)].
+        """
+        firsts = sorted((fit.rss, sub) for sub, fit in self.checked.items() if len(sub) == 1)
+        if not firsts or self.settings.partners <= 0:
+            return [], {}
+        first = firsts[0][1][0]
+        size = float(self.checked[(first,)].sizes[0])
+        base = self.simulate({first: size})
+        if base is None:
+            return [], {}
+        others = _probed_locations(model_fits, first, n_locations, self.settings.probed_locations)
+        ranked = self._probe(first, base, others)
+        starts: list[tuple[Subset, FloatArray]] = []
+        jacobians: dict[Subset, FloatArray] = {}
+        for _, other, step, columns in ranked[: self.settings.partners]:
+            sizes = {first: float(size + step[0]), other: float(step[1])}
+            pair = tuple(sorted(sizes))
+            starts.append((pair, np.array([sizes[i] for i in pair])))
+            jacobians[pair] = columns if pair[0] == first else columns[:, ::-1]
+        return starts, jacobians
+
+    def _probe(
+        self, first: int, base: FloatArray, others: Sequence[int]
+    ) -> list[tuple[float, int, FloatArray, FloatArray]]:
+        """Second leaks ranked by how well they explain what ``first`` leaves.
+
+        Each is simulated at the probe size beside the first leak as sized; a bounded
+        linear fit of both sizes to the rest of the data gives ``(rss [-], location,
+        size changes [kg/s], Jacobian [1/(kg/s)])``, best first.
+        """
+        size, _, slope = self.checked[(first,)]
+        probe = self.settings.probe_size
+        rest = self.target - base
+        probed_all = thread_map(
+            lambda other: self.simulate({first: float(size[0]), other: probe}),
+            others,
+            self.threads,
+        )
+        ranked = []
+        for other, probed in zip(others, probed_all, strict=True):
+            if probed is None:
+                continue
+            columns = np.column_stack([slope[:, 0], (probed - base) / probe])
+            step = lsq_linear(
+                columns,
+                rest,
+                bounds=([-size[0], 0.0], [self.upper[first] - size[0], self.upper[other]]),
+            ).x
+            residual = rest - columns @ step
+            ranked.append((float(residual @ residual), other, step, columns))
+        return sorted(ranked, key=lambda r: r[0])
+
+
 def verify_explanations(
     target: FloatArray,
     model_fits: Mapping[Subset, tuple[FloatArray, float]],
     n_locations: int,
     simulate: SimulatedEffect,
     upper: FloatArray,
-    min_flow: float = 0.0,
-    top_singles: int = 2,
-    top_pairs: int = 3,
-    partners: int = 3,
-    probe: float = 8.6e-4,
-    max_iterations: int = 3,
-    probes: int = 0,
-    threads: int = 1,
-    keep_within: float = math.inf,
+    settings: SimulationCheckSettings | None = None,
+    *,
     slopes: Slopes | None = None,
+    threads: int = 1,
 ) -> dict[Subset, SimulatedFit]:
     """Simulate and size the most promising explanations of one or two leaks.
 
     1. The ``top_singles`` best single leaks of the signature model, sized by
        simulation.
-    2. Next to the best of them, the other locations are *probed* (the ``probes``
-       whose signature-model pair with it fits best, or all): simulated at size
-       ``probe`` beside it, which gives its effect in the presence of the first leak
-       (the interaction included); a bounded linear fit of both sizes to the data
-       ranks the second leaks, and the ``partners`` best pairs are sized by
-       simulation.
+    2. Next to the best of them, the other locations are *probed* (the
+       ``probed_locations`` whose signature-model pair with it fits best, or all):
+       simulated at size ``probe_size`` beside it, which gives its effect in the
+       presence of the first leak (the interaction included); a bounded linear fit of
+       both sizes to the data ranks the second leaks, and the ``partners`` best pairs
+       are sized by simulation.
     3. The ``top_pairs`` best pairs of the signature model whose sizes are all at
-       least ``min_flow``, sized by simulation.
+       least ``min_pair_flow``, sized by simulation.
 
     Parameters
     ----------
@@ -445,24 +664,9 @@ def verify_explanations(
         See :func:`refine_by_simulation`.
     upper : ndarray, shape (n_locations,)
         Largest size of each location [kg/s].
-    min_flow : float
-        Smallest leak of a signature-model pair worth checking [kg/s].
-    top_singles, top_pairs, partners : int
-        Numbers of explanations checked in steps 1, 3 and 2 [-].
-    probe : float
-        Size at which second leaks are probed (40 SLPM by default) [kg/s].
-    max_iterations : int
-        Gauss-Newton steps per explanation at most [-].
-    probes : int
-        Second leaks probed in step 2 (0: every location) [-].
-    threads : int
-        Simulations that run at once (:func:`refine_all`; the probes); the partners
-        of step 2 and the pairs of step 3 are one batch. ``simulate`` must then be
-        thread-safe. The result does not depend on it: every explanation is sized
-        from the same start and kept in the same order as on one thread.
-    keep_within : float
-        An explanation stops being sized when it cannot come within this ratio of
-        the best simulated residual so far (:func:`refine_all`; inf: never) [-].
+    settings : SimulationCheckSettings, optional
+        How many explanations of each step are checked and how far they are sized
+        (None: the defaults).
     slopes : callable, optional
         ``slopes(subset, sizes)``: the signature model's derivative of the whitened
         effect by size at ``sizes`` [1/(kg/s)]. With it, each explanation's start
@@ -470,6 +674,11 @@ def verify_explanations(
         (``estimates`` of :func:`refine_all`): by these slopes, and a partner of
         step 2 by the Jacobian its probe measured (the first leak's from its own
         sizing, the second's from the probe's change).
+    threads : int
+        Simulations that run at once (:func:`refine_all`; the probes); the partners
+        of step 2 and the pairs of step 3 are one batch. ``simulate`` must then be
+        thread-safe. The result does not depend on it: every explanation is sized
+        from the same start and kept in the same order as on one thread.
 
     Returns
     -------
@@ -490,89 +699,23 @@ def verify_explanations(
     ...     return np.clip(np.linalg.lstsq(A, t, rcond=None)[0], 0.0, None)
     >>> y = sim({0: 2.0, 1: 1.0})
     >>> fits = {s: (fit(s, y), 1.0) for s in [(0,), (1,), (0, 1)]}
-    >>> out = verify_explanations(y, fits, 2, sim, np.array([9.0, 9.0]), probe=0.5)
+    >>> out = verify_explanations(y, fits, 2, sim, np.array([9.0, 9.0]),
+    ...                           SimulationCheckSettings(probe_size=0.5))
     >>> sizes, rss, _ = out[(0, 1)]
     >>> [round(float(v), 2) for v in sizes], rss < 1e-4
     ([2.0, 1.0], True)
     """
-    singles = sorted((fit[1], sub) for sub, fit in model_fits.items() if len(sub) == 1)
-    pairs = sorted(
-        (fit[1], sub)
-        for sub, fit in model_fits.items()
-        if len(sub) == 2 and np.all(fit[0] >= min_flow)
-    )
-    checked: dict[Subset, SimulatedFit] = {}
-
-    def check(
-        candidates: Iterable[tuple[Subset, FloatArray]],
-        measured: Mapping[Subset, FloatArray] | None = None,
-    ) -> None:
-        todo: dict[Subset, FloatArray] = {}
-        for sub, start in candidates:
-            if sub not in checked and sub not in todo:
-                todo[sub] = start
-        estimates = None
-        if slopes is not None:
-            known = measured or {}
-            estimates = {
-                sub: known[sub] if sub in known else slopes(sub, start)
-                for sub, start in todo.items()
-            }
-        leader = min((fit.rss for fit in checked.values()), default=math.inf)
-        checked.update(
-            refine_all(
-                todo,
-                target,
-                simulate,
-                upper,
-                max_iterations,
-                threads,
-                keep_within,
-                leader,
-                estimates,
-            )
-        )
-
-    check((single, model_fits[single][0]) for _, single in singles[:top_singles])
-    firsts = sorted((fit.rss, sub) for sub, fit in checked.items() if len(sub) == 1)
-    partner_starts: list[tuple[Subset, FloatArray]] = []
-    partner_slopes: dict[Subset, FloatArray] = {}
-    if firsts and partners > 0:
-        first = firsts[0][1][0]
-        size, _, slope = checked[(first,)]
-        base = simulate({first: float(size[0])})
-        if base is not None:
-            rest = target - base
-            ranked = []
-            others = [o for o in range(n_locations) if o != first]
-            if 0 < probes < len(others):
-                # the signature model's best partners of the first leak
-                others.sort(key=lambda o: _pair_rss(model_fits, first, o))
-                others = others[:probes]
-            probed_all = thread_map(
-                lambda other: simulate({first: float(size[0]), other: probe}), others, threads
-            )
-            for other, probed in zip(others, probed_all, strict=True):
-                if probed is None:
-                    continue
-                columns = np.column_stack([slope[:, 0], (probed - base) / probe])
-                step = lsq_linear(
-                    columns,
-                    rest,
-                    bounds=([-size[0], 0.0], [upper[first] - size[0], upper[other]]),
-                ).x
-                residual = rest - columns @ step
-                ranked.append((float(residual @ residual), other, step, columns))
-            for _, other, step, columns in sorted(ranked, key=lambda r: r[0])[:partners]:
-                sizes = {first: float(size[0] + step[0]), other: float(step[1])}
-                pair = tuple(sorted(sizes))
-                partner_starts.append((pair, np.array([sizes[i] for i in pair])))
-                partner_slopes[pair] = columns if pair[0] == first else columns[:, ::-1]
+    settings = SimulationCheckSettings() if settings is None else settings
+    check = _Check(target, simulate, upper, settings, slopes, threads)
+    singles = _best_first(model_fits, 1)[: settings.top_singles]
+    check.size((single, model_fits[single][0]) for single in singles)
+    partner_starts, partner_jacobians = check.partners_of_best_single(model_fits, n_locations)
+    pairs = _best_first(model_fits, 2, settings.min_pair_flow)[: settings.top_pairs]
+    model_pairs = [(pair, model_fits[pair][0]) for pair in pairs]
     # the partners and the signature model's pairs are independent: one batch, a
     # partner's start first (as if sized before the model pairs); a model pair that
     # was also a partner the machine could not run is then sized from its own start
-    model_pairs = [(couple, model_fits[couple][0]) for _, couple in pairs[:top_pairs]]
-    check([*partner_starts, *model_pairs], partner_slopes)
+    check.size([*partner_starts, *model_pairs], partner_jacobians)
     partner_pairs = {sub for sub, _ in partner_starts}
-    check((sub, start) for sub, start in model_pairs if sub in partner_pairs)
-    return checked
+    check.size((sub, start) for sub, start in model_pairs if sub in partner_pairs)
+    return check.checked

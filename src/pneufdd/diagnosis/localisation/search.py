@@ -41,7 +41,12 @@ import numpy as np
 from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.piecewise import WhitenedEffects
-from pneufdd.diagnosis.localisation.check import SimulatedEffect, refine_all, verify_explanations
+from pneufdd.diagnosis.localisation.check import (
+    SimulatedEffect,
+    SimulationCheckSettings,
+    refine_all,
+    verify_explanations,
+)
 from pneufdd.diagnosis.localisation.model_choice import (
     Best,
     Explanation,
@@ -82,9 +87,9 @@ class LocalisationSettings:
         When no model passes ``min_relative_gain``, the best single leak is still
         reported if it passes the information criterion and lowers the residual by
         this fraction (:func:`~pneufdd.diagnosis.localisation.model_choice.choose_leak_count`); its
-        confidence is then low. 0: on a scale-2 press-fit-cell plant of acceptance
-        campaign 390M, a 230 SLPM PRESS_A leak was detected, and PRESS_A fitted best,
-        but it explained 20 % of the deviation and nothing was located. 1 turns the
+        confidence is then low. 0: in acceptance testing on a scale-2 press-fit-cell
+        plant, a 230 SLPM PRESS_A leak was detected, and PRESS_A fitted best, but it
+        explained 20 % of the deviation and nothing was located. 1 turns the
         fallback off (references saved before) [-].
     group_ratio : float
         Alternatives whose Akaike-type weight is at least this fraction of the best
@@ -131,10 +136,10 @@ class LocalisationSettings:
         spurious 3-7 SLPM second leak lowered it by 10-44 %) [-].
     group_checks : int
         With simulated explanations, alternatives simulated per leak for its
-        ambiguity group (the signature model's best in that slot). 1: on the 60
-        festo-dsd supply-only pair runs of development campaign 210M, 1 instead of 3
-        reported the same leaks, groups, sizes, confidences and alternatives
-        (references saved before keep their 3) [-].
+        ambiguity group (the signature model's best in that slot). 1: on 60
+        development runs of festo-dsd with two leaks and only supply sensors, 1
+        instead of 3 reported the same leaks, groups, sizes, confidences and
+        alternatives with fewer simulations (references saved before keep their 3) [-].
     probes : int
         With simulated explanations, second leaks probed by simulation beside the
         best single leak: the locations whose signature-model pair with it fits best
@@ -157,9 +162,10 @@ class LocalisationSettings:
     min_leak_confidence : float
         Of two leaks, each must be at least this likely to lie in its ambiguity group
         to be reported; otherwise one leak is reported and the pair is listed as an
-        alternative. 0.5: a reported leak is more likely there than not (a scale-2
-        carton-sorter run of acceptance campaign 390M reported a 5 SLPM second leak at
-        confidence 0.00005); 0 turns the check off (references saved before it) [-].
+        alternative. 0.5: a reported leak is more likely there than not (without the
+        check, a scale-2 carton-sorter run in acceptance testing reported a 5 SLPM
+        second leak at confidence 0.00005); 0 turns the check off (references saved
+        before it) [-].
     group_model_error : bool
         The run's weighting holds the model error of every location in the ambiguity
         groups of the first, noise-weighted explanation, not only of its chosen leaks
@@ -382,19 +388,22 @@ def _check_by_simulation(
     if pairs_too:
         for sub in itertools.combinations(range(n_loc), 2):
             fits.setdefault(sub, model.fit(sub))
+    check = SimulationCheckSettings(
+        partners=3 if pairs_too else 0,
+        probed_locations=settings.probes,
+        top_pairs=3 if pairs_too else 0,
+        min_pair_flow=settings.min_flow,
+        keep_within=settings.keep_within or math.inf,
+    )
     checked = verify_explanations(
         target,
         fits,
         n_loc,
         simulate,
         model.size_cap,
-        settings.min_flow,
-        top_pairs=3 if pairs_too else 0,
-        partners=3 if pairs_too else 0,
-        probes=settings.probes,
-        threads=threads,
-        keep_within=settings.keep_within or math.inf,
+        check,
         slopes=_slopes(model) if settings.keep_within else None,
+        threads=threads,
     )
     if not checked:
         return None
@@ -445,8 +454,9 @@ def _simulate_group_competitors(
     """Size by simulation the locations the signatures rank best in each slot (in place).
 
     Every competitor is sized to the end: it starts from the size of the leak it
-    replaces, often far from its own, and on development campaign 650M one that
-    started 42 times worse than the chosen pair ended as good as it.
+    replaces, often far from its own: in development runs, one whose starting
+    residual was 42 times the chosen pair's ended as good as it, so stopping such a
+    competitor early would have lost it.
     """
     trials: dict[Subset, FloatArray] = {}
     for slot, loc in enumerate(subset):
