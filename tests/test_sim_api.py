@@ -13,6 +13,7 @@ from pneufdd.errors import InputError
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.recording import Recording
 from pneufdd.sim import Leak, load_machine, run_simulation, simulate
+from pneufdd.sim.buffers import OutputBuffers
 from pneufdd.sim.description import Sensor
 from pneufdd.sim.sensors import apply_sensor
 
@@ -193,8 +194,7 @@ def test_recording_some_channels_gives_exactly_those_of_a_full_run() -> None:
 def test_kept_true_signal_rows_grow_and_keep_what_the_run_wrote() -> None:
     # a run's true signals go to rows kept with the pooled buffers; a later run may
     # record more channels over fewer samples than the rows were made for
-    sim = importlib.import_module("pneufdd.sim.simulate")
-    buffers = sim._Buffers(10, 4, 1, 2, 2, 2)
+    buffers = OutputBuffers(10, 4, 1, 2, 2, 2)
     wide = buffers.truth_store(2, 0, 100, 100)
     wide[:, :100] = 7.0
     rows = buffers.truth_store(5, 30, 50, 60)

@@ -15,7 +15,7 @@ model; Fsf weighs each direction half, which cancels F0 as well.
 
 The forces are computed with the piston areas of the description being calibrated.
 For a drafted actuator those areas are assumed; the calibration's size factor
-(:func:`pneufdd.calibration.calibrate._size`) later scales areas and friction
+(:func:`pneufdd.calibration.parameters._size`) later scales areas and friction
 together, and the piston force is linear in the areas, so friction identified at
 the drafted areas stays consistent with the pressures once the size is fitted.
 

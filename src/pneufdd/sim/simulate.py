@@ -16,6 +16,7 @@ from pneufdd import __version__
 from pneufdd.errors import InputError, PneufddError, describe
 from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
+from pneufdd.sim.buffers import POOL, BufferShape, OutputBuffers
 from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
 from pneufdd.sim.description import MachineDescription, Sensor, solenoid_slots
 from pneufdd.sim.layout import SAMPLE_DT
@@ -57,115 +58,6 @@ LeaksLike = Mapping[str, Any] | Iterable[Leak] | None
 
 class MachineStalledError(PneufddError):
     """The machine stopped progressing: a step waited longer than ``max_cycle_s``."""
-
-
-class _Buffers:
-    """Output buffers of the kernel, reused by every cycle of a run and by later runs
-    (:class:`_BufferPool`).
-
-    The per-sample arrays are left uninitialised (``np.empty``): the kernel writes
-    every column of every row it reports, and only those rows are read. Zeroing them
-    (``np.zeros``) cost about 5 ms per run for the 120 s default (``max_cycle_s``):
-    after the first run the C library serves these sizes from its heap, where calloc
-    must clear the memory.
-    """
-
-    def __init__(self, n: int, nn: int, na: int, ns: int, nsw: int, nsteps: int) -> None:
-        nc = 2 * na
-        self.p = np.empty((n, nn))
-        self.x = np.empty((n, na))
-        self.vac = np.empty(n)
-        self.fch = np.empty((n, nc))
-        self.fexh = np.empty((n, nc))
-        self.fleak = np.empty((n, nc))
-        self.fr = np.empty((n, lay.FR_SIZE))
-        self.cum = np.empty((n, lay.CM_SIZE))
-        self.mass = np.empty(n)
-        self.cmd = np.empty((n, ns), dtype=np.uint8)
-        self.sw = np.empty((n, nsw), dtype=np.uint8)
-        self.step = np.empty(n, dtype=np.int64)
-        self.step_t = np.zeros(nsteps)
-        n_ev = 8 * nsteps + 8 * na
-        self.ev_act = np.zeros(n_ev, dtype=np.int64)
-        self.ev_dir = np.zeros(n_ev, dtype=np.int64)
-        self.ev_t0 = np.zeros((n_ev, 2))
-        self.ev_t1 = np.zeros(n_ev)
-        self.truth = np.empty((0, 0))
-
-    def truth_store(
-        self, channels: int, written: int, samples: int, expected: int
-    ) -> npt.NDArray[np.float64]:
-        """Room for the true signals of ``channels`` sensors over ``samples`` samples.
-
-        A run writes each cycle's samples after the ``written`` ones of the cycles
-        before (one row per recorded sensor) and the sensor models read the rows at
-        the end; what a run returns never refers to them. Kept with the buffers, the
-        rows save the page faults of fresh memory: a festo-dsd run of four cycles
-        freed and re-touched about 20 MB of NumPy arrays, about 5,000 page faults
-        (measured, issue 13). When it must grow it makes room for the ``expected``
-        samples of the whole run and keeps the ``written`` ones.
-        """
-        have = self.truth
-        if have.shape[0] < channels or have.shape[1] < samples:
-            grown = np.empty((max(channels, have.shape[0]), max(samples, expected)))
-            grown[: have.shape[0], :written] = have[:, :written]
-            self.truth = grown
-        return self.truth
-
-
-BufferShape = tuple[int, int, int, int, int, int]
-"""``_Buffers`` arguments: samples, nodes, actuators, solenoids, switches, steps."""
-
-
-class _BufferPool:
-    """Kernel buffers kept between runs (thread-safe; at most ``keep`` of them).
-
-    A festo-dsd run's buffers hold about 16 MB: allocated anew for every run, the
-    C library maps fresh pages, and touching them cost about 7 ms per run in page
-    faults (measured, issue 13: one festo-dsd cycle 22.0-22.2 -> 16.1-16.4 ms, mean
-    of 50 runs; four cycles 60.0-67.3 -> 58.6-61.9 ms, within the noise). A run
-    takes a buffer of its shape out of the pool, or allocates one, and gives it back
-    when done; nothing a run returns refers to its buffers (``_take`` copies), so
-    results do not depend on it. Only buffers of the starting size are kept (those
-    for ``max_cycle_s`` are 6 times larger); ``keep`` of 2 serves the two threads of
-    a diagnosis.
-    """
-
-    def __init__(self, keep: int = 2) -> None:
-        self._keep = keep
-        self._lock = threading.Lock()
-        self._free: list[tuple[BufferShape, _Buffers]] = []
-
-    def take(self, shape: BufferShape) -> _Buffers:
-        """A buffer of ``shape``: a kept one (events and step times cleared) or a new one."""
-        with self._lock:
-            for i, (kept, buf) in enumerate(self._free):
-                if kept == shape:
-                    del self._free[i]
-                    buf.step_t[:] = 0.0
-                    buf.ev_act[:] = 0
-                    buf.ev_dir[:] = 0
-                    buf.ev_t0[:] = 0.0
-                    buf.ev_t1[:] = 0.0
-                    return buf
-        return _Buffers(*shape)
-
-    def give(self, shape: BufferShape, buf: _Buffers) -> None:
-        """Keep ``buf`` for a later run (the oldest kept buffer goes when full).
-
-        True-signal rows above ``TRUTH_KEEP_BYTES`` (a long run's) are not kept.
-        """
-        if buf.truth.nbytes > TRUTH_KEEP_BYTES:
-            buf.truth = np.empty((0, 0))
-        with self._lock:
-            self._free.append((shape, buf))
-            del self._free[: -self._keep]
-
-
-_POOL = _BufferPool()
-TRUTH_KEEP_BYTES = 8 * 2**20
-"""Largest true-signal store kept between runs [bytes]: the four-cycle runs of a
-diagnosis's check with every festo-dsd sensor (about 5.3 MB), not a long run's."""
 
 
 class _NoiseStreams:
@@ -290,7 +182,7 @@ class _CycleLoop:
         self.n_max = int(max_cycle_s / SAMPLE_DT) + 2
         self.n_buf = min(self.n_max, int(BUFFER_START_S / SAMPLE_DT) + 2)
         self.start_shape: BufferShape = (self.n_buf, *self.dims)
-        self.buf = self.pooled = _POOL.take(self.start_shape)
+        self.buf = self.pooled = POOL.take(self.start_shape)
         self.n_recorded = sum(sensor is not None for sensor in sensors)
         self.n_ou = int(max_cycle_s / 0.1) + 4
         drift_std = plant.sp[lay.SP_DRIFT_STD]
@@ -308,7 +200,7 @@ class _CycleLoop:
 
     def release(self) -> None:
         """Give the pooled buffers back (the run's result holds copies)."""
-        _POOL.give(self.start_shape, self.pooled)
+        POOL.give(self.start_shape, self.pooled)
 
     def _draws(self, cyc: int) -> CycleDraws:
         """The random quantities of cycle ``cyc``: scan jitter, friction, house drift."""
@@ -334,7 +226,7 @@ class _CycleLoop:
             for name, arr in start_state.items():
                 self.state[name][...] = arr
             self.n_buf = self.n_max
-            self.buf = _Buffers(self.n_buf, *self.dims)
+            self.buf = OutputBuffers(self.n_buf, *self.dims)
             self.outputs = Outputs(*(getattr(self.buf, name) for name in Outputs._fields))
             n, status, n_ev, nsub = run(
                 self.params, self.program, draws, self.records_state, self.outputs
@@ -518,7 +410,7 @@ def _apply_schedule(
 
 
 def _records(
-    plant: Plant, state: dict[str, npt.NDArray[Any]], buf: _Buffers
+    plant: Plant, state: dict[str, npt.NDArray[Any]], buf: OutputBuffers
 ) -> tuple[PlantParams, Program, State, Outputs]:
     """The compiled kernel's records over the plant, its state and the buffers."""
     params = PlantParams(plant.sp, plant.ap, plant.vkind, plant.cp)
@@ -543,7 +435,7 @@ def kernel_arguments(
     desc = load_machine(machine)
     plant = compile_plant(desc, [])
     na = len(desc.actuators)
-    buf = _Buffers(10, 2 + 2 * na, na, plant.n_solenoids, plant.n_switches, len(desc.steps))
+    buf = OutputBuffers(10, 2 + 2 * na, na, plant.n_solenoids, plant.n_switches, len(desc.steps))
     params, program, state, outputs = _records(plant, initial_state(desc, plant), buf)
     draws = CycleDraws(np.zeros(len(desc.steps)), np.ones(na), np.zeros(4))
     return params, program, draws, state, outputs
@@ -574,7 +466,7 @@ def _recorded_sensors(
 
 def _take(
     truth_sources: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
-    buf: _Buffers,
+    buf: OutputBuffers,
     n: int,
     k0: int,
     keep: bool,
