@@ -9,7 +9,19 @@ section 5.3.1.1 (Figs. 5.6 -> 5.7): step ``j`` of any cycle is comparable with s
 
 The diagnosis engine only ever sees step tables; turning a
 :class:`~pneufdd.recording.Recording` into one is the job of a thin adapter
-(:mod:`pneufdd.features.step_summaries`) over the segmentation of :mod:`pneufdd.signals`.
+(:mod:`pneufdd.features.step_summaries`) over the segmentation of :mod:`pneufdd.signals`,
+with the PLC sequence of :func:`pneufdd.signals.segmentation.plc_sequence`.
+
+How it relates to the feature registry (:mod:`pneufdd.features.registry`): the
+registry's named features (motion times, air per stroke, Table 4.4, wavelets) are
+computed by :func:`pneufdd.features.feature_matrix` for the classifiers, the
+evaluation and the ``pneufdd features`` command; the step table is the diagnosis's
+and the monitor's feature set. Its columns (:func:`feature_names`: ``duration@j`` and
+``<channel>.<mean|min|max>@j`` for every analog channel of the sensor set) are not
+registered features, so a feature added to the registry does not change what
+``diagnose`` sees, and ``pneufdd features`` does not output these columns. Per-cycle
+quantities the monitor records come from here too (:meth:`StepTable.cycle_integral`:
+supply air; :meth:`StepTable.cycle_mean`: supply pressure).
 """
 
 from __future__ import annotations
