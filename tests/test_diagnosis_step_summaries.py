@@ -62,6 +62,23 @@ def test_step_summaries_equal_direct_slicing(recording):
     assert np.allclose(table.durations, [[s.duration_s for s in c.steps] for c in cycles])
 
 
+def test_cycle_air_and_pressure_from_the_step_table(recording):
+    """The monitor's per-cycle supply air and pressure (StepTable.cycle_integral/_mean)."""
+    seq = machine_sequence(load_machine("festo-dsd"))
+    cycles, _, _ = segment_cycles(recording, seq)
+    table = step_table(recording, cycles, "festo-dsd", ["P_In", "Q_In"])
+    t, q = recording.channel("Q_In")
+    for i, cycle in enumerate(cycles):
+        # oracle: the rectangle rule over the raw samples of the cycle [kg]
+        inside = (t >= cycle.start_s - 1e-9) & (t < cycle.steps[-1].end_s - 1e-9)
+        direct = np.sum(q[inside]) * (t[1] - t[0])
+        assert table.cycle_integral("Q_In")[i] == pytest.approx(direct, rel=1e-6)
+    assert np.array_equal(table.cycle_mean("P_In"), table.summaries[:, :, 0, 0].mean(axis=1))
+    assert table.cycle_mean("P_In").min() > 5e5  # a supply around 6 bar absolute [Pa]
+    with pytest.raises(InputError, match="Q_DNC_A"):
+        table.cycle_integral("Q_DNC_A")
+
+
 SIG_SIZES_SLPM = (30.0, 55.0)
 
 

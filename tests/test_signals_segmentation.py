@@ -198,3 +198,53 @@ def test_sequence_from_a_machine_description_in_metadata() -> None:
     assert len(seg.complete) == 3
     with pytest.raises(InputError, match="machine"):
         sequence_from_machine(42)
+
+
+def _toy_description() -> dict[str, list[dict[str, list[dict[str, str]]]]]:
+    """The raw TOML mapping of the synthetic machine: set until the far switch, or reset."""
+    steps = []
+    for valves in valve_sets():
+        do = []
+        for v in sorted(valves):
+            if v.endswith(":off"):
+                do.append({"reset": v[:-4]})
+            elif v == "U_VAC":
+                do.append({"set": v})
+            else:
+                act, side = v[2:-2], v[-1]
+                do.append({"set": v, "until": f"S_{act}_{'B' if side == 'A' else 'A'}"})
+        steps.append({"do": do})
+    return {"step": steps}
+
+
+def test_plc_sequence_precedence_given_then_carried_then_learned() -> None:
+    from pneufdd.signals.segmentation import plc_sequence
+
+    rec, _ = make_recording(cycles=4, seed=1, bounce=True)
+    raw = _toy_description()
+    described = rec.with_metadata({"machine": {"name": "toy", "description": raw}})
+    # 3. learned: step 2 (DNC retracts) also awaits S_DNC_B falling, seen in every cycle
+    learned = plc_sequence(rec)
+    assert [s.valves for s in learned] == valve_sets()
+    assert {("S_DNC_A", 1), ("S_DNC_B", 0)} <= learned[1].switches
+    assert learned == learn_sequence(rec)
+    # 2. the carried description beats learning: only the `until` switches rising
+    carried = plc_sequence(described)
+    assert [s.valves for s in carried] == valve_sets()
+    assert carried[1].switches == {("S_DNC_A", 1), ("S_DRQD_A", 1), ("S_HMPL_H_B", 1)}
+    assert plc_sequence(described, carried=False) == learned
+    # 1. a description or a sequence given beats the carried one
+    only_valves = plc_sequence(described, MACHINE)
+    assert only_valves == tuple(MACHINE)
+    assert only_valves[1].switches == frozenset()
+    short = {"step": raw["step"][:2]}
+    assert [s.valves for s in plc_sequence(described, short)] == valve_sets()[:2]
+    assert plc_sequence(machine=raw) == carried
+    # segment() follows the same order and says where the sequence came from
+    assert (segment(rec).source, segment(described).source) == ("learned", "machine")
+    assert [s.valves for s in segment(described).sequence] == valve_sets()
+    assert segment(described).sequence[1].switches == carried[1].switches
+    with pytest.raises(InputError, match="neither a machine nor a recording"):
+        plc_sequence()
+    with pytest.raises(InputError, match="MachineDescription"):
+        plc_sequence(rec, 42)  # type: ignore[arg-type]

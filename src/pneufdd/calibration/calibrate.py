@@ -38,7 +38,7 @@ from pneufdd.calibration.parameters import Parameter, actuator_table, machine_pa
 from pneufdd.calibration.valve import PathIdentification, identify_paths
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.recording.model import Recording
-from pneufdd.signals.segmentation import segment, sequence_from_machine
+from pneufdd.signals.segmentation import plc_sequence, segment
 from pneufdd.sim import MachineDescription, load_machine
 from pneufdd.sim.result import SimulationResult
 from pneufdd.sim.simulate import (
@@ -172,7 +172,7 @@ def measure_evidence(
     NoCompleteCycleError
         If no recording holds a complete cycle of the sequence.
     """
-    sequence = sequence_from_machine(machine)
+    sequence = plc_sequence(machine=machine)
     windows = []
     kept: list[Recording] = []
     for k, rec in enumerate(recordings):

@@ -24,7 +24,7 @@ from pneufdd.classifiers import SignTableClassifier, VectorizedMap
 from pneufdd.errors import InputError, describe
 from pneufdd.features import feature_matrix
 from pneufdd.features.table44 import TABLE_44_NAMES
-from pneufdd.signals.segmentation import sequence_from_machine
+from pneufdd.signals.segmentation import plc_sequence
 from pneufdd.sim import as_exported, load_machine, simulate, vary_machine
 
 __all__ = ["VectorSumCheck", "vector_sum_check"]
@@ -87,7 +87,7 @@ def vector_sum_check(
     """
     desc = load_machine(machine)
     plant = desc if scale == 0 else vary_machine(desc, scale, seed)
-    sequence = sequence_from_machine(desc)
+    sequence = plc_sequence(machine=desc)
     a, b = f"{actuator}_A", f"{actuator}_B"
     runs: list[tuple[str, str, dict[str, str]]] = [("none", "none", {})] * 2
     for s in sizes:

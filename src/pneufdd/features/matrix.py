@@ -37,13 +37,7 @@ from pneufdd.signals.quality import (
     check_sequence_channels,
     usable_cycles,
 )
-from pneufdd.signals.segmentation import (
-    Segmentation,
-    StepSpec,
-    learn_sequence,
-    segment,
-    sequence_from_metadata,
-)
+from pneufdd.signals.segmentation import Segmentation, StepSpec, plc_sequence, segment
 
 __all__ = ["GROUPS", "feature_matrix", "features_of", "labels_of"]
 
@@ -105,7 +99,9 @@ def feature_matrix(
         per stroke, minimum supply pressure), ``table44`` (Table 4.4), ``wavelet``
         (section 5.3.3).
     sequence : sequence of StepSpec, optional
-        The machine's sequence; learned from the first recording when omitted.
+        The machine's sequence. When omitted:
+        :func:`pneufdd.signals.segmentation.plc_sequence` of the first recording (the
+        description it carries, checked first, else learned from its signals).
     options : Options, optional
         Filter cut-off, mother wavelet, validity threshold, detection fractions.
     on_missing : {"raise", "nan"}
@@ -136,7 +132,7 @@ def feature_matrix(
         first = names[0] if names is not None else "recording 1"
         try:
             check_carried_description(recs[0], first)
-            sequence = sequence_from_metadata(recs[0].metadata) or learn_sequence(recs[0])
+            sequence = plc_sequence(recs[0])
         except InputError as exc:
             raise naming(exc, first) from exc
     specs = tuple(sequence)

@@ -19,13 +19,7 @@ from pneufdd.errors import InputError, NoCompleteCycleError, describe, naming
 from pneufdd.features.step_table import StepTable
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import usable_cycles
-from pneufdd.signals.segmentation import (
-    Cycle,
-    StepSpec,
-    learn_sequence,
-    segment,
-    sequence_from_machine,
-)
+from pneufdd.signals.segmentation import Cycle, StepSpec, plc_sequence, segment
 from pneufdd.signals.synchronisation import sample_bounds
 from pneufdd.sim import MachineDescription
 
@@ -43,9 +37,10 @@ def machine_sequence(machine: MachineDescription | None) -> tuple[StepSpec, ...]
     """The PLC sequence of a machine description; None without one (then it is learned).
 
     The description's sequence awaits exactly the switches the PLC waits for, which a
-    slow, leaky actuator still reaches inside its step.
+    slow, leaky actuator still reaches inside its step. Step 1 of
+    :func:`pneufdd.signals.segmentation.plc_sequence`.
     """
-    return None if machine is None else sequence_from_machine(machine)
+    return None if machine is None else plc_sequence(machine=machine)
 
 
 def sequence_to_records(sequence: Sequence[StepSpec]) -> list[dict[str, Any]]:
@@ -75,13 +70,19 @@ def segment_cycles(
 ) -> tuple[list[Cycle], tuple[StepSpec, ...], list[str]]:
     """Complete cycles of ``recording``, the sequence used, and why others were skipped.
 
+    The sequence is :func:`pneufdd.signals.segmentation.plc_sequence` with
+    ``carried=False``: ``sequence`` when given (an empty one counts as none), else
+    learned from ``recording`` itself, never from a description the recording carries
+    (the diagnosis resolves the description before, see
+    :func:`pneufdd.diagnosis.machine.resolve_machine`).
+
     Raises
     ------
     NoCompleteCycleError
         If the recording holds no complete cycle.
     """
     try:
-        specs = tuple(sequence) if sequence else learn_sequence(recording)
+        specs = plc_sequence(recording, sequence or None, carried=False)
         seg = segment(recording, specs)
     except InputError as exc:
         raise naming(exc, where) from exc

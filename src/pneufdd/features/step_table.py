@@ -9,7 +9,19 @@ section 5.3.1.1 (Figs. 5.6 -> 5.7): step ``j`` of any cycle is comparable with s
 
 The diagnosis engine only ever sees step tables; turning a
 :class:`~pneufdd.recording.Recording` into one is the job of a thin adapter
-(:mod:`pneufdd.features.step_summaries`) over the segmentation of :mod:`pneufdd.signals`.
+(:mod:`pneufdd.features.step_summaries`) over the segmentation of :mod:`pneufdd.signals`,
+with the PLC sequence of :func:`pneufdd.signals.segmentation.plc_sequence`.
+
+How it relates to the feature registry (:mod:`pneufdd.features.registry`): the
+registry's named features (motion times, air per stroke, Table 4.4, wavelets) are
+computed by :func:`pneufdd.features.feature_matrix` for the classifiers, the
+evaluation and the ``pneufdd features`` command; the step table is the diagnosis's
+and the monitor's feature set. Its columns (:func:`feature_names`: ``duration@j`` and
+``<channel>.<mean|min|max>@j`` for every analog channel of the sensor set) are not
+registered features, so a feature added to the registry does not change what
+``diagnose`` sees, and ``pneufdd features`` does not output these columns. Per-cycle
+quantities the monitor records come from here too (:meth:`StepTable.cycle_integral`:
+supply air; :meth:`StepTable.cycle_mean`: supply pressure).
 """
 
 from __future__ import annotations
@@ -239,6 +251,62 @@ class StepTable:
         # (cycles, steps, channels, stats) -> (cycles, channels, stats, steps)
         per_channel = np.transpose(self.summaries, (0, 2, 3, 1)).reshape(self.n_cycles, -1)
         return np.concatenate([self.durations, per_channel], axis=1)
+
+    # ------------------------------------------------------- per cycle
+    def cycle_integral(self, channel: str) -> FloatArray:
+        """Per cycle: ``channel`` integrated over the cycle from its step means.
+
+        .. math:: I_c = \\sum_j \\bar{x}_{c,j} \\, (t^{end}_{c,j} - t^{start}_{c,j})
+
+        For a mass flow (``Q_In`` [kg/s]) this is the air the cycle took [kg], the
+        per-cycle form of eq. 4.17 the monitor records.
+
+        Parameters
+        ----------
+        channel : str
+            An analog channel of the table.
+
+        Returns
+        -------
+        ndarray, shape (n_cycles,)
+            The integral [channel unit * s].
+
+        Raises
+        ------
+        ChannelError
+            If the channel is not in the table.
+
+        Examples
+        --------
+        >>> t = StepTable("m", np.array([[0.0, 1.0]]), np.array([[1.0, 3.0]]), ("Q_In",),
+        ...               ("kg/s",), np.array([[[[2.0, 0, 0]], [[0.5, 0, 0]]]]))
+        >>> t.cycle_integral("Q_In")
+        array([3.])
+        """
+        means = self.summaries[:, :, self._column(channel), 0]
+        return np.asarray(np.sum(means * self.durations, axis=1))
+
+    def cycle_mean(self, channel: str) -> FloatArray:
+        """Per cycle: the mean of ``channel``'s step means (every step weighs the same).
+
+        Returns
+        -------
+        ndarray, shape (n_cycles,)
+            [channel unit]
+
+        Raises
+        ------
+        ChannelError
+            If the channel is not in the table.
+        """
+        return np.asarray(np.mean(self.summaries[:, :, self._column(channel), 0], axis=1))
+
+    def _column(self, channel: str) -> int:
+        if channel not in self.channels:
+            raise ChannelError(
+                describe("analog channel not in the step table", channel, self.channels)
+            )
+        return self.channels.index(channel)
 
     # ------------------------------------------------------------ subsets
     def select(self, channels: Sequence[str]) -> StepTable:

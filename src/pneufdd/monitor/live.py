@@ -26,8 +26,6 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.diagnosis.engine import Diagnosis, diagnose
 from pneufdd.diagnosis.reference.model import ReferenceModel
@@ -166,15 +164,8 @@ class MachineMonitor:
         if self.state.in_alarm:
             self.alarm_cycles += 1
         pending: list[Alarm] = []
-        durations = table.step_end[0] - table.step_start[0]
-        supply_air = (
-            float(np.sum(table.summaries[0, :, self._q, 0] * durations))
-            if self._q is not None
-            else None
-        )
-        supply_p = (
-            float(np.mean(table.summaries[0, :, self._p, 0])) if self._p is not None else None
-        )
+        supply_air = float(table.cycle_integral("Q_In")[0]) if self._q is not None else None
+        supply_p = float(table.cycle_mean("P_In")[0]) if self._p is not None else None
         with self.history.begin() as conn:
             recorded = self.history.add_cycle(
                 conn,

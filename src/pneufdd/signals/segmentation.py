@@ -22,7 +22,8 @@ Rules (also in ``docs/signals.md``):
   ``U_<ACT>_B`` retracts).
 * **Cycle**: a run of steps whose valve sets equal the machine's sequence, step 1
   first. The sequence comes from the machine description (:class:`StepSpec` list)
-  or is learned from a reference recording (:func:`learn_sequence`).
+  or is learned from a reference recording (:func:`learn_sequence`); which one, is
+  decided in one place for every consumer: :func:`plc_sequence`.
 * **Validation**: every switch edge the sequence awaits in a step (arrival at the
   end position) must occur between that step's start and the next step's start;
   otherwise the cycle is rejected with the reason (stuck or failed switch, aborted
@@ -31,9 +32,9 @@ Rules (also in ``docs/signals.md``):
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -44,6 +45,9 @@ from pneufdd.recording.model import Recording
 from pneufdd.signals.digital import Edges, debounced_edges_many
 from pneufdd.signals.final_step import close_final_step
 
+if TYPE_CHECKING:
+    from pneufdd.sim.description import MachineDescription
+
 __all__ = [
     "Cycle",
     "Segmentation",
@@ -52,6 +56,7 @@ __all__ = [
     "actuator_of",
     "held_valves",
     "learn_sequence",
+    "plc_sequence",
     "segment",
     "sequence_from_machine",
     "sequence_from_metadata",
@@ -518,6 +523,107 @@ def sequence_from_metadata(metadata: dict[str, Any]) -> tuple[StepSpec, ...] | N
     return None
 
 
+def _sequence_and_origin(
+    recording: Recording | None,
+    machine: Any,
+    carried: bool,
+    valve_min_dwell_s: float,
+    switch_min_dwell_s: float,
+) -> tuple[tuple[StepSpec, ...], str]:
+    """:func:`plc_sequence` and where it took it from: given, carried or learned."""
+    if machine is not None:
+        if isinstance(machine, dict) or hasattr(machine, "steps"):
+            return sequence_from_machine(machine), "given"
+        if isinstance(machine, str) or not isinstance(machine, Iterable):
+            raise InputError(
+                describe(
+                    "machine",
+                    type(machine).__name__,
+                    "a MachineDescription, its TOML mapping or a sequence of StepSpec",
+                )
+            )
+        return tuple(machine), "given"
+    if recording is None:
+        raise InputError(
+            describe("PLC sequence", "neither a machine nor a recording", "either of them")
+        )
+    if carried:
+        found = sequence_from_metadata(recording.metadata)
+        if found is not None:
+            return found, "carried"
+    return learn_sequence(recording, valve_min_dwell_s, switch_min_dwell_s), "learned"
+
+
+def plc_sequence(
+    recording: Recording | None = None,
+    machine: MachineDescription | Mapping[str, Any] | Sequence[StepSpec] | None = None,
+    *,
+    carried: bool = True,
+    valve_min_dwell_s: float = DEFAULT_VALVE_DWELL_S,
+    switch_min_dwell_s: float = DEFAULT_SWITCH_DWELL_S,
+) -> tuple[StepSpec, ...]:
+    """The PLC sequence of a recording: the one place that decides where it comes from.
+
+    Order of precedence (``docs/signals.md``, "Sequence"):
+
+    1. ``machine`` when given: a machine description (:func:`sequence_from_machine`),
+       or a sequence itself (e.g. the one a reference stores), taken as it is;
+    2. the machine description carried in ``recording``'s metadata
+       (:func:`sequence_from_metadata`: simulated recordings carry theirs), unless
+       ``carried`` is False;
+    3. learned from ``recording``'s signals (:func:`learn_sequence`, with the
+       debounce dwells given): the recording must start at a cycle start.
+
+    Every consumer takes its sequence from here: :func:`segment` (and so the
+    ``steps`` command, which refuses a malformed carried description first),
+    :func:`pneufdd.features.feature_matrix` (carried description checked first),
+    :func:`pneufdd.features.step_summaries.segment_cycles` and
+    :func:`~pneufdd.features.step_summaries.machine_sequence` (the step table, so the
+    diagnosis, its reference and the monitor, which segments with the sequence its
+    reference stored), the evaluation campaigns and the calibration. One difference
+    is kept on purpose: ``segment_cycles`` passes ``carried=False``, so a run
+    segmented without a sequence (a reference of an old format that stored none)
+    has its sequence learned from its own signals, as it always had. The reference
+    build decides the description before this is called
+    (:func:`pneufdd.diagnosis.machine.resolve_machine`: the description given, else
+    the first of its recordings that carries one, parsed and checked), and without
+    a description learns the sequence from its first recording. Drafting a
+    description (:mod:`pneufdd.calibration.draft`) always learns, with the held
+    solenoids it found itself.
+
+    Parameters
+    ----------
+    recording : Recording, optional
+        The recording to be segmented (needed unless ``machine`` is given).
+    machine : MachineDescription, mapping or sequence of StepSpec, optional
+        The machine description (or its raw TOML mapping), or the sequence itself.
+    carried : bool
+        Use the description carried in the recording's metadata (step 2).
+    valve_min_dwell_s, switch_min_dwell_s : float
+        Debounce dwell of the valve and switch channels when learning [s].
+
+    Returns
+    -------
+    tuple of StepSpec
+
+    Raises
+    ------
+    InputError
+        Neither ``machine`` nor ``recording``; a ``machine`` of another type; or, when
+        learning, a recording without a repeating pattern of at least two cycles.
+
+    Examples
+    --------
+    >>> raw = {"step": [{"do": [{"set": "U_DNC_A", "until": "S_DNC_B"}]},
+    ...                 {"do": [{"set": "U_DNC_B", "until": "S_DNC_A"}]}]}
+    >>> [sorted(s.valves) for s in plc_sequence(machine=raw)]
+    [['U_DNC_A'], ['U_DNC_B']]
+    """
+    return _sequence_and_origin(recording, machine, carried, valve_min_dwell_s, switch_min_dwell_s)[
+        0
+    ]
+
+
 # -------------------------------------------------------------------- learning
 def _period(codes: IntArray, min_match: float) -> int:
     """Smallest period whose repeat rate is within 2 points of the best period's."""
@@ -652,7 +758,8 @@ def segment(
         :func:`learn_sequence` on a reference recording). When omitted, the machine
         description in the recording's metadata is used if there is one
         (:func:`sequence_from_metadata`), else the sequence is learned from
-        ``recording`` itself with the rule of :func:`learn_sequence`.
+        ``recording`` itself with the rule of :func:`learn_sequence`: the order of
+        :func:`plc_sequence`.
     valve_min_dwell_s : float
         Debounce dwell of the valve channels [s] (default 15 ms: one 100 Hz glitch).
     switch_min_dwell_s : float
@@ -663,13 +770,10 @@ def segment(
     -------
     Segmentation
     """
-    source = "machine"
-    if sequence is None:
-        sequence = sequence_from_metadata(recording.metadata)
-    if sequence is None:
-        sequence = learn_sequence(recording, valve_min_dwell_s, switch_min_dwell_s)
-        source = "learned"
-    specs = tuple(sequence)
+    specs, origin = _sequence_and_origin(
+        recording, sequence, True, valve_min_dwell_s, switch_min_dwell_s
+    )
+    source = "learned" if origin == "learned" else "machine"
     if not specs:
         raise InputError(describe("sequence", "an empty sequence", "at least one step"))
     used = set().union(*(s.valves for s in specs))
