@@ -9,11 +9,11 @@ from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.twin import SIGNATURE_SEED, TwinLeakEffect, compute_signatures
 from pneufdd.errors import InputError
 from pneufdd.features.step_summaries import (
+    build_step_table,
     machine_sequence,
     segment_cycles,
     sequence_from_records,
     sequence_to_records,
-    step_table,
     trace_offsets,
 )
 from pneufdd.location import SUPPLY, Location
@@ -45,7 +45,7 @@ def test_step_summaries_equal_direct_slicing(recording):
     seq = machine_sequence(load_machine("festo-dsd"))
     cycles, _, _ = segment_cycles(recording, seq)
     offsets = trace_offsets(cycles, 100.0)
-    table = step_table(recording, cycles, "festo-dsd", ["P_In", "Q_DNC_B"], offsets)
+    table = build_step_table(recording, cycles, "festo-dsd", ["P_In", "Q_DNC_B"], offsets)
     for name, c in (("P_In", 0), ("Q_DNC_B", 1)):
         t, v = recording.channel(name)
         for i, j in [(0, 0), (1, 1), (2, 30)]:
@@ -66,7 +66,7 @@ def test_cycle_air_and_pressure_from_the_step_table(recording):
     """The monitor's per-cycle supply air and pressure (StepTable.cycle_integral/_mean)."""
     seq = machine_sequence(load_machine("festo-dsd"))
     cycles, _, _ = segment_cycles(recording, seq)
-    table = step_table(recording, cycles, "festo-dsd", ["P_In", "Q_In"])
+    table = build_step_table(recording, cycles, "festo-dsd", ["P_In", "Q_In"])
     t, q = recording.channel("Q_In")
     for i, cycle in enumerate(cycles):
         # oracle: the rectangle rule over the raw samples of the cycle [kg]
@@ -88,7 +88,7 @@ def q_in_features():
     rec = simulate("festo-dsd", cycles=3, seed=SEED + 2)
     seq = machine_sequence(load_machine("festo-dsd"))
     cycles, _, _ = segment_cycles(rec, seq)
-    return seq, step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
+    return seq, build_step_table(rec, cycles, "festo-dsd", ["Q_In"]).feature_names()
 
 
 def _q_in_signatures(q_in_features, sizes_slpm, locations):

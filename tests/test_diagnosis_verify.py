@@ -22,7 +22,7 @@ from pneufdd.diagnosis.localisation.check import (
 )
 from pneufdd.diagnosis.localisation.search import LocalisationSettings, locate
 from pneufdd.errors import InputError
-from pneufdd.features.step_summaries import machine_sequence, segment_cycles, step_table
+from pneufdd.features.step_summaries import build_step_table, machine_sequence, segment_cycles
 from pneufdd.location import SUPPLY, Location
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.sim import load_machine, simulate
@@ -316,10 +316,10 @@ def test_two_large_leaks_on_festo_dsd_sized_by_simulation():
 
     def mean_features(recording):
         cycles, _, _ = segment_cycles(recording, sequence, "test run")
-        return step_table(recording, cycles, "festo-dsd", channels).features().mean(axis=0)
+        return build_step_table(recording, cycles, "festo-dsd", channels).features().mean(axis=0)
 
     observed = mean_features(rec) - mean_features(base)
-    table = step_table(base, segment_cycles(base, sequence, "t")[0], "festo-dsd", channels)
+    table = build_step_table(base, segment_cycles(base, sequence, "t")[0], "festo-dsd", channels)
     effect = TwinLeakEffect(machine, table.feature_names(), sequence, channels)
     flows = {leak["location"]: leak["mass_flow_kg_s"] for leak in rec.metadata["leaks"]}
     assert flows["supply"] == pytest.approx(float(slpm_to_kg_s(152.6)), rel=0.01)

@@ -42,11 +42,11 @@ from pneufdd.errors import (
     naming,
 )
 from pneufdd.features.step_summaries import (
+    build_step_table,
     machine_sequence,
     segment_cycles,
     sequence_from_records,
     sequence_to_records,
-    step_table,
     trace_offsets,
 )
 from pneufdd.features.step_table import StepTable
@@ -171,7 +171,7 @@ def build_reference_from_recordings(
     lengths = np.stack([np.diff(trace_offsets(c, TRACE_RATE_HZ)) for c in all_cycles])
     offsets = np.concatenate([[0], np.cumsum(np.median(lengths, axis=0).round().astype(np.int64))])
     tables = [
-        step_table(
+        build_step_table(
             rec, cycles, machine_name, analog, offsets if analog else None, TRACE_RATE_HZ, where
         )
         for rec, cycles, where in zip(recordings, all_cycles, labels, strict=True)
@@ -341,7 +341,7 @@ def _run_table(model: ReferenceModel, recording: Recording, where: str) -> tuple
             )
         )
     running = running_cycles(cycles, startup)
-    table = step_table(
+    table = build_step_table(
         recording,
         running,
         model.machine,

@@ -44,11 +44,11 @@ from pneufdd.features.context import CycleView, Options, RecordingData
 from pneufdd.features.matrix import GROUPS, feature_matrix, features_of, labels_of
 from pneufdd.features.registry import REGISTRY, Feature, Unavailable, column_name, get
 from pneufdd.features.step_summaries import (
+    build_step_table,
     machine_sequence,
     segment_cycles,
     sequence_from_records,
     sequence_to_records,
-    step_table,
     trace_offsets,
 )
 from pneufdd.features.step_table import STATISTICS, StepTable, feature_floor, feature_names
@@ -68,6 +68,7 @@ __all__ = [
     "StepTable",
     "Unavailable",
     "air",
+    "build_step_table",
     "column_name",
     "feature_floor",
     "feature_matrix",
@@ -81,7 +82,6 @@ __all__ = [
     "segment_cycles",
     "sequence_from_records",
     "sequence_to_records",
-    "step_table",
     "table44",
     "trace_offsets",
     "wavelet",

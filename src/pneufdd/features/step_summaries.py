@@ -24,11 +24,11 @@ from pneufdd.signals.synchronisation import sample_bounds
 from pneufdd.sim import MachineDescription
 
 __all__ = [
+    "build_step_table",
     "machine_sequence",
     "segment_cycles",
     "sequence_from_records",
     "sequence_to_records",
-    "step_table",
     "trace_offsets",
 ]
 
@@ -166,7 +166,7 @@ def _traces(
     return out
 
 
-def step_table(
+def build_step_table(
     recording: Recording,
     cycles: Sequence[Cycle],
     machine: str,

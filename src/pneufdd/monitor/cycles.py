@@ -4,7 +4,7 @@ The streamer keeps a short buffer of grid samples (from a little before the last
 completed cycle's end to now) and segments it with the reference's PLC sequence
 exactly as :func:`pneufdd.diagnosis.recordings.run_table` segments a file
 (:func:`pneufdd.signals.segmentation.segment`, then
-:func:`pneufdd.features.step_summaries.step_table`). A cycle is complete when a
+:func:`pneufdd.features.step_summaries.build_step_table`). A cycle is complete when a
 later step has started (its last step ends at the next step's start, section
 5.3.1.1); then it is summarised, the buffer is cut just before its end, and the
 cycle is passed on. At the end of a replay the last cycle is closed as a file's last
@@ -27,7 +27,7 @@ import numpy as np
 from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, describe
-from pneufdd.features.step_summaries import sequence_from_records, step_table
+from pneufdd.features.step_summaries import build_step_table, sequence_from_records
 from pneufdd.features.step_table import StepTable
 from pneufdd.monitor.samples import GridBlock
 from pneufdd.recording.model import ANALOG, DIGITAL, Channel, Recording
@@ -216,7 +216,7 @@ class CycleStreamer:
             found.append(cycle)
         if not found:
             return []
-        table = step_table(
+        table = build_step_table(
             recording,
             found,
             self.model.machine,

@@ -1,6 +1,6 @@
 """Mean, minimum and maximum of sample windows of one channel, compiled.
 
-The step summaries of a diagnosis (:func:`pneufdd.features.step_summaries.step_table`)
+The step summaries of a diagnosis (:func:`pneufdd.features.step_summaries.build_step_table`)
 reduce every channel over every step window of every cycle. Done with NumPy it takes a
 running sum over the whole channel, a stacked copy of the channels and two
 ``reduceat`` passes, all under Python's global interpreter lock; the simulation check

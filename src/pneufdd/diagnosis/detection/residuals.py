@@ -42,7 +42,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
-from pneufdd.features.step_summaries import machine_sequence, segment_cycles, step_table
+from pneufdd.features.step_summaries import build_step_table, machine_sequence, segment_cycles
 from pneufdd.recording.model import Recording
 from pneufdd.sim import MachineDescription, load_machine, simulate
 
@@ -115,7 +115,7 @@ class TwinReplay:
 
 def _step_means(recording: Recording, machine: MachineDescription, where: str) -> FloatArray:
     cycles, _, _ = segment_cycles(recording, machine_sequence(machine), where)
-    table = step_table(recording, cycles, machine.name, RESIDUAL_CHANNELS)
+    table = build_step_table(recording, cycles, machine.name, RESIDUAL_CHANNELS)
     return np.asarray(table.summaries[:, :, :, 0])
 
 

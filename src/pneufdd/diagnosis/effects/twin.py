@@ -38,7 +38,7 @@ from scipy.integrate import cumulative_trapezoid
 
 from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
-from pneufdd.features.step_summaries import segment_cycles, step_table
+from pneufdd.features.step_summaries import build_step_table, segment_cycles
 from pneufdd.location import SUPPLY, Location, locations_of
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.progress import Progress, counter
@@ -209,7 +209,7 @@ def _mean_features(
     )
     rec = sim.recording
     found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {sizes}")
-    table = step_table(rec, found, machine.name, channels)
+    table = build_step_table(rec, found, machine.name, channels)
     leaked = {
         loc: mean_leak_flow(
             sim.time,
@@ -624,7 +624,9 @@ def _plant_effects(job: SpreadJob) -> npt.NDArray[np.float64] | None:
                 )
                 rec = sim.recording
                 found, _, _ = segment_cycles(rec, sequence, f"plant with a leak at {loc}")
-                mean = np.mean(step_table(rec, found, plant.name, channels).features(), axis=0)
+                mean = np.mean(
+                    build_step_table(rec, found, plant.name, channels).features(), axis=0
+                )
             except MACHINE_CANNOT_RUN:
                 continue
             out[i, k] = (mean - base)[cols]
