@@ -23,7 +23,7 @@ from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import load_machine
 from pneufdd.sim.prebuilt import compiled_twin
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
-from pneufdd.sim.result import SimulationResult, Stroke
+from pneufdd.sim.result import SimulatedStroke, SimulationResult
 from pneufdd.sim.schedule import LeakSchedule
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor, first_order_recursion
 
@@ -335,7 +335,7 @@ def run_simulation(
     ou_now = rng.normal(0.0, plant.sp[lay.SP_DRIFT_STD]) if plant.sp[lay.SP_DRIFT_STD] > 0 else 0.0
     chunks: list[dict[str, npt.NDArray[Any]]] = []
     step_start = np.zeros((cycles, nsteps))
-    strokes: list[Stroke] = []
+    strokes: list[SimulatedStroke] = []
     total_sub = 0
     params, program, records_state, outputs = _records(plant, state, buf)
     run_cycle = compiled_twin().run_cycle
@@ -374,7 +374,7 @@ def run_simulation(
             step_start[cyc] = buf.step_t
             for e in range(n_ev):
                 strokes.append(
-                    Stroke(
+                    SimulatedStroke(
                         desc.actuators[int(buf.ev_act[e])].id,
                         int(buf.ev_dir[e]),
                         float(buf.ev_t0[e, 0]),
@@ -577,7 +577,7 @@ def _assemble(
     specs: list[LeakSpec],
     chunks: list[dict[str, npt.NDArray[Any]]],
     step_start: npt.NDArray[np.float64],
-    strokes: list[Stroke],
+    strokes: list[SimulatedStroke],
     rng: np.random.Generator,
     seed: int | None,
     cycles: int,
