@@ -17,7 +17,7 @@ from pneufdd.identification import (
     nominal_flow_l_min,
     zero_flow_drop,
 )
-from pneufdd.identification.friction import Stroke
+from pneufdd.identification.friction import StrokeSamples
 from pneufdd.physics.flow import isa_mass_flow
 from pneufdd.physics.friction import CVF_DNC, FCF_DNC, FSF_DNC
 from pneufdd.physics.units import bar_gauge_to_pa, slpm_to_kg_s
@@ -74,7 +74,7 @@ def test_valve_fit_refuses_too_few_points() -> None:
         fit_valve([6e5, 6e5], [5e5, 4e5], [1e-3, 2e-3])
 
 
-def _dnc_strokes(seed: int) -> tuple[list[Stroke], float, float]:
+def _dnc_strokes(seed: int) -> tuple[list[StrokeSamples], float, float]:
     """DNC strokes of the festo-dsd twin (friction of section 4.2.3, no per-cycle
     scatter) at three supply pressures, as its sensors record them (pressure noise
     0.006 bar, LVDT noise 1.2 mm, 12 bit)."""
@@ -93,7 +93,7 @@ def _dnc_strokes(seed: int) -> tuple[list[Stroke], float, float]:
             for start in tu[1:][np.diff(u.astype(int)) > 0]:
                 arrive = ts[1:][(np.diff(s.astype(int)) > 0) & (ts[1:] > start)]
                 sel = (t >= start) & (t <= arrive[0] + 0.05)
-                strokes.append(Stroke(t[sel], pa[sel], pb[sel], x[sel]))
+                strokes.append(StrokeSamples(t[sel], pa[sel], pb[sel], x[sel]))
     area_a = math.pi / 4 * 0.032**2
     return strokes, area_a, area_a - math.pi / 4 * 0.012**2
 
@@ -116,7 +116,8 @@ def test_a_constant_force_is_fitted_apart_from_friction() -> None:
     neither Fsf (each direction weighs half) nor Fcf, Cvf when F0 is fitted."""
     strokes, area_a, area_b = _dnc_strokes(seed=22)
     shifted = [
-        Stroke(s.time, np.asarray(s.pressure_a) + 5e4, s.pressure_b, s.position) for s in strokes
+        StrokeSamples(s.time, np.asarray(s.pressure_a) + 5e4, s.pressure_b, s.position)
+        for s in strokes
     ]
     sliding = fit_sliding_friction(shifted, area_a, area_b, 0.59, offset=True)
     assert sliding.offset_force_n == pytest.approx(5e4 * area_a, rel=0.10)

@@ -25,7 +25,7 @@ from pneufdd.monitor.cycles import needed_channels
 from pneufdd.monitor.database import HistoryDatabase
 from pneufdd.monitor.live import MachineMonitor, run_stream
 from pneufdd.monitor.samples import SampleBatch
-from pneufdd.monitor.sources import MqttSource, OpcUaSource, TagMap
+from pneufdd.monitor.sources import ChannelTags, MqttSource, OpcUaSource
 from pneufdd.physics.units import kg_s_to_l_min_anr, pa_to_bar_gauge
 from pneufdd.recording.model import ANALOG, Channel, Recording
 
@@ -174,7 +174,7 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
     # the plant's own tag map, as written for `pneufdd import`: PLC tag names, bar(g),
     # l/min (ANR); the monitor brings the live values to SI with the import's conversion
     names, convert = _plc_tag_map(tmp_path, analog, digital)
-    tags = TagMap.read(tmp_path / "plc-tags.toml", analog, digital)
+    tags = ChannelTags.read(tmp_path / "plc-tags.toml", analog, digital)
     assert tags.aliases["DB10.P.In"] == "P_In"
     assert tags.units == {"P_In": "bar(g)", "Q_In": "l/min (ANR)"}
     source = MqttSource("127.0.0.1", port, "plant/festo-dsd/samples", tags, log=log.append)
@@ -318,7 +318,7 @@ def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path, tag_reference):
         toml += [f"[channels.{name}]", f'node = "ns=2;s={name}"', f"rate_hz = {rate}"]
     tags_path = tmp_path / "tags.toml"
     tags_path.write_text("\n".join(toml) + "\n")
-    tags = TagMap.read(tags_path, analog, digital)
+    tags = ChannelTags.read(tags_path, analog, digital)
     loop = _Loop()
     ready, go, finish = asyncio.Event(), asyncio.Event(), asyncio.Event()
     serving = asyncio.run_coroutine_threadsafe(_serve(rec, port, ready, go, finish), loop.loop)
@@ -373,7 +373,7 @@ def test_one_tag_map_for_files_and_live_sources(tmp_path):
         '"B_F1" = { role = "Q_In", unit = "l/min", basis = "ANR", node = "ns=3;s=F1" }\n'
         '"Y1.0" = "U_FEED_A"\n'
     )
-    tags = TagMap.read(path, ["P_In", "Q_In"], ["U_FEED_A"])
+    tags = ChannelTags.read(path, ["P_In", "Q_In"], ["U_FEED_A"])
     assert tags.nodes == {"P_In": "ns=2;s=B_P1", "Q_In": "ns=3;s=F1", "U_FEED_A": "ns=2;s=Y1.0"}
     assert tags.rates_hz["P_In"] == 50.0
     assert tags.lateness_s == 2.0
@@ -388,10 +388,34 @@ def test_one_tag_map_for_files_and_live_sources(tmp_path):
     assert tags.to_si(u).channel == "U_FEED_A"
 
 
+def test_the_channel_form_of_the_tag_map(tmp_path):
+    path = tmp_path / "tags.toml"
+    path.write_text(
+        'lateness_s = 2.5\nend = "ns=2;s=ReplayDone"\n'
+        '[channels.P_In]\nnode = "ns=3;s=P"\nrate_hz = 20\n[channels.U_FEED_A]\nrate_hz = 50\n'
+    )
+    tags = ChannelTags.read(path, ["P_In", "Q_In"], ["U_FEED_A"])
+    assert tags.nodes == {"P_In": "ns=3;s=P", "Q_In": "ns=2;s=Q_In", "U_FEED_A": "ns=2;s=U_FEED_A"}
+    assert tags.rates_hz == {"P_In": 20.0, "Q_In": 1000.0, "U_FEED_A": 50.0}
+    assert (tags.end, tags.lateness_s, tags.aliases, tags.units) == (
+        "ns=2;s=ReplayDone",
+        2.5,
+        {},
+        {},
+    )
+    batch = SampleBatch("P_In", np.array([6e5]), t0=0.0, rate_hz=20.0)
+    assert tags.to_si(batch) is batch  # SI already
+    path.write_text("")  # an empty map: every channel at the defaults
+    assert ChannelTags.read(path, ["P_In"], []) == ChannelTags.default(["P_In"], [])
+
+
 @pytest.mark.parametrize(
     ("text", "match"),
     [
         ('[channels.P_In]\nnode = "a"\n[columns]\n"B" = "P_In"\n', "both"),
+        ('[channels.P_In]\nrate_hz = "fast"\n', "rate_hz"),
+        ("[channels.P_In]\nrat_hz = 20\n", "rat_hz"),
+        ("lateness_s = -1\n[channels.P_In]\nrate_hz = 20\n", "lateness_s"),
         (
             '[columns]\n"B" = { role = "P_In", unit = "bar(g)", rate_hz = 0 }\n"Y" = "U_X_A"\n',
             "rate_hz",
@@ -403,5 +427,5 @@ def test_tag_map_errors_name_the_file_and_entry(tmp_path, text, match):
     path = tmp_path / "bad.toml"
     path.write_text(text)
     with pytest.raises(InputError, match=match) as info:
-        TagMap.read(path, ["P_In", "Q_In"], ["U_X_A"])
+        ChannelTags.read(path, ["P_In", "Q_In"], ["U_X_A"])
     assert "bad.toml" in str(info.value)

@@ -108,3 +108,42 @@ def test_import_cli_round_trips_a_simulated_plc_export(tmp_path: Path) -> None:
     assert np.nanmax(np.abs(q_back - q_sim)) < 1e-7  # l/min to 4 decimals
     # the same map wherever a recording is read: steps straight from the CSV
     assert main(["steps", str(tmp_path / "plc.csv"), "--map", str(tmp_path / "tags.toml")]) == 0
+
+
+def test_the_monitors_keys_do_not_change_the_import(tmp_path: Path) -> None:
+    """One file for ``import --map`` and ``monitor --tags`` (docs/monitor.md)."""
+    live = MAP.replace('unit = "bar(g)" }', 'unit = "bar(g)", rate_hz = 50 }').replace(
+        'basis = "ANR" }', 'basis = "ANR", node = "ns=3;s=DB10.F1" }'
+    )
+    data, mapping = _files(tmp_path, tag_map='lateness_s = 2.0\nend = "ns=2;s=Done"\n' + live)
+    parsed = load_tag_map(mapping)
+    (tmp_path / "plain.toml").write_text(MAP)
+    plain = read_mapped(data, load_tag_map(tmp_path / "plain.toml"))
+    rec = read_mapped(data, parsed)
+    for name in plain.channels:
+        assert rec.channel(name)[1].tolist() == plain.channel(name)[1].tolist()
+    assert parsed.lateness_s == 2.0
+    assert parsed.end == "ns=2;s=Done"
+    by_channel = {t.channel: t for t in parsed.live}
+    assert by_channel["P_In"].tag == "B_P1"
+    assert by_channel["P_In"].rate_hz == 50.0
+    assert by_channel["Q_In"].node == "ns=3;s=DB10.F1"
+    assert by_channel["Q_In"].unit == "l/min (ANR)"
+    assert "time" not in by_channel
+
+
+def test_the_channel_form_is_for_live_sources_only(tmp_path: Path) -> None:
+    mapping = tmp_path / "live.toml"
+    mapping.write_text('lateness_s = 0.5\n[channels.P_In]\nnode = "ns=2;s=P"\nrate_hz = 20\n')
+    with pytest.raises(InputError, match=r"live\.toml.*channels") as info:
+        load_tag_map(mapping)
+    assert "columns" in str(info.value)
+    parsed = load_tag_map(mapping, live=True)
+    assert parsed.columns == ()
+    assert [(t.channel, t.tag, t.node, t.rate_hz, t.unit) for t in parsed.live] == [
+        ("P_In", "P_In", "ns=2;s=P", 20.0, None)
+    ]
+    assert parsed.lateness_s == 0.5
+    data = _files(tmp_path)[0]
+    with pytest.raises(InputError, match=r"live\.toml.*\[columns\]"):
+        read_mapped(data, parsed)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pneufdd.signals.final_step import close_final_step, settled_at
-from pneufdd.signals.segmentation import Cycle, Step, StepSpec
+from pneufdd.signals.segmentation import Cycle, RecordedStep, StepSpec
 
 SPECS = (
     StepSpec(frozenset({"U_X_A"}), frozenset({("S_X_B", 1)})),
@@ -20,7 +20,7 @@ def _cycles(data_end: float) -> list[Cycle]:
     starts = [(0.0, 1.0), (2.0, 3.0), (4.0, 5.0)]
     ends = [(1.0, 2.0), (3.0, 4.0), (5.0, data_end)]
     return [
-        Cycle(k + 1, tuple(Step(j + 1, s[j], e[j], (f"U_X_{'AB'[j]}",)) for j in range(2)))
+        Cycle(k + 1, tuple(RecordedStep(j + 1, s[j], e[j], (f"U_X_{'AB'[j]}",)) for j in range(2)))
         for k, (s, e) in enumerate(zip(starts, ends, strict=True))
     ]
 

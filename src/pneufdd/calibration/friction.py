@@ -35,7 +35,7 @@ import numpy as np
 from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError
 from pneufdd.identification.friction import (
-    Stroke,
+    StrokeSamples,
     fit_breakaway_friction,
     fit_sliding_friction,
 )
@@ -124,7 +124,7 @@ def _motion_starts(rec: Recording, actuator: Actuator) -> FloatArray:
     return out
 
 
-def actuator_strokes(rec: Recording, actuator: Actuator) -> list[Stroke]:
+def actuator_strokes(rec: Recording, actuator: Actuator) -> list[StrokeSamples]:
     """The complete strokes of ``actuator`` in ``rec`` (see the module's docstring).
 
     Needs the channels ``P_<ID>_A``, ``P_<ID>_B`` and ``X_<ID>`` on one time base;
@@ -144,7 +144,7 @@ def actuator_strokes(rec: Recording, actuator: Actuator) -> list[Stroke]:
     x = np.asarray(x, np.float64)
     starts = _motion_starts(rec, actuator)
     stroke_m = actuator.stroke_mm * 1e-3
-    out: list[Stroke] = []
+    out: list[StrokeSamples] = []
     for k, t1 in enumerate(starts):
         t_next = starts[k + 1] if k + 1 < starts.size else float(t[-1])
         i0 = int(np.searchsorted(t, t1))
@@ -162,11 +162,11 @@ def actuator_strokes(rec: Recording, actuator: Actuator) -> list[Stroke]:
         rate = 1.0 / float(np.median(np.diff(t[i0:i1])))
         end = min(i0 + int(away[-1]) + 1 + round(AFTER_ARRIVAL_S * rate), i1)
         sel = slice(i0, end)
-        out.append(Stroke(t[sel], pa[sel], pb[sel], x[sel]))
+        out.append(StrokeSamples(t[sel], pa[sel], pb[sel], x[sel]))
     return out
 
 
-def stroke_speed(stroke: Stroke) -> float:
+def stroke_speed(stroke: StrokeSamples) -> float:
     """Mean speed between 10 % and 90 % of the stroke's travel [m/s]."""
     x = np.asarray(stroke.position, np.float64)
     t = np.asarray(stroke.time, np.float64)
@@ -177,7 +177,7 @@ def stroke_speed(stroke: Stroke) -> float:
     return 0.8 * abs(travel) / max(float(t[i90] - t[i10]), 1e-6)
 
 
-def _speeds_separate(strokes: Sequence[Stroke]) -> tuple[bool, bool]:
+def _speeds_separate(strokes: Sequence[StrokeSamples]) -> tuple[bool, bool]:
     """Whether the strokes' speeds separate Cvf from Fcf, and whether they go both ways.
 
     With strokes both ways a constant force F0 is fitted too, so Fcf and Cvf need
@@ -192,7 +192,7 @@ def _speeds_separate(strokes: Sequence[Stroke]) -> tuple[bool, bool]:
     return max(ratios) >= MIN_SPEED_RATIO, len(by_way) == 2
 
 
-def _position_noise(strokes: Sequence[Stroke]) -> float:
+def _position_noise(strokes: Sequence[StrokeSamples]) -> float:
     """Position noise [m]: the spread of the samples at rest before each stroke."""
     rests = []
     for s in strokes:

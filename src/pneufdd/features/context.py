@@ -31,9 +31,9 @@ from pneufdd.features.registry import Unavailable
 from pneufdd.recording.model import Recording
 from pneufdd.signals.digital import debounced_edges
 from pneufdd.signals.filtering import DEFAULT_CUTOFF_HZ, Kinematics, kinematics
-from pneufdd.signals.segmentation import DEFAULT_SWITCH_DWELL_S, Cycle, Step
+from pneufdd.signals.segmentation import DEFAULT_SWITCH_DWELL_S, Cycle, RecordedStep
 
-__all__ = ["CycleView", "Options", "RecordingData", "Stroke"]
+__all__ = ["CycleView", "MeasuredStroke", "Options", "RecordingData"]
 
 
 EXPECTED_UNIT = {"P": "Pa", "Q": "kg/s", "X": "m"}
@@ -179,12 +179,12 @@ def _described_direction(metadata: dict[str, Any], name: str) -> str | None:
 
 
 @dataclass
-class Stroke:
+class MeasuredStroke:
     """One actuator motion inside a cycle.
 
     Attributes
     ----------
-    step : Step
+    step : RecordedStep
         The step in which the solenoid fired.
     t_valve : float
         Valve firing [s].
@@ -202,7 +202,7 @@ class Stroke:
         Why times are NaN, if they are.
     """
 
-    step: Step
+    step: RecordedStep
     t_valve: float
     t_start: float = float("nan")
     t_end: float = float("nan")
@@ -218,7 +218,7 @@ class CycleView:
 
     data: RecordingData
     cycle: Cycle
-    _strokes: dict[tuple[str, str], Stroke] = field(default_factory=dict)
+    _strokes: dict[tuple[str, str], MeasuredStroke] = field(default_factory=dict)
     _cache: dict[Any, Any] = field(default_factory=dict)
 
     @cached_property
@@ -226,7 +226,7 @@ class CycleView:
         """The extraction options."""
         return self.data.options
 
-    def step(self, number: int) -> Step:
+    def step(self, number: int) -> RecordedStep:
         """Step ``number`` (1-based)."""
         return self.cycle.steps[number - 1]
 
@@ -265,7 +265,7 @@ class CycleView:
             )
         return float(integral[i1 - 1] - integral[i0])
 
-    def stroke(self, actuator: str, motion: str) -> Stroke:
+    def stroke(self, actuator: str, motion: str) -> MeasuredStroke:
         """The ``motion`` (``"extend"``/``"retract"``) of ``actuator`` in this cycle."""
         key = (actuator, motion)
         if key not in self._strokes:

@@ -29,9 +29,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from pneufdd.features.context import CycleView, Stroke
+from pneufdd.features.context import CycleView, MeasuredStroke
 from pneufdd.features.registry import Unavailable, register
-from pneufdd.signals.segmentation import Step
+from pneufdd.signals.segmentation import RecordedStep
 
 __all__ = ["MOTIONS", "detect_stroke", "exhaust_line", "supply_line"]
 
@@ -52,9 +52,11 @@ def exhaust_line(motion: str) -> str:
     return "B" if motion == "extend" else "A"
 
 
-def detect_stroke(view: CycleView, actuator: str, motion: str, step: Step) -> Stroke:
+def detect_stroke(
+    view: CycleView, actuator: str, motion: str, step: RecordedStep
+) -> MeasuredStroke:
     """Find motion start and arrival of one stroke (LVDT if present, else switches)."""
-    stroke = Stroke(step=step, t_valve=step.start_s)
+    stroke = MeasuredStroke(step=step, t_valve=step.start_s)
     kin = view.data.kinematics(actuator)
     opts = view.options
     if kin is not None:
@@ -224,14 +226,14 @@ def _arrival(
     return float(cand[k] + shift / fs)
 
 
-def _times(view: CycleView, actuator: str, motion: str) -> Stroke:
+def _times(view: CycleView, actuator: str, motion: str) -> MeasuredStroke:
     s = view.stroke(actuator, motion)
     if not np.isfinite(s.t_start) or not np.isfinite(s.t_end):
         raise Unavailable(s.reason or f"{actuator} {motion}: motion not detected")
     return s
 
 
-def _lvdt(view: CycleView, actuator: str, motion: str) -> Stroke:
+def _lvdt(view: CycleView, actuator: str, motion: str) -> MeasuredStroke:
     s = _times(view, actuator, motion)
     if s.source != "lvdt":
         raise Unavailable(f"velocity of {actuator} needs an LVDT channel X_{actuator}")

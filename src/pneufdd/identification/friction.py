@@ -25,14 +25,14 @@ from pneufdd.physics.friction import piston_force
 __all__ = [
     "BreakawayFit",
     "SlidingFrictionFit",
-    "Stroke",
+    "StrokeSamples",
     "fit_breakaway_friction",
     "fit_sliding_friction",
 ]
 
 
 @dataclass(frozen=True)
-class Stroke:
+class StrokeSamples:
     """One measured stroke: time [s], absolute line pressures [Pa], position [m]."""
 
     time: FloatArray
@@ -78,7 +78,7 @@ def _window(rate: float, seconds: float) -> int:
 
 
 def _derivatives(
-    stroke: Stroke, smooth_s: float
+    stroke: StrokeSamples, smooth_s: float
 ) -> tuple[FloatArray, FloatArray, FloatArray, float]:
     t = np.asarray(stroke.time, dtype=np.float64)
     dt = float(np.median(np.diff(t)))
@@ -92,7 +92,7 @@ def _derivatives(
 
 
 def fit_breakaway_friction(
-    strokes: Sequence[Stroke],
+    strokes: Sequence[StrokeSamples],
     area_a: float,
     area_b: float,
     noise_m: float = 0.0,
@@ -113,7 +113,7 @@ def fit_breakaway_friction(
 
     Parameters
     ----------
-    strokes : sequence of Stroke
+    strokes : sequence of StrokeSamples
         Windows from the valve command to past the start of motion.
     area_a, area_b : float
         Piston area of the blind side and annular area of the rod side [m^2].
@@ -175,7 +175,7 @@ def fit_breakaway_friction(
 
 
 def fit_sliding_friction(
-    strokes: Sequence[Stroke],
+    strokes: Sequence[StrokeSamples],
     area_a: float,
     area_b: float,
     moving_mass_kg: float,
@@ -200,7 +200,7 @@ def fit_sliding_friction(
 
     Parameters
     ----------
-    strokes : sequence of Stroke
+    strokes : sequence of StrokeSamples
         Measured strokes (extend and retract, several speeds).
     area_a, area_b : float
         Piston areas [m^2].

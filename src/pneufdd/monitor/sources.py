@@ -60,7 +60,6 @@ import math
 import queue
 import threading
 import time as wallclock
-import tomllib
 import urllib.parse
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -74,14 +73,15 @@ from pneufdd.errors import InputError, describe
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.physics.units import UNITS, to_si
 from pneufdd.recording.model import Recording
+from pneufdd.recording.tag_map import TagMap, load_tag_map
 
 __all__ = [
     "DEFAULT_ANALOG_HZ",
     "DEFAULT_DIGITAL_HZ",
+    "ChannelTags",
     "MqttSource",
     "OpcUaSource",
     "ReplaySource",
-    "TagMap",
     "open_source",
     "parse_payload",
 ]
@@ -96,12 +96,13 @@ def _quiet(_: str) -> None:
 
 
 @dataclass(frozen=True)
-class TagMap:
+class ChannelTags:
     """Channel -> tag (node id) and grid rate; optional end tag and lateness.
 
     ``aliases`` maps a PLC tag name arriving in a stream to its channel, ``units`` a
     channel to the unit its live values come in (absent: already SI); both are filled
-    from the PLC-tag form of the map (module docstring).
+    from the PLC-tag form of the map (module docstring). Built from the one tag-map
+    reader, :func:`pneufdd.recording.tag_map.load_tag_map`.
     """
 
     nodes: dict[str, str]
@@ -123,86 +124,38 @@ class TagMap:
         return batch._replace(channel=channel, values=np.asarray(values, dtype=np.float64))
 
     @classmethod
-    def default(cls, analog: Sequence[str], digital: Sequence[str]) -> TagMap:
+    def default(cls, analog: Sequence[str], digital: Sequence[str]) -> ChannelTags:
         """``ns=2;s=<channel>`` tags at the twin's rates."""
         names = [*analog, *digital]
         rates = {c: DEFAULT_ANALOG_HZ for c in analog} | {c: DEFAULT_DIGITAL_HZ for c in digital}
         return cls({c: f"ns=2;s={c}" for c in names}, rates)
 
     @classmethod
-    def read(cls, path: Path, analog: Sequence[str], digital: Sequence[str]) -> TagMap:
-        """Read a tag map; channels it leaves out get the defaults."""
-        try:
-            raw = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-        except (OSError, tomllib.TOMLDecodeError) as exc:
-            raise InputError(describe("--tags", str(path), "a readable TOML tag map")) from exc
+    def from_tag_map(
+        cls, tag_map: TagMap, analog: Sequence[str], digital: Sequence[str]
+    ) -> ChannelTags:
+        """The live tags of a parsed tag map; channels it leaves out get the defaults."""
         base = cls.default(analog, digital)
-        if "columns" in raw:
-            if "channels" in raw:
-                raise InputError(
-                    describe(
-                        f"--tags {path}",
-                        "both [channels] and [columns]",
-                        "one form: [columns] keyed by PLC tag, or [channels] keyed by channel",
-                    )
-                )
-            return cls._read_plc_tags(raw, Path(path), base)
-        nodes, rates = dict(base.nodes), dict(base.rates_hz)
-        channels = raw.get("channels", {})
-        if not isinstance(channels, dict):
-            raise InputError(describe(f"[channels] of {path}", channels, "a table per channel"))
-        for name, entry in channels.items():
-            if not isinstance(entry, dict):
-                raise InputError(describe(f"channels.{name} of {path}", entry, "a table"))
-            if "node" in entry:
-                nodes[name] = str(entry["node"])
-            if "rate_hz" in entry:
-                rate = float(entry["rate_hz"])
-                if not (math.isfinite(rate) and rate > 0):
-                    raise InputError(describe(f"channels.{name}.rate_hz of {path}", rate, "> 0"))
-                rates[name] = rate
-        lateness = float(raw.get("lateness_s", 1.0))
-        end = raw.get("end")
-        return cls(nodes, rates, None if end is None else str(end), lateness)
-
-    @classmethod
-    def _read_plc_tags(cls, raw: dict[str, Any], path: Path, base: TagMap) -> TagMap:
-        """The file-import form (``[columns]`` keyed by PLC tag) with ``node``/``rate_hz``."""
-        from pneufdd.recording.tag_map import parse_tag_map
-
-        live = ("node", "rate_hz")
-        columns = raw["columns"]
-        if not isinstance(columns, dict):
-            raise InputError(describe(f"[columns] of {path}", columns, "a table per PLC tag"))
-        plain: dict[str, Any] = {}
-        extra: dict[str, dict[str, Any]] = {}
-        for tag, entry in columns.items():
-            entry = {"role": entry} if isinstance(entry, str) else entry
-            if not isinstance(entry, dict):
-                raise InputError(describe(f"columns.{tag!r} of {path}", entry, "a table"))
-            plain[tag] = {k: v for k, v in entry.items() if k not in live}
-            extra[tag] = {k: v for k, v in entry.items() if k in live}
-        rest = {k: v for k, v in raw.items() if k not in ("lateness_s", "end", "columns")}
-        parsed = parse_tag_map({**rest, "columns": plain}, str(path))
         nodes, rates = dict(base.nodes), dict(base.rates_hz)
         aliases: dict[str, str] = {}
         units: dict[str, str] = {}
-        for column in parsed.channels:
-            options = extra[column.column]
-            nodes[column.role] = str(options.get("node", f"ns=2;s={column.column}"))
-            if "rate_hz" in options:
-                rate = options["rate_hz"]
-                if isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0:
-                    raise InputError(
-                        describe(f"columns.{column.column!r}.rate_hz of {path}", rate, "> 0")
-                    )
-                rates[column.role] = float(rate)
-            aliases[column.column] = column.role
-            if not column.digital and UNITS[column.unit].si_unit != column.unit:
-                units[column.role] = column.unit
-        lateness = float(raw.get("lateness_s", 1.0))
-        end = raw.get("end")
-        return cls(nodes, rates, None if end is None else str(end), lateness, aliases, units)
+        for tag in tag_map.live:
+            if tag.node is not None:
+                nodes[tag.channel] = tag.node
+            elif tag_map.columns:  # the PLC-tag form: node ns=2;s=<PLC tag>
+                nodes[tag.channel] = f"ns=2;s={tag.tag}"
+            if tag.rate_hz is not None:
+                rates[tag.channel] = tag.rate_hz
+            if tag.tag != tag.channel:
+                aliases[tag.tag] = tag.channel
+            if tag.unit is not None and UNITS[tag.unit].si_unit != tag.unit:
+                units[tag.channel] = tag.unit
+        return cls(nodes, rates, tag_map.end, tag_map.lateness_s, aliases, units)
+
+    @classmethod
+    def read(cls, path: Path, analog: Sequence[str], digital: Sequence[str]) -> ChannelTags:
+        """Read a tag map (either form); channels it leaves out get the defaults."""
+        return cls.from_tag_map(load_tag_map(path, live=True), analog, digital)
 
 
 # --------------------------------------------------------------------- replay
@@ -310,7 +263,7 @@ class MqttSource:
         host: str,
         port: int,
         topic: str,
-        tags: TagMap,
+        tags: ChannelTags,
         log: Log = _quiet,
         idle_s: float = 0.5,
     ) -> None:
@@ -385,7 +338,7 @@ class OpcUaSource:
     def __init__(
         self,
         url: str,
-        tags: TagMap,
+        tags: ChannelTags,
         channels: Sequence[str],
         log: Log = _quiet,
         publish_ms: float = 50.0,
@@ -523,7 +476,9 @@ def open_source(
 ) -> ReplaySource | MqttSource | OpcUaSource:
     """The source named by ``--source`` (see the module docstring)."""
     tag_map = (
-        TagMap.read(tags, analog, digital) if tags is not None else TagMap.default(analog, digital)
+        ChannelTags.read(tags, analog, digital)
+        if tags is not None
+        else ChannelTags.default(analog, digital)
     )
     if text.startswith("replay:"):
         path_text, _, query = text[len("replay:") :].partition("?")

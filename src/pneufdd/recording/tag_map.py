@@ -15,10 +15,24 @@ Optional top-level keys: ``ignore`` (columns present in the file but not used),
 ``rate_hz`` (the expected sample rate; a file at another rate is refused),
 ``delimiter`` and ``decimal`` (CSV dialect). :func:`read_mapped` reads a CSV, TDMS or
 Parquet file with a map; every command that reads recordings takes ``--map``.
+
+The same file serves live sources (``pneufdd monitor --tags``, ``docs/monitor.md``):
+each column may add ``node`` (OPC UA node id; default ``ns=2;s=<column>``) and
+``rate_hz`` (grid rate [Hz]), the top level ``lateness_s`` [s] and ``end`` (a tag that
+ends the stream). Only for live sources (``load_tag_map(path, live=True)``), a map may
+instead name pneufdd's channels directly, values in SI units::
+
+    [channels.P_In]
+    node = "ns=2;s=P_In"
+    rate_hz = 20
+
+This module is the one reader of tag-map files; the monitor builds its
+:class:`~pneufdd.monitor.sources.ChannelTags` from the :class:`TagMap` read here.
 """
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -38,6 +52,7 @@ __all__ = [
     "MIN_RATE_HZ",
     "ROLE_PATTERN",
     "ColumnRole",
+    "LiveTag",
     "TagMap",
     "load_tag_map",
     "parse_tag_map",
@@ -80,8 +95,39 @@ class ColumnRole:
 
 
 @dataclass(frozen=True)
+class LiveTag:
+    """How a live source (``pneufdd monitor --tags``) receives one channel.
+
+    Attributes
+    ----------
+    channel : str
+        The pneufdd channel (the column's role).
+    tag : str
+        The name a stream gives it: the PLC tag (the column), or the channel itself in
+        the ``[channels]`` form.
+    node : str or None
+        OPC UA node id; None: ``ns=2;s=<tag>``.
+    rate_hz : float or None
+        Grid rate [Hz]; None: the monitor's default.
+    unit : str or None
+        Unit of the live values (a :data:`~pneufdd.physics.units.UNITS` key); None:
+        already SI (the ``[channels]`` form).
+    """
+
+    channel: str
+    tag: str
+    node: str | None = None
+    rate_hz: float | None = None
+    unit: str | None = None
+
+
+@dataclass(frozen=True)
 class TagMap:
-    """A parsed, validated tag map."""
+    """A parsed, validated tag map.
+
+    ``columns`` is empty only for the live-only ``[channels]`` form; ``live``,
+    ``lateness_s`` and ``end`` are what live sources need (file readers ignore them).
+    """
 
     columns: tuple[ColumnRole, ...]
     ignore: tuple[str, ...] = ()
@@ -89,6 +135,9 @@ class TagMap:
     delimiter: str = ","
     decimal: str = "."
     source: str = "<map>"
+    live: tuple[LiveTag, ...] = ()
+    lateness_s: float = 1.0
+    end: str | None = None
 
     @property
     def time_column(self) -> str | None:
@@ -148,15 +197,87 @@ def _unit(source: str, column: str, role: str, entry: Mapping[str, Any]) -> str:
     return unit
 
 
-def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
+_LIVE_KEYS = ("node", "rate_hz")
+_COLUMN_KEYS = ("role", "unit", "basis", *_LIVE_KEYS)
+
+
+def _node(where: str, entry: Mapping[str, Any]) -> str | None:
+    node = entry.get("node")
+    if node is not None and not isinstance(node, str):
+        raise InputError(describe(f"{where}.node", node, "an OPC UA node id, e.g. 'ns=2;s=B_P1'"))
+    return node
+
+
+def _grid_rate(where: str, entry: Mapping[str, Any]) -> float | None:
+    rate = entry.get("rate_hz")
+    if rate is None:
+        return None
+    if (
+        isinstance(rate, bool)
+        or not isinstance(rate, int | float)
+        or not (math.isfinite(rate) and rate > 0)
+    ):
+        raise InputError(describe(f"{where}.rate_hz", rate, "a grid rate > 0 [Hz]"))
+    return float(rate)
+
+
+def _live_options(data: Mapping[str, Any], source: str) -> tuple[float, str | None]:
+    """``lateness_s`` [s] (default 1) and ``end`` (an end tag, or None) of a map."""
+    lateness = data.get("lateness_s", 1.0)
+    if (
+        isinstance(lateness, bool)
+        or not isinstance(lateness, int | float)
+        or not (math.isfinite(lateness) and lateness >= 0)
+    ):
+        raise InputError(describe(f"{source}: lateness_s", lateness, "a number >= 0 [s]"))
+    end = data.get("end")
+    if end is not None and not isinstance(end, str):
+        raise InputError(describe(f"{source}: end", end, "the node id of a boolean tag"))
+    return float(lateness), end
+
+
+def _parse_channel_form(data: Mapping[str, Any], source: str) -> TagMap:
+    """The live-only form: ``[channels.<channel>]`` with ``node``/``rate_hz``, SI values."""
+    known = {"channels", "lateness_s", "end"}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise InputError(describe(f"{source}: unknown top-level key", unknown[0], sorted(known)))
+    table = data.get("channels", {})
+    if not isinstance(table, Mapping):
+        raise InputError(describe(f"{source}: [channels]", table, "a table per channel"))
+    live = []
+    for name, entry in table.items():
+        where = f"{source}: channels.{name!r}"
+        if not isinstance(entry, Mapping):
+            raise InputError(describe(where, entry, "a table { node = ..., rate_hz = ... }"))
+        extra = sorted(set(entry) - set(_LIVE_KEYS))
+        if extra:
+            raise InputError(describe(f"{where}: unknown key", extra[0], list(_LIVE_KEYS)))
+        live.append(LiveTag(str(name), str(name), _node(where, entry), _grid_rate(where, entry)))
+    lateness, end = _live_options(data, source)
+    return TagMap(columns=(), source=source, live=tuple(live), lateness_s=lateness, end=end)
+
+
+def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool = False) -> TagMap:
     """Validate a parsed tag-map TOML document.
+
+    Parameters
+    ----------
+    data : mapping
+        The parsed TOML document.
+    source : str
+        The map's name in messages (its file name).
+    live : bool
+        For a live source (``pneufdd monitor --tags``): the ``[channels]`` form is
+        allowed too (module docstring).
 
     Raises
     ------
     InputError
         Naming the map, the column and what is allowed: an unknown key, a role that is
         not a channel code, a role given twice, a unit that does not fit the role or is
-        unknown, a flow in litres without its basis.
+        unknown, a flow in litres without its basis, a grid rate that is not > 0, a map
+        with both ``[channels]`` and ``[columns]``.
 
     Examples
     --------
@@ -166,7 +287,17 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
     >>> [(c.column, c.role, c.unit) for c in m.channels]
     [('B_F1', 'Q_In', 'l/min (ANR)'), ('Y1.0', 'U_FEED_A', '1')]
     """
-    known = {"columns", "ignore", "rate_hz", "delimiter", "decimal"}
+    if live and "columns" not in data:
+        return _parse_channel_form(data, source)
+    if live and "channels" in data:
+        raise InputError(
+            describe(
+                f"{source}: tag-map form",
+                "both [channels] and [columns]",
+                "one form: [columns] keyed by PLC tag, or [channels] keyed by channel",
+            )
+        )
+    known = {"columns", "ignore", "rate_hz", "delimiter", "decimal", "lateness_s", "end"}
     unknown = sorted(set(data) - known)
     if unknown:
         raise InputError(describe(f"{source}: unknown top-level key", unknown[0], sorted(known)))
@@ -176,6 +307,7 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
             describe(f"{source}: [columns]", table, 'a table: "<column>" = { role = ... }')
         )
     roles: list[ColumnRole] = []
+    live_tags: list[LiveTag] = []
     seen: dict[str, str] = {}
     for column, entry in table.items():
         where = f"{source}: columns.{column!r}"
@@ -183,9 +315,9 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
             entry = {"role": entry}
         if not isinstance(entry, Mapping):
             raise InputError(describe(where, entry, "{ role = ..., unit = ..., basis = ... }"))
-        extra = sorted(set(entry) - {"role", "unit", "basis"})
+        extra = sorted(set(entry) - set(_COLUMN_KEYS))
         if extra:
-            raise InputError(describe(f"{where}: unknown key", extra[0], ["role", "unit", "basis"]))
+            raise InputError(describe(f"{where}: unknown key", extra[0], list(_COLUMN_KEYS)))
         role = entry.get("role")
         if not isinstance(role, str) or not ROLE_PATTERN.match(role):
             raise InputError(
@@ -206,6 +338,9 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
             )
         seen[role] = str(column)
         roles.append(ColumnRole(str(column), role, _unit(source, str(column), role, entry)))
+        node, rate = _node(where, entry), _grid_rate(where, entry)
+        if role != "time":
+            live_tags.append(LiveTag(role, str(column), node, rate, roles[-1].unit))
     if not any(r.role.startswith("U_") for r in roles):
         raise ChannelError(
             describe(
@@ -228,6 +363,7 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
         if not isinstance(value, str) or len(value) != 1:
             raise InputError(describe(f"{source}: {key}", value, "one character"))
         dialect[key] = value
+    lateness, end = _live_options(data, source)
     return TagMap(
         columns=tuple(roles),
         ignore=tuple(ignore),
@@ -235,12 +371,22 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>") -> TagMap:
         delimiter=dialect["delimiter"],
         decimal=dialect["decimal"],
         source=source,
+        live=tuple(live_tags),
+        lateness_s=lateness,
+        end=end,
     )
 
 
-def load_tag_map(path: str | Path) -> TagMap:
-    """Read and validate a tag-map TOML file (see :func:`parse_tag_map`)."""
-    path = check_input_file(Path(path), "a tag map (.toml)")
+def load_tag_map(path: str | Path, *, live: bool = False) -> TagMap:
+    """Read and validate a tag-map TOML file (see :func:`parse_tag_map`).
+
+    ``live=True`` (``pneufdd monitor --tags``) also allows the ``[channels]`` form, and
+    an empty file (every channel at the monitor's defaults).
+    """
+    path = Path(path)
+    if live and path.is_file() and path.stat().st_size == 0:
+        return parse_tag_map({}, path.name, live=True)
+    path = check_input_file(path, "a tag map (.toml)")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
@@ -249,7 +395,7 @@ def load_tag_map(path: str | Path) -> TagMap:
         raise FileFormatError(
             f"{file_label(path)} is nested too deep to read; expected a flat tag map"
         ) from exc
-    return parse_tag_map(data, path.name)
+    return parse_tag_map(data, path.name, live=live)
 
 
 def _check_unmapped(label: str, tag_map: TagMap, present: list[str]) -> None:
@@ -334,6 +480,14 @@ def read_mapped(path: str | Path, tag_map: TagMap) -> Recording:
     if suffix not in SUFFIXES:
         raise FileFormatError(describe(f"{label}: file suffix", path.suffix, SUFFIXES))
     check_input_file(path, f"a {suffix} file")
+    if not tag_map.columns:
+        raise InputError(
+            describe(
+                f"{tag_map.source}: [columns] (needed to read {label})",
+                None,
+                "a [columns] table; the [channels] form serves only live sources",
+            )
+        )
     channel_map = {c.column: c.role for c in tag_map.channels}
     units = {c.role: c.unit for c in tag_map.channels if not c.digital}
     digital = [c.role for c in tag_map.channels if c.digital]

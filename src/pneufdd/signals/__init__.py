@@ -15,8 +15,8 @@ from pneufdd.signals.ensemble import (
 from pneufdd.signals.filtering import Kinematics, fill_gaps, kinematics, lowpass
 from pneufdd.signals.segmentation import (
     Cycle,
+    RecordedStep,
     Segmentation,
-    Step,
     StepSpec,
     actuator_of,
     learn_sequence,
@@ -33,8 +33,8 @@ __all__ = [
     "Cycle",
     "Ensemble",
     "Kinematics",
+    "RecordedStep",
     "Segmentation",
-    "Step",
     "StepSpec",
     "actuator_of",
     "align_cycles",

@@ -50,8 +50,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Cycle",
+    "RecordedStep",
     "Segmentation",
-    "Step",
     "StepSpec",
     "actuator_of",
     "held_valves",
@@ -122,7 +122,7 @@ class StepSpec:
 
 
 @dataclass(frozen=True)
-class Step:
+class RecordedStep:
     """One step found in a recording.
 
     Attributes
@@ -170,7 +170,7 @@ class Cycle:
     ----------
     index : int
         1-based position among all cycles found, complete or not.
-    steps : tuple of Step
+    steps : tuple of RecordedStep
         Steps in order.
     complete : bool
         True when the cycle is a full, validated repetition of the sequence.
@@ -179,7 +179,7 @@ class Cycle:
     """
 
     index: int
-    steps: tuple[Step, ...]
+    steps: tuple[RecordedStep, ...]
     complete: bool = True
     reason: str | None = None
 
@@ -193,7 +193,7 @@ class Cycle:
         """End of the last step [s]."""
         return self.steps[-1].end_s if self.steps else float("nan")
 
-    def find(self, actuator: str, motion: str) -> Step | None:
+    def find(self, actuator: str, motion: str) -> RecordedStep | None:
         """The first step in which ``actuator`` makes ``motion`` (extend/retract)."""
         for step in self.steps:
             if step.motion(actuator) == motion:
@@ -799,9 +799,10 @@ def segment(
     ordered = {sig: tuple(sorted(sig)) for sig in set(ev.signatures)}
     lo_list, hi_list = lo_all.tolist(), hi_all.tolist()
 
-    def steps_of(a: int, b: int) -> tuple[Step, ...]:
+    def steps_of(a: int, b: int) -> tuple[RecordedStep, ...]:
         return tuple(
-            Step(i - a + 1, lo_list[i], hi_list[i], ordered[ev.signatures[i]]) for i in range(a, b)
+            RecordedStep(i - a + 1, lo_list[i], hi_list[i], ordered[ev.signatures[i]])
+            for i in range(a, b)
         )
 
     # Switch validation of every full candidate at once.

@@ -118,7 +118,7 @@ def synchronise(
 
     Examples
     --------
-    >>> from pneufdd.signals.segmentation import Cycle, Step
+    >>> from pneufdd.signals.segmentation import Cycle, RecordedStep as Step
     >>> rec = Recording.from_arrays({"Q": np.arange(10.0)}, 10.0, units={"Q": "kg/s"})
     >>> cyc = [Cycle(1, (Step(1, 0.0, 0.3, ("U_X_A",)), Step(2, 0.3, 0.5, ("U_X_B",)))),
     ...        Cycle(2, (Step(1, 0.5, 0.7, ("U_X_A",)), Step(2, 0.7, 1.0, ("U_X_B",))))]

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from pneufdd.sim.description import MachineDescription, parse_description
     from pneufdd.sim.leaks import Leak, LeakSpec, parse_leak_size
     from pneufdd.sim.loading import builtin_machines, load_machine
-    from pneufdd.sim.result import SimulationResult, Stroke
+    from pneufdd.sim.result import SimulatedStroke, SimulationResult
     from pneufdd.sim.simulate import (
         SIMULATOR_VERSION,
         MachineStalledError,
@@ -33,8 +33,8 @@ __all__ = [
     "LeakSpec",
     "MachineDescription",
     "MachineStalledError",
+    "SimulatedStroke",
     "SimulationResult",
-    "Stroke",
     "as_exported",
     "builtin_machines",
     "load_machine",
@@ -58,7 +58,7 @@ _LAZY = {
     "builtin_machines": "pneufdd.sim.loading",
     "load_machine": "pneufdd.sim.loading",
     "SimulationResult": "pneufdd.sim.result",
-    "Stroke": "pneufdd.sim.result",
+    "SimulatedStroke": "pneufdd.sim.result",
     "SIMULATOR_VERSION": "pneufdd.sim.simulate",
     "MachineStalledError": "pneufdd.sim.simulate",
     "as_exported": "pneufdd.sim.simulate",

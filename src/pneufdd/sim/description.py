@@ -22,8 +22,8 @@ __all__ = [
     "Action",
     "Actuator",
     "MachineDescription",
+    "ProgramStep",
     "Sensor",
-    "Step",
     "Supply",
     "Vacuum",
     "Valve",
@@ -243,7 +243,7 @@ class Action:
 
 
 @dataclass(frozen=True)
-class Step:
+class ProgramStep:
     """One PLC step: commands, then wait for switches (on/off) and a dwell timer."""
 
     name: str
@@ -267,7 +267,7 @@ class MachineDescription:
     actuators: tuple[Actuator, ...]
     vacuum: Vacuum | None
     sensors: tuple[Sensor, ...]
-    steps: tuple[Step, ...]
+    steps: tuple[ProgramStep, ...]
     raw: dict[str, Any]
     source: str
 
@@ -465,7 +465,7 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
     return s
 
 
-def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: int) -> Step:
+def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: int) -> ProgramStep:
     actions: list[Action] = []
     for a in r.tables("do"):
         if a.has("reset"):
@@ -490,7 +490,7 @@ def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: 
     for w in wait_off:
         if w not in switches:
             raise r.fail("wait_off", w, list(switches))
-    step = Step(
+    step = ProgramStep(
         name=r.text("name", f"step {index + 1}"),
         actions=tuple(actions),
         wait=tuple(wait),

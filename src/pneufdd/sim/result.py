@@ -15,11 +15,11 @@ from pneufdd.sim.leaks import LeakSpec
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["SimulationResult", "Stroke"]
+__all__ = ["SimulatedStroke", "SimulationResult"]
 
 
 @dataclass(frozen=True)
-class Stroke:
+class SimulatedStroke:
     """One piston motion: leaving one end stop until arriving at the other.
 
     The start is the start of *sustained* travel, the "start-up of the acceleration
@@ -78,12 +78,12 @@ class SimulationResult:
         (through the supply line), ``mass_regulator``, ``mass_exhausted``,
         ``mass_leaked``, ``mass_vacuum`` [kg], ``vacuum_level`` [-], ``step`` (0-based);
         and, not on the time base: ``step_start`` (cycles x steps) [s] and per
-        actuator ``stroke_start_<ACT>`` (sustained travel, see :class:`Stroke`),
+        actuator ``stroke_start_<ACT>`` (sustained travel, see :class:`SimulatedStroke`),
         ``stroke_end_<ACT>``, ``stroke_first_motion_<ACT>`` [s],
         ``stroke_direction_<ACT>`` (+1 extend, -1 retract).
     step_start : ndarray
         Start time of every step, shape (cycles, steps) [s].
-    strokes : list of Stroke
+    strokes : list of SimulatedStroke
         Every piston motion.
     recording : Recording
         What the rig's sensors and PLC I/O record.
@@ -98,7 +98,7 @@ class SimulationResult:
     time: npt.NDArray[np.float64]
     outputs: dict[str, npt.NDArray[Any]]
     step_start: npt.NDArray[np.float64]
-    strokes: list[Stroke]
+    strokes: list[SimulatedStroke]
     recording: Recording
     machine: MachineDescription
     leaks: list[LeakSpec]
@@ -110,7 +110,7 @@ class SimulationResult:
         """Start time of each cycle (its first step) [s]."""
         return np.asarray(self.step_start[:, 0], dtype=np.float64)
 
-    def strokes_of(self, actuator: str, direction: int | None = None) -> list[Stroke]:
+    def strokes_of(self, actuator: str, direction: int | None = None) -> list[SimulatedStroke]:
         """Strokes of one actuator, optionally only one direction (+1 extend, -1 retract)."""
         return [
             s

@@ -24,7 +24,7 @@ from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import load_machine
 from pneufdd.sim.prebuilt import compiled_twin
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
-from pneufdd.sim.result import SimulationResult, Stroke
+from pneufdd.sim.result import SimulatedStroke, SimulationResult
 from pneufdd.sim.schedule import LeakSchedule
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor, first_order_recursion
 
@@ -189,7 +189,7 @@ class _CycleLoop:
         self.ou_now = rng.normal(0.0, drift_std) if drift_std > 0 else 0.0
         self.chunks: list[dict[str, npt.NDArray[Any]]] = []
         self.step_start = np.zeros((cycles, nsteps))
-        self.strokes: list[Stroke] = []
+        self.strokes: list[SimulatedStroke] = []
         self.total_sub = 0
         self.timeline: list[dict[str, Any]] = []
         self.params, self.program, self.records_state, self.outputs = _records(
@@ -233,11 +233,11 @@ class _CycleLoop:
             )
         return n, status, n_ev, nsub
 
-    def _cycle_strokes(self, cyc: int, n_ev: int) -> list[Stroke]:
+    def _cycle_strokes(self, cyc: int, n_ev: int) -> list[SimulatedStroke]:
         """The strokes the kernel completed in cycle ``cyc`` (``n_ev`` of them)."""
         buf = self.buf
         return [
-            Stroke(
+            SimulatedStroke(
                 self.desc.actuators[int(buf.ev_act[e])].id,
                 int(buf.ev_dir[e]),
                 float(buf.ev_t0[e, 0]),
@@ -543,7 +543,7 @@ def _assemble(
     specs: list[LeakSpec],
     chunks: list[dict[str, npt.NDArray[Any]]],
     step_start: npt.NDArray[np.float64],
-    strokes: list[Stroke],
+    strokes: list[SimulatedStroke],
     rng: np.random.Generator,
     seed: int | None,
     cycles: int,
