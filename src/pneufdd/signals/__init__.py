@@ -1,5 +1,13 @@
 """Signal conditioning: segmentation into cycles and steps, synchronisation,
 ensemble statistics and filtering (section 5.3.1 and section 3.2.4 of the dissertation).
+
+``events`` (PLC signal names, debounced valve and switch edges, :class:`StepSpec`) ->
+``sequence`` (the machine's PLC sequence: :func:`plc_sequence`) -> ``segmentation``
+(cycles and steps) -> ``synchronisation``, ``ensemble``; ``quality`` judges channels
+and applies the gap rule; ``digital``, ``filtering`` and ``windows`` are the tools.
+
+May import: :mod:`pneufdd.errors`, :mod:`pneufdd.array_types`, :mod:`pneufdd.recording`,
+:mod:`pneufdd.physics` and :mod:`pneufdd.sim` (machine descriptions).
 """
 
 from __future__ import annotations

@@ -32,28 +32,52 @@ Rules (also in ``docs/signals.md``):
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from pneufdd.array_types import FloatArray, IntArray
-from pneufdd.errors import ChannelError, InputError, describe
+from pneufdd.errors import InputError, describe
 from pneufdd.recording.model import Recording
-from pneufdd.signals.digital import Edges, debounced_edges_many
+from pneufdd.signals.events import (
+    DEFAULT_SWITCH_DWELL_S,
+    DEFAULT_VALVE_DWELL_S,
+    RELEASE,
+    StepSpec,
+    _edge_present,
+    _Events,
+    _events,
+    _windows,
+    actuator_of,
+    direction_of,
+    held_valves,
+)
 from pneufdd.signals.final_step import close_final_step
+from pneufdd.signals.sequence import (
+    _convention_switches,
+    _sequence_and_origin,
+    learn_sequence,
+    plc_sequence,
+    sequence_from_machine,
+    sequence_from_metadata,
+)
 
 if TYPE_CHECKING:
-    from pneufdd.sim.description import MachineDescription
+    pass
 
 __all__ = [
+    "DEFAULT_SWITCH_DWELL_S",
+    "DEFAULT_VALVE_DWELL_S",
+    "RELEASE",
     "Cycle",
     "RecordedStep",
     "Segmentation",
     "StepSpec",
     "actuator_of",
+    "direction_of",
     "held_valves",
     "learn_sequence",
     "plc_sequence",
@@ -61,64 +85,6 @@ __all__ = [
     "sequence_from_machine",
     "sequence_from_metadata",
 ]
-
-VALVE_PREFIX = "U_"
-SWITCH_PREFIX = "S_"
-RELEASE = ":off"
-DEFAULT_VALVE_DWELL_S = 0.015
-DEFAULT_SWITCH_DWELL_S = 0.025
-
-
-def actuator_of(valve: str) -> str:
-    """Actuator driven by a solenoid channel.
-
-    Examples
-    --------
-    >>> actuator_of("U_HMPL_V_B")
-    'HMPL_V'
-    >>> actuator_of("U_VAC:off")
-    'VAC'
-    """
-    name = valve.removesuffix(RELEASE)
-    name = name[len(VALVE_PREFIX) :] if name.startswith(VALVE_PREFIX) else name
-    if name.endswith(("_A", "_B")):
-        return name[:-2]
-    return name
-
-
-def direction_of(valve: str) -> str:
-    """``"extend"`` for an ``_A`` solenoid, ``"retract"`` for ``_B``, else ``"other"``."""
-    if valve.endswith(RELEASE):
-        return "other"
-    if valve.endswith("_A"):
-        return "extend"
-    if valve.endswith("_B"):
-        return "retract"
-    return "other"
-
-
-@dataclass(frozen=True)
-class StepSpec:
-    """One step of a machine's PLC sequence.
-
-    Attributes
-    ----------
-    valves : frozenset of str
-        Solenoid events at the step's start (parallel motions): a channel name for
-        energising (``"U_DNC_B"``), the name with ``":off"`` for the release of a held
-        solenoid (``"U_VAC:off"``).
-    switches : frozenset of (str, int)
-        Switch edges the step awaits: ``(channel, new_state)``, e.g.
-        ``("S_DNC_A", 1)`` for DNC arriving home. Empty: derive from the naming
-        convention (``U_X_A`` awaits ``S_X_B`` rising, ``U_X_B`` awaits ``S_X_A``).
-    """
-
-    valves: frozenset[str]
-    switches: frozenset[tuple[str, int]] = field(default_factory=frozenset)
-
-    def describe_valves(self) -> str:
-        """The valves as a sorted, readable list."""
-        return "{" + ", ".join(sorted(self.valves)) + "}"
 
 
 @dataclass(frozen=True)
@@ -259,455 +225,6 @@ class Segmentation:
         return {"cycles": cycles, "rejected": rejected}
 
 
-# ---------------------------------------------------------------------- events
-@dataclass(frozen=True)
-class _Events:
-    """Valve-firing events (steps) and debounced switch edges of a recording."""
-
-    times: FloatArray  # step start times [s]
-    signatures: tuple[frozenset[str], ...]
-    end_s: float
-    period_s: float
-    switch_rise: dict[str, FloatArray]
-    switch_fall: dict[str, FloatArray]
-    switch_state: dict[str, tuple[float, float, npt.NDArray[np.uint8]]]
-
-
-def _digital(recording: Recording, prefix: str) -> list[str]:
-    return [n for n in recording.digital_channels if n.startswith(prefix)]
-
-
-def _debounced(
-    recording: Recording, names: Sequence[str], min_dwell_s: float
-) -> dict[str, tuple[npt.NDArray[np.uint8], Edges]]:
-    """Debounced samples and edges of digital channels, channels on one time base at once."""
-    out: dict[str, tuple[npt.NDArray[np.uint8], Edges]] = {}
-    for (rate, _, _), members in recording.time_bases(names).items():
-        stacked = np.stack([recording.info(m).values for m in members])
-        clean, found = debounced_edges_many(stacked, rate, min_dwell_s)
-        for k, m in enumerate(members):
-            out[m] = (clean[k], found[k])
-    return out
-
-
-def _valve_edges(
-    recording: Recording, valve_min_dwell_s: float
-) -> tuple[list[str], dict[str, tuple[FloatArray, FloatArray]], float, float]:
-    valves = _digital(recording, VALVE_PREFIX)
-    if not valves:
-        raise ChannelError(
-            "segmentation needs digital valve-solenoid channels named 'U_<ACT>_A/B'; "
-            f"the recording has: {list(recording.channels)}"
-        )
-    out: dict[str, tuple[FloatArray, FloatArray]] = {}
-    period, end_s = 0.0, 0.0
-    debounced = _debounced(recording, valves, valve_min_dwell_s)
-    for name in valves:
-        ch = recording.info(name)
-        clean, e = debounced[name]
-        # A solenoid already energised at the first sample fired there (a run that
-        # starts with its first step, like a simulation started at t = 0).
-        rising = np.r_[0, e.rising] if clean.size and clean[0] == 1 else e.rising
-        out[name] = (ch.t0 + rising / ch.rate_hz, ch.t0 + e.falling / ch.rate_hz)
-        period = max(period, 1.0 / ch.rate_hz)
-        end_s = max(end_s, ch.t0 + ch.duration)
-    return valves, out, period, end_s
-
-
-def held_valves(
-    recording: Recording, valve_min_dwell_s: float = DEFAULT_VALVE_DWELL_S
-) -> frozenset[str]:
-    """Solenoids held energised across steps, whose release starts a step.
-
-    Rule (learned mode): a solenoid is *held* when most of its energised periods
-    contain a firing of another solenoid, i.e. it stays on while later steps start
-    (a ``hold`` command released by a ``reset`` in a later step, like the vacuum
-    generator). Solenoids released by their own switch or after a pulse are off
-    before the next step starts.
-    """
-    valves, e, period, _ = _valve_edges(recording, valve_min_dwell_s)
-    held = set()
-    for name in valves:
-        rise, fall = e[name]
-        if rise.size == 0 or fall.size == 0:
-            continue
-        fall = fall[np.searchsorted(fall, rise[0]) :]
-        n = min(rise.size, fall.size)
-        if n == 0:
-            continue
-        others = np.sort(np.concatenate([e[v][0] for v in valves if v != name] or [np.empty(0)]))
-        lo, hi = rise[:n] + period * 1.001, fall[:n] - period * 1.001
-        inside = np.searchsorted(others, hi, side="right") - np.searchsorted(others, lo)
-        if np.mean(inside > 0) > 0.5:
-            held.add(name)
-    return frozenset(held)
-
-
-def _events(
-    recording: Recording,
-    valve_min_dwell_s: float,
-    switch_min_dwell_s: float,
-    release: frozenset[str] = frozenset(),
-) -> _Events:
-    valves, e, period, end_s = _valve_edges(recording, valve_min_dwell_s)
-    names = [*valves, *(v + RELEASE for v in valves)]
-    all_t: list[FloatArray] = []
-    all_id: list[IntArray] = []
-    for i, name in enumerate(valves):
-        all_t.append(e[name][0])
-        all_id.append(np.full(e[name][0].size, i, dtype=np.int64))
-        if name in release:
-            all_t.append(e[name][1])
-            all_id.append(np.full(e[name][1].size, len(valves) + i, dtype=np.int64))
-    t = np.concatenate(all_t)
-    ids = np.concatenate(all_id)
-    order = np.argsort(t, kind="stable")
-    t, ids = t[order], ids[order]
-    if t.size == 0:
-        raise InputError(
-            describe("valve channels", valves, "at least one valve firing (rising edge)")
-        )
-    new_group = np.r_[True, np.diff(t) > period * 1.001]
-    starts = t[new_group]
-    bounds = np.r_[np.flatnonzero(new_group), t.size]
-    id_list, cut = ids.tolist(), bounds.tolist()
-    signatures = tuple(
-        frozenset(names[j] for j in id_list[cut[g] : cut[g + 1]]) for g in range(starts.size)
-    )
-    rise: dict[str, FloatArray] = {}
-    fall: dict[str, FloatArray] = {}
-    state: dict[str, tuple[float, float, npt.NDArray[np.uint8]]] = {}
-    switches = _digital(recording, SWITCH_PREFIX)
-    debounced = _debounced(recording, switches, switch_min_dwell_s)
-    for name in switches:
-        ch = recording.info(name)
-        clean, sw = debounced[name]
-        rise[name] = ch.t0 + sw.rising / ch.rate_hz
-        fall[name] = ch.t0 + sw.falling / ch.rate_hz
-        state[name] = (ch.t0, ch.rate_hz, clean)
-        end_s = max(end_s, ch.t0 + ch.duration)
-    return _Events(starts, signatures, end_s, period, rise, fall, state)
-
-
-def _windows(ev: _Events) -> tuple[FloatArray, FloatArray]:
-    """Start and end [s] of every step event (end = next start or end of data)."""
-    return ev.times, np.r_[ev.times[1:], ev.end_s]
-
-
-def _edge_present(
-    ev: _Events, switch: str, state: int, lo: FloatArray, hi: FloatArray
-) -> npt.NDArray[np.bool_]:
-    """Whether ``switch`` reaches ``state`` inside each window ``(lo, hi]``.
-
-    An edge at the very sample a step starts belongs to the step before; one at
-    the sample the next step starts still belongs to this step (the PLC fired the
-    next step on seeing it).
-    """
-    times = (ev.switch_rise if state == 1 else ev.switch_fall).get(switch)
-    if times is None:
-        return np.ones(lo.shape, dtype=bool)
-    tol = 1e-9
-    n = np.searchsorted(times, hi + tol, side="right") - np.searchsorted(
-        times, lo + tol, side="right"
-    )
-    return np.asarray(n > 0)
-
-
-def _convention_switches(
-    valves: Iterable[str], available: Iterable[str]
-) -> frozenset[tuple[str, int]]:
-    have = set(available)
-    out = set()
-    for v in valves:
-        act, direction = actuator_of(v), direction_of(v)
-        target = {"extend": f"S_{act}_B", "retract": f"S_{act}_A"}.get(direction)
-        if target is not None and target in have:
-            out.add((target, 1))
-    return frozenset(out)
-
-
-# ------------------------------------------------------------ machine sequence
-def _spec_from_actions(
-    actions: Iterable[tuple[str, str, str]], wait: Iterable[str], wait_off: Iterable[str]
-) -> StepSpec:
-    valves = set()
-    for solenoid, mode, _switch in actions:
-        valves.add(solenoid + RELEASE if mode == "reset" else solenoid)
-    switches = {(w, 1) for w in wait} | {(w, 0) for w in wait_off}
-    return StepSpec(frozenset(valves), frozenset(switches))
-
-
-def sequence_from_machine(machine: Any) -> tuple[StepSpec, ...]:
-    """The step sequence of a machine description.
-
-    Accepts a :class:`pneufdd.sim.MachineDescription` (its ``steps``, each with
-    ``actions`` of ``solenoid``/``mode``/``switch``, ``wait`` and ``wait_off``) or
-    the raw TOML mapping (``{"step": [{"do": [{"set": ..., "until": ...} |
-    {"reset": ...}], "wait": [...], "wait_off": [...]}]}``). Each step's valve
-    events are its ``set`` solenoids and the releases (``":off"``) of its
-    ``reset`` solenoids; it awaits its ``wait`` switches rising (by default its
-    ``until`` switches) and its ``wait_off`` switches falling.
-
-    Examples
-    --------
-    >>> raw = {"step": [{"do": [{"set": "U_DNC_B", "until": "S_DNC_A"}]},
-    ...                 {"do": [{"reset": "U_VAC"}], "wait_off": ["S_VAC"]}]}
-    >>> [sorted(s.valves) for s in sequence_from_machine(raw)]
-    [['U_DNC_B'], ['U_VAC:off']]
-    >>> sorted(sequence_from_machine(raw)[0].switches)
-    [('S_DNC_A', 1)]
-    """
-    specs = []
-    if isinstance(machine, dict):
-        steps = machine.get("step")
-        if not isinstance(steps, list) or not steps:
-            raise InputError(describe("machine description 'step'", steps, "a list of steps"))
-        for k, step in enumerate(steps, start=1):
-            actions, wait, wait_off = _raw_step(step, f"machine description step {k}")
-            specs.append(_spec_from_actions(actions, wait, wait_off))
-        return tuple(specs)
-    steps = getattr(machine, "steps", None)
-    if steps is None:
-        raise InputError(
-            describe("machine", type(machine).__name__, "a MachineDescription or its TOML mapping")
-        )
-    for step in steps:
-        actions = [(a.solenoid, a.mode, a.switch) for a in step.actions]
-        specs.append(_spec_from_actions(actions, step.wait, step.wait_off))
-    return tuple(specs)
-
-
-def _names(value: object, where: str) -> list[str]:
-    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
-        raise InputError(describe(where, value, "a list of channel names"))
-    return list(value)
-
-
-def _raw_step(step: object, where: str) -> tuple[list[tuple[str, str, str]], list[str], list[str]]:
-    """Check one raw TOML step (types, required keys) and return its actions and waits."""
-    if not isinstance(step, dict):
-        raise InputError(describe(where, step, "a table with 'do' actions"))
-    do = step.get("do", [])
-    if not isinstance(do, list):
-        raise InputError(describe(f"{where}: 'do'", do, "a list of actions"))
-    actions = []
-    for a in do:
-        allowed = "{set = 'U_...', until = 'S_...'} or {reset = 'U_...'}"
-        if not isinstance(a, dict):
-            raise InputError(describe(f"{where}: action", a, allowed))
-        if isinstance(a.get("reset"), str) and a["reset"]:
-            actions.append((a["reset"], "reset", ""))
-        elif isinstance(a.get("set"), str) and a["set"]:
-            until = a.get("until", "")
-            if not isinstance(until, str):
-                raise InputError(describe(f"{where}: 'until'", until, "a switch name"))
-            actions.append((a["set"], "set", until))
-        else:
-            raise InputError(describe(f"{where}: action", a, allowed))
-    wait = _names(step.get("wait", [a[2] for a in actions if a[2]]), f"{where}: 'wait'")
-    wait_off = _names(step.get("wait_off", []), f"{where}: 'wait_off'")
-    return actions, wait, wait_off
-
-
-def sequence_from_metadata(metadata: dict[str, Any]) -> tuple[StepSpec, ...] | None:
-    """The sequence of the machine description stored in a recording's metadata.
-
-    Looks for ``metadata["machine"]["description"]`` (the raw TOML mapping the
-    simulator stores); None when there is none.
-    """
-    machine = metadata.get("machine")
-    if isinstance(machine, dict):
-        raw = machine.get("description")
-        if isinstance(raw, dict) and raw.get("step"):
-            return sequence_from_machine(raw)
-    return None
-
-
-def _sequence_and_origin(
-    recording: Recording | None,
-    machine: Any,
-    carried: bool,
-    valve_min_dwell_s: float,
-    switch_min_dwell_s: float,
-) -> tuple[tuple[StepSpec, ...], str]:
-    """:func:`plc_sequence` and where it took it from: given, carried or learned."""
-    if machine is not None:
-        if isinstance(machine, dict) or hasattr(machine, "steps"):
-            return sequence_from_machine(machine), "given"
-        if isinstance(machine, str) or not isinstance(machine, Iterable):
-            raise InputError(
-                describe(
-                    "machine",
-                    type(machine).__name__,
-                    "a MachineDescription, its TOML mapping or a sequence of StepSpec",
-                )
-            )
-        return tuple(machine), "given"
-    if recording is None:
-        raise InputError(
-            describe("PLC sequence", "neither a machine nor a recording", "either of them")
-        )
-    if carried:
-        found = sequence_from_metadata(recording.metadata)
-        if found is not None:
-            return found, "carried"
-    return learn_sequence(recording, valve_min_dwell_s, switch_min_dwell_s), "learned"
-
-
-def plc_sequence(
-    recording: Recording | None = None,
-    machine: MachineDescription | Mapping[str, Any] | Sequence[StepSpec] | None = None,
-    *,
-    carried: bool = True,
-    valve_min_dwell_s: float = DEFAULT_VALVE_DWELL_S,
-    switch_min_dwell_s: float = DEFAULT_SWITCH_DWELL_S,
-) -> tuple[StepSpec, ...]:
-    """The PLC sequence of a recording: the one place that decides where it comes from.
-
-    Order of precedence (``docs/signals.md``, "Sequence"):
-
-    1. ``machine`` when given: a machine description (:func:`sequence_from_machine`),
-       or a sequence itself (e.g. the one a reference stores), taken as it is;
-    2. the machine description carried in ``recording``'s metadata
-       (:func:`sequence_from_metadata`: simulated recordings carry theirs), unless
-       ``carried`` is False;
-    3. learned from ``recording``'s signals (:func:`learn_sequence`, with the
-       debounce dwells given): the recording must start at a cycle start.
-
-    Every consumer takes its sequence from here: :func:`segment` (and so the
-    ``steps`` command, which refuses a malformed carried description first),
-    :func:`pneufdd.features.feature_matrix` (carried description checked first),
-    :func:`pneufdd.features.step_summaries.segment_cycles` and
-    :func:`~pneufdd.features.step_summaries.machine_sequence` (the step table, so the
-    diagnosis, its reference and the monitor, which segments with the sequence its
-    reference stored), the evaluation campaigns and the calibration. One difference
-    is kept on purpose: ``segment_cycles`` passes ``carried=False``, so a run
-    segmented without a sequence (a reference of an old format that stored none)
-    has its sequence learned from its own signals, as it always had. The reference
-    build decides the description before this is called
-    (:func:`pneufdd.diagnosis.machine.resolve_machine`: the description given, else
-    the first of its recordings that carries one, parsed and checked), and without
-    a description learns the sequence from its first recording. Drafting a
-    description (:mod:`pneufdd.calibration.draft`) always learns, with the held
-    solenoids it found itself.
-
-    Parameters
-    ----------
-    recording : Recording, optional
-        The recording to be segmented (needed unless ``machine`` is given).
-    machine : MachineDescription, mapping or sequence of StepSpec, optional
-        The machine description (or its raw TOML mapping), or the sequence itself.
-    carried : bool
-        Use the description carried in the recording's metadata (step 2).
-    valve_min_dwell_s, switch_min_dwell_s : float
-        Debounce dwell of the valve and switch channels when learning [s].
-
-    Returns
-    -------
-    tuple of StepSpec
-
-    Raises
-    ------
-    InputError
-        Neither ``machine`` nor ``recording``; a ``machine`` of another type; or, when
-        learning, a recording without a repeating pattern of at least two cycles.
-
-    Examples
-    --------
-    >>> raw = {"step": [{"do": [{"set": "U_DNC_A", "until": "S_DNC_B"}]},
-    ...                 {"do": [{"set": "U_DNC_B", "until": "S_DNC_A"}]}]}
-    >>> [sorted(s.valves) for s in plc_sequence(machine=raw)]
-    [['U_DNC_A'], ['U_DNC_B']]
-    """
-    return _sequence_and_origin(recording, machine, carried, valve_min_dwell_s, switch_min_dwell_s)[
-        0
-    ]
-
-
-# -------------------------------------------------------------------- learning
-def _period(codes: IntArray, min_match: float) -> int:
-    """Smallest period whose repeat rate is within 2 points of the best period's."""
-    n = codes.size
-    periods = np.arange(1, n // 2 + 1)
-    match = np.array([np.mean(codes[:-p] == codes[p:]) for p in periods])
-    if match.size == 0 or match.max() < min_match:
-        raise InputError(
-            describe(
-                "reference recording",
-                f"{n} steps without a repeating pattern",
-                f"at least two cycles whose step valve sets repeat (>= {min_match:.0%} of steps)",
-            )
-        )
-    return int(periods[np.flatnonzero(match >= max(match.max() - 0.02, min_match))[0]])
-
-
-def learn_sequence(
-    reference: Recording,
-    valve_min_dwell_s: float = DEFAULT_VALVE_DWELL_S,
-    switch_min_dwell_s: float = DEFAULT_SWITCH_DWELL_S,
-    min_match: float = 0.8,
-    min_presence: float = 0.9,
-    release: Iterable[str] | None = None,
-) -> tuple[StepSpec, ...]:
-    """Learn a machine's step sequence from a reference recording.
-
-    Rule: the step signatures (sets of valves firing together) form a string; for
-    each period ``p`` (up to half the steps) the repeat rate is the fraction of
-    signatures equal to the one ``p`` steps later. The cycle length is the smallest
-    ``p`` whose repeat rate is at least ``min_match`` and within 0.02 of the best
-    rate (multiples of the true period repeat as well; shorter internal patterns
-    repeat less). At least two full cycles are needed. The reference is assumed to start at
-    the beginning of a cycle (the machine rests at home when the recording starts),
-    so step 1 is its first valve firing. The switch edges awaited in each step are
-    the edges of the switches of the actuators moving in it (``S_<ACT>_*``) that
-    occur, after the step's first sample and up to the next step's start, in at
-    least ``min_presence`` of the reference cycles that match the learned valve
-    pattern.
-
-    Parameters
-    ----------
-    reference : Recording
-        A leak-free recording of at least two full cycles.
-    valve_min_dwell_s, switch_min_dwell_s : float
-        Debounce dwell of valve and switch channels [s].
-    min_match : float
-        Fraction of steps that must repeat with the period [-].
-    min_presence : float
-        Fraction of cycles in which a switch edge must occur to be awaited [-].
-    release : iterable of str, optional
-        Solenoids whose release starts a step (default: :func:`held_valves`).
-
-    Returns
-    -------
-    tuple of StepSpec
-    """
-    released = held_valves(reference, valve_min_dwell_s) if release is None else frozenset(release)
-    ev = _events(reference, valve_min_dwell_s, switch_min_dwell_s, released)
-    table: dict[frozenset[str], int] = {}
-    codes = np.array([table.setdefault(s, len(table)) for s in ev.signatures], dtype=np.int64)
-    p = _period(codes, min_match)
-    pattern = codes[:p]
-    m = codes.size // p
-    blocks = codes[: m * p].reshape(m, p)
-    good = np.flatnonzero(np.all(blocks == pattern, axis=1))
-    lo_all, hi_all = _windows(ev)
-    lo = lo_all[: m * p].reshape(m, p)[good]
-    hi = hi_all[: m * p].reshape(m, p)[good]
-    specs = []
-    for j in range(p):
-        awaited = set()
-        moving = {actuator_of(v) for v in ev.signatures[j]}
-        for name in ev.switch_rise:
-            if actuator_of(name.replace(SWITCH_PREFIX, VALVE_PREFIX, 1)) not in moving:
-                continue
-            for state in (0, 1):
-                if np.mean(_edge_present(ev, name, state, lo[:, j], hi[:, j])) >= min_presence:
-                    awaited.add((name, state))
-        specs.append(StepSpec(ev.signatures[j], frozenset(awaited)))
-    return tuple(specs)
-
-
-# -------------------------------------------------------------------- assembly
 def _reject_reason(
     seg: IntArray,
     pattern: IntArray,
