@@ -80,10 +80,15 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from pneufdd.physics.chamber import chamber_pressure_kernel, chamber_volume_kernel
+from pneufdd.physics.chamber import (
+    chamber_energy_step_kernel,
+    chamber_pressure_kernel,
+    chamber_volume_kernel,
+    enthalpy_flow_kernel,
+)
 from pneufdd.physics.constants import GAMMA_AIR, P_ATM, R_AIR
 from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
-from pneufdd.physics.friction import friction_force_kernel
+from pneufdd.physics.friction import friction_force_kernel, piston_net_force_kernel
 from pneufdd.sim.layout import (
     AP_AROD,
     AP_CVF,
@@ -165,8 +170,6 @@ __all__ = [
 
 F64 = npt.NDArray[np.float64]
 _G = GAMMA_AIR
-_CV_AIR = R_AIR / (GAMMA_AIR - 1.0)
-_CP_AIR = GAMMA_AIR * R_AIR / (GAMMA_AIR - 1.0)
 _DV = 1e-4  # Karnopp velocity band [m/s]
 # Travel after a breakaway, without re-sticking, that makes it the start of sustained
 # motion (the stroke start of section 3.3) rather than a stick-slip creep [m].
@@ -224,12 +227,6 @@ def _house_pressure(
     # loaded (rising) for 30 % of the period, unloaded (falling) for 70 %
     saw = ph / 0.3 if ph < 0.3 else 1.0 - (ph - 0.3) / 0.7
     return p_house + band * (saw - 0.5) + drift
-
-
-@njit(cache=True, inline="always")
-def _enthalpy_flow(f: float, ti: float, tj: float) -> float:
-    """Enthalpy carried by an edge flow f (i -> j positive, upstream temperature) [W]."""
-    return _CP_AIR * f * (ti if f > 0.0 else tj)
 
 
 @njit(cache=True, nogil=True)
@@ -571,11 +568,11 @@ def run_cycle(
             f_vac = g_mv * (pm_new - P_ATM)
             dm[0] += f_reg - f_line
             dm[1] += f_line - f_sl - f_vac
-            energy_in[0] += _CP_AIR * f_reg * t_wall
-            h = _enthalpy_flow(f_line, temp[0], temp[1])
+            energy_in[0] += enthalpy_flow_kernel(f_reg, t_wall, t_wall)
+            h = enthalpy_flow_kernel(f_line, temp[0], temp[1])
             energy_in[0] -= h
             energy_in[1] += h
-            energy_in[1] -= _enthalpy_flow(f_sl + f_vac, temp[1], t_wall)
+            energy_in[1] -= enthalpy_flow_kernel(f_sl + f_vac, temp[1], t_wall)
             out_fr[n_out, FR_REG] += f_reg
             out_fr[n_out, FR_LINE] += f_line
             out_fr[n_out, FR_SUPPLY_LEAK] += f_sl
@@ -589,10 +586,10 @@ def run_cycle(
                 f_lk = g_leak[c] * (pc_new - P_ATM)
                 dm[1] -= f_in
                 dm[j] += f_in - f_ex - f_lk
-                h = _enthalpy_flow(f_in, temp[1], temp[j])
+                h = enthalpy_flow_kernel(f_in, temp[1], temp[j])
                 energy_in[1] -= h
                 energy_in[j] += h
-                energy_in[j] -= _enthalpy_flow(f_ex + f_lk, temp[j], t_wall)
+                energy_in[j] -= enthalpy_flow_kernel(f_ex + f_lk, temp[j], t_wall)
                 out_fch[n_out, c] += f_in
                 out_fexh[n_out, c] += f_ex
                 out_fleak[n_out, c] += f_lk
@@ -611,8 +608,9 @@ def run_cycle(
                 if stuck[i] == 1 and awake[2 * i] == 0 and awake[2 * i + 1] == 0:
                     continue
                 stroke = ap[i, AP_STROKE]
-                force = p[ca] * cp[2 * i, CP_AREA] - p[cb] * cp[2 * i + 1, CP_AREA]
-                force -= P_ATM * ap[i, AP_AROD]
+                force = piston_net_force_kernel(
+                    p[ca], p[cb], cp[2 * i, CP_AREA], cp[2 * i + 1, CP_AREA], ap[i, AP_AROD]
+                )
                 fs = ap[i, AP_FS] * fric[i]
                 fc = ap[i, AP_FC] * fric[i]
                 cvf = ap[i, AP_CVF]
@@ -673,16 +671,10 @@ def run_cycle(
             for j in range(nn):
                 if j >= 2 and awake[j - 2] == 0 and vdot[j] == 0.0:
                     continue
+                m_new, t_new = chamber_energy_step_kernel(
+                    m[j], temp[j], p[j], vdot[j], dm[j], energy_in[j], dt, t_wall, decay[nsub, j]
+                )
                 v_new_j = vol[j] + vdot[j] * dt
-                u = m[j] * _CV_AIR * temp[j]
-                u += dt * (energy_in[j] - p[j] * vdot[j])
-                m_new = m[j] + dt * dm[j]
-                if m_new < 1e-12:
-                    m_new = 1e-12
-                t_new = u / (m_new * _CV_AIR)
-                t_new = t_wall + (t_new - t_wall) * decay[nsub, j]
-                if t_new < 150.0:
-                    t_new = 150.0
                 m[j] = m_new
                 temp[j] = t_new
                 vol[j] = v_new_j
