@@ -25,41 +25,25 @@ sub-steps of a linearly-implicit scheme:
   until the difference exceeds a wake threshold.
 
 The kernel takes five typed records (:mod:`pneufdd.sim.records`: plant parameters,
-PLC program, the cycle's random draws, state, outputs) and evaluates the physics
-through the compiled functions :mod:`pneufdd.physics` exposes and tests: valve and
-orifice flow (``isa_mass_flow_kernel``, ``orifice_mass_flow_kernel``), chamber
-volume and pressure (``chamber_volume_kernel``, ``chamber_pressure_kernel``) and
-Karnopp friction (``friction_force_kernel``); :mod:`pneufdd.sim.rhs` uses the same
-functions. The body stays one loop on purpose: split into compiled stage functions
-(measured, issue 13) the cycle took 43 % longer, because numba passes and
-reference-counts every array argument of every stage call once per sub-step; with
-the stages inlined (``inline="always"``) about 50 % longer, the stages' array
-bindings keeping reference counts, and with reference counting off 3-6 % longer
-(``docs/twin.md``, Numerics).
-For the same reason the kernel's own helpers take scalars only and are inlined
-(``inline="always"``), and so are the small private helpers of the flow kernels and
-the chamber volume/pressure kernels (:func:`pneufdd.physics._jit.njit_inline`);
-the ISA valve kernel stays one compiled function shared by its five call sites
-(inlining it everywhere cost 4 s more compilation for about 4 % speed).
+PLC program, the cycle's random draws, state, outputs). Its physics is the compiled
+functions of :mod:`pneufdd.physics`, which :mod:`pneufdd.sim.rhs` calls too: valve and
+orifice flow (eq. 4.6, 4.3), chamber volume and pressure (eq. 4.11, 4.7), the enthalpy
+an edge carries and a node's mass and energy step (eq. 4.7-4.9), the piston force
+(eq. 4.13) and Karnopp friction (eq. 4.14). The small ones are inlined
+(:func:`pneufdd.physics._jit.njit_inline`): the same machine code as the arithmetic
+written here, and bit-identical results (issue 31). What stays written here is the
+integrator itself, for which physics/ has no law: the implicit node balances and their
+elimination, the secant conductances, the stick/slip state machine and end stops, the
+freeze/wake rule, the PLC, and the twin's house-air and ejector models.
 
-Where the time goes (issue 13, festo-dsd, 2-core development machine, perf with
-numba's debug line table): about two thirds in the awake chambers (conductances,
-the elimination into the manifold, edge flows, mass and energy), 20-25 % in the
-per-sample bookkeeping (PLC, freeze/wake, recording), 5 % in the pistons. On
-average 11 of the 18 chambers are awake: the held chambers of resting actuators
-follow every manifold dip caused by another actuator's stroke (time constant
-C/g of about 0.2 ms) and need about 0.5 s to settle thermally afterwards, and some
-actuator moves in 68 % of the samples. Only 2.5 % of the samples have every piston
-at rest and no chamber pressure changing by more than 500 Pa per ms (10.5 % below
-2 kPa per ms), so quiet-period macro steps over several milliseconds were not
-built: they could save at most a few per cent. Loosening the freeze threshold
-(30 -> 100 Pa) saved nothing measurable and moved step starts by up to 20 ms after
-three cycles: the cycle's timing integrates small changes of the supply dynamics.
-Work that cannot change anything is skipped instead (bit-identical results): node
-pressures are kept current rather than recomputed three times per sample, the
-sub-step loops run over a list of the awake chambers, and the position switches,
-the release checks and the spool logic run only after a piston moved, while a
-solenoid waits for its release, or after a solenoid changed.
+The body stays one loop on purpose (``docs/twin.md``, Numerics): split into compiled
+stage functions the cycle took 43 % longer (numba passes and reference-counts every
+array argument of every stage call once per sub-step), with the stages inlined about
+50 % longer, with reference counting off 3-6 % longer. For the same reason its helpers
+take scalars only and are inlined; the ISA valve kernel stays one compiled function
+shared by its five call sites (inlining it everywhere cost 4 s more compilation for
+about 4 % speed). Where the time goes, and the work skipped while it cannot change
+anything: ``docs/twin.md``, Speed (issue 13, item 3).
 
 The kernel releases the GIL (``nogil``): the diagnosis's simulation checks run
 independent explanations on several threads of one process
@@ -77,9 +61,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 from numba import njit
 
+from pneufdd.array_types import FloatArray, IntArray
 from pneufdd.physics.chamber import (
     chamber_energy_step_kernel,
     chamber_pressure_kernel,
@@ -89,75 +73,8 @@ from pneufdd.physics.chamber import (
 from pneufdd.physics.constants import GAMMA_AIR, P_ATM, R_AIR
 from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
 from pneufdd.physics.friction import friction_force_kernel, piston_net_force_kernel
-from pneufdd.sim.layout import (
-    AP_AROD,
-    AP_CVF,
-    AP_FC,
-    AP_FS,
-    AP_MASS,
-    AP_OFF_DELAY,
-    AP_ON_DELAY,
-    AP_STROKE,
-    CM_EXHAUST,
-    CM_LEAK,
-    CM_LINE,
-    CM_REG,
-    CM_VAC,
-    CP_AREA,
-    CP_CV_EXH,
-    CP_CV_FILL,
-    CP_DEAD,
-    CP_LEAK,
-    CP_TAU_TH,
-    CP_XT,
-    FR_LINE,
-    FR_REG,
-    FR_SUPPLY_LEAK,
-    FR_VAC,
-    IS_CYCLE_DONE,
-    IS_PHASE,
-    IS_SAMPLE,
-    IS_STEP,
-    SAMPLE_DT,
-    SENSOR_FLOW,
-    SENSOR_POSITION,
-    SENSOR_PRESSURE,
-    SP_COMP_BAND,
-    SP_COMP_PERIOD,
-    SP_COMP_PHASE,
-    SP_DP_TOL,
-    SP_LINE_CV,
-    SP_LINE_XT,
-    SP_N_MAX,
-    SP_N_MOVE,
-    SP_NOZZLE,
-    SP_OU_DT,
-    SP_P_HOUSE,
-    SP_P_SET,
-    SP_REG_CV,
-    SP_REG_EFFECT,
-    SP_REG_XT,
-    SP_SUPPLY_LEAK,
-    SP_T_WALL,
-    SP_TAU_TH,
-    SP_V_MAN,
-    SP_V_RES,
-    SP_VAC_LEVEL,
-    SP_VAC_OFF_DELAY,
-    SP_VAC_ON_DELAY,
-    SP_VAC_TAU_OFF,
-    SP_VAC_TAU_ON,
-    SP_WINDOW,
-    SS_PHASE_END,
-    SS_TIME,
-    SS_VAC,
-    TRUTH_CHAMBER_FLOW,
-    TRUTH_NODE_PRESSURE,
-    TRUTH_POSITION,
-    VK_BISTABLE,
-    VK_CLOSED_CENTRE,
-    VK_MONOSTABLE,
-)
+from pneufdd.sim import layout as lay
+from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 
 __all__ = [
@@ -168,9 +85,7 @@ __all__ = [
     "truth_rows_kernel",
 ]
 
-F64 = npt.NDArray[np.float64]
 _G = GAMMA_AIR
-_DV = 1e-4  # Karnopp velocity band [m/s]
 # Travel after a breakaway, without re-sticking, that makes it the start of sustained
 # motion (the stroke start of section 3.3) rather than a stick-slip creep [m].
 _SUSTAINED_TRAVEL = 2e-4
@@ -267,22 +182,22 @@ def run_cycle(
     has_vac = ns > nc
     nsteps = dwell.size
     max_samples = out_p.shape[0]
-    t_wall = sp[SP_T_WALL]
-    window = sp[SP_WINDOW]
-    n_move = int(sp[SP_N_MOVE])
-    n_max = int(sp[SP_N_MAX])
-    dp_tol = sp[SP_DP_TOL]
-    t0 = ss[SS_TIME]
-    ou_dt = sp[SP_OU_DT]
+    t_wall = sp[lay.SP_T_WALL]
+    window = sp[lay.SP_WINDOW]
+    n_move = int(sp[lay.SP_N_MOVE])
+    n_max = int(sp[lay.SP_N_MAX])
+    dp_tol = sp[lay.SP_DP_TOL]
+    t0 = ss[lay.SS_TIME]
+    ou_dt = sp[lay.SP_OU_DT]
     n_ou = ou.size
-    comp_period = sp[SP_COMP_PERIOD]
-    comp_phase = sp[SP_COMP_PHASE]
-    p_house = sp[SP_P_HOUSE]
-    comp_band = sp[SP_COMP_BAND]
+    comp_period = sp[lay.SP_COMP_PERIOD]
+    comp_phase = sp[lay.SP_COMP_PHASE]
+    p_house = sp[lay.SP_P_HOUSE]
+    comp_band = sp[lay.SP_COMP_BAND]
     vol = np.empty(nn)
     vdot = np.zeros(nn)
-    vol[0] = sp[SP_V_RES]
-    vol[1] = sp[SP_V_MAN]
+    vol[0] = sp[lay.SP_V_RES]
+    vol[1] = sp[lay.SP_V_MAN]
     p = np.empty(nn)
     energy_in = np.zeros(nn)
     dm = np.zeros(nn)
@@ -300,20 +215,20 @@ def run_cycle(
     dp_prev = 1e9
     spool_changed = True
     n_out = 0
-    istate[IS_STEP] = 0
-    istate[IS_PHASE] = -1  # -1: step not yet started
-    istate[IS_CYCLE_DONE] = 0
+    istate[lay.IS_STEP] = 0
+    istate[lay.IS_PHASE] = -1  # -1: step not yet started
+    istate[lay.IS_CYCLE_DONE] = 0
 
     # heat exchange: the gas temperature relaxes to the wall with exp(-dt / tau)
     decay = np.ones((n_max + 1, nn))
     for q in range(1, n_max + 1):
         for j in range(nn):
-            tau = sp[SP_TAU_TH] if j < 2 else cp[j - 2, CP_TAU_TH]
+            tau = sp[lay.SP_TAU_TH] if j < 2 else cp[j - 2, lay.CP_TAU_TH]
             decay[q, j] = math.exp(-SAMPLE_DT / q / tau)
     for c in range(nc):
         i = c // 2  # eq. 4.11, chamber A (c even) or B (c odd)
         vol[2 + c] = chamber_volume_kernel(
-            x[i], cp[c, CP_AREA], cp[c, CP_DEAD], ap[i, AP_STROKE], float(c % 2)
+            x[i], cp[c, lay.CP_AREA], cp[c, lay.CP_DEAD], ap[i, lay.AP_STROKE], float(c % 2)
         )
     # node pressures [Pa]: kept current, recomputed only where a node's state changes
     for j in range(nn):
@@ -327,15 +242,15 @@ def run_cycle(
     eff_changed = True
 
     while True:
-        t = ss[SS_TIME]
+        t = ss[lay.SS_TIME]
         # ---------------------------------------------------------- switches
         if x_moved:
             for i in range(na):
                 sw[2 * i] = 1 if x[i] <= window else 0
-                sw[2 * i + 1] = 1 if x[i] >= ap[i, AP_STROKE] - window else 0
+                sw[2 * i + 1] = 1 if x[i] >= ap[i, lay.AP_STROKE] - window else 0
             x_moved = False
         if has_vac:
-            sw[nc] = 1 if ss[SS_VAC] >= sp[SP_VAC_LEVEL] else 0
+            sw[nc] = 1 if ss[lay.SS_VAC] >= sp[lay.SP_VAC_LEVEL] else 0
         # ---------------------------------------------------------------- PLC
         if armed:
             armed = False
@@ -350,15 +265,15 @@ def run_cycle(
                     pending = True
                 elif cmd[s] == 1 and (rel_sw[s] >= 0 or rel_t[s] >= 0.0):
                     armed = True
-        k = istate[IS_STEP]
-        if istate[IS_PHASE] == 1 and t >= ss[SS_PHASE_END] - 1e-9:
+        k = istate[lay.IS_STEP]
+        if istate[lay.IS_PHASE] == 1 and t >= ss[lay.SS_PHASE_END] - 1e-9:
             k += 1
-            istate[IS_STEP] = k
-            istate[IS_PHASE] = -1
+            istate[lay.IS_STEP] = k
+            istate[lay.IS_PHASE] = -1
             if k >= nsteps:
-                istate[IS_CYCLE_DONE] = 1
+                istate[lay.IS_CYCLE_DONE] = 1
                 break
-        if istate[IS_PHASE] == -1:
+        if istate[lay.IS_PHASE] == -1:
             step_t[k] = t
             for a in range(act_start[k], act_start[k + 1]):
                 s = act_sol[a]
@@ -377,25 +292,29 @@ def run_cycle(
                     rel_t[s] = t + act_dur[a] if mode == 1 else -1.0
                     armed = armed or mode <= 1
             pending = True
-            istate[IS_PHASE] = 0
-        if istate[IS_PHASE] == 0:
+            istate[lay.IS_PHASE] = 0
+        if istate[lay.IS_PHASE] == 0:
             ok = True
             for w in range(wait_start[k], wait_start[k + 1]):
                 if sw[wait_sw[w]] != wait_val[w]:
                     ok = False
                     break
             if ok:
-                istate[IS_PHASE] = 1
-                ss[SS_PHASE_END] = t + dwell[k] + jitter[k]
+                istate[lay.IS_PHASE] = 1
+                ss[lay.SS_PHASE_END] = t + dwell[k] + jitter[k]
         # ------------------------------------------------- solenoids -> spools
         if pending:
             pending = False
             for s in range(ns):
                 if eff[s] != cmd[s]:
                     if s < nc:
-                        delay = ap[s // 2, AP_ON_DELAY] if cmd[s] == 1 else ap[s // 2, AP_OFF_DELAY]
+                        delay = (
+                            ap[s // 2, lay.AP_ON_DELAY]
+                            if cmd[s] == 1
+                            else ap[s // 2, lay.AP_OFF_DELAY]
+                        )
                     else:
-                        delay = sp[SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[SP_VAC_OFF_DELAY]
+                        delay = sp[lay.SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[lay.SP_VAC_OFF_DELAY]
                     if t - chg[s] >= delay - 1e-9:
                         eff[s] = cmd[s]
                         eff_changed = True
@@ -405,14 +324,14 @@ def run_cycle(
             ea = eff[2 * i]
             eb = eff[2 * i + 1]
             old = spool[i]
-            if vkind[i] == VK_BISTABLE:
+            if vkind[i] == lay.VK_BISTABLE:
                 if ea == 1 and eb == 0:
                     spool[i] = 1
                 elif eb == 1 and ea == 0:
                     spool[i] = -1
-            elif vkind[i] == VK_MONOSTABLE:
+            elif vkind[i] == lay.VK_MONOSTABLE:
                 spool[i] = 1 if ea == 1 else -1
-            elif vkind[i] == VK_CLOSED_CENTRE:
+            elif vkind[i] == lay.VK_CLOSED_CENTRE:
                 if ea == 1 and eb == 0:
                     spool[i] = 1
                 elif eb == 1 and ea == 0:
@@ -441,7 +360,7 @@ def run_cycle(
             out_p[n_out, j] = p[j]
         for i in range(na):
             out_x[n_out, i] = x[i]
-        out_vac[n_out] = ss[SS_VAC]
+        out_vac[n_out] = ss[lay.SS_VAC]
         for s in range(ns):
             out_cmd[n_out, s] = cmd[s]
         for s in range(nsw):
@@ -460,7 +379,7 @@ def run_cycle(
                 any_moving = True
         for c in range(nc):
             i = c // 2
-            if stuck[i] == 0 or cp[c, CP_LEAK] > 0.0:
+            if stuck[i] == 0 or cp[c, lay.CP_LEAK] > 0.0:
                 awake[c] = 1
                 continue
             if conn[c] == 1:
@@ -512,7 +431,7 @@ def run_cycle(
                 w_ou = u_ou - i_ou
                 drift = ou[i_ou] * (1.0 - w_ou) + ou[i_ou + 1] * w_ou
             ph = _house_pressure(ts, comp_period, comp_phase, p_house, comp_band, drift)
-            p_src = sp[SP_P_SET] + sp[SP_REG_EFFECT] * (ph - sp[SP_P_HOUSE])
+            p_src = sp[lay.SP_P_SET] + sp[lay.SP_REG_EFFECT] * (ph - sp[lay.SP_P_HOUSE])
             if p_src > ph:
                 p_src = ph
             for j in range(nn):
@@ -520,14 +439,14 @@ def run_cycle(
                 dm[j] = 0.0
             # ----- conductances at the start of the sub-step
             if p_src > p[0]:
-                g_sr = _isa_g(p_src, p[0], sp[SP_REG_CV], sp[SP_REG_XT], t_wall, temp[0])
+                g_sr = _isa_g(p_src, p[0], sp[lay.SP_REG_CV], sp[lay.SP_REG_XT], t_wall, temp[0])
             else:
                 g_sr = 0.0  # non-relieving regulator: no back flow
-            g_rm = _isa_g(p[0], p[1], sp[SP_LINE_CV], sp[SP_LINE_XT], temp[0], temp[1])
-            g_ml = _orifice_g(p[1], P_ATM, sp[SP_SUPPLY_LEAK], temp[1], t_wall)
+            g_rm = _isa_g(p[0], p[1], sp[lay.SP_LINE_CV], sp[lay.SP_LINE_XT], temp[0], temp[1])
+            g_ml = _orifice_g(p[1], P_ATM, sp[lay.SP_SUPPLY_LEAK], temp[1], t_wall)
             g_mv = 0.0
             if vac_on:
-                g_mv = _orifice_g(p[1], P_ATM, sp[SP_NOZZLE], temp[1], t_wall)
+                g_mv = _orifice_g(p[1], P_ATM, sp[lay.SP_NOZZLE], temp[1], t_wall)
             a_r = vol[0] / (_G * R_AIR * temp[0] * dt)
             a_m = vol[1] / (_G * R_AIR * temp[1] * dt)
             lhs_m = a_m + g_rm + g_ml + g_mv
@@ -540,11 +459,13 @@ def run_cycle(
                 g_exh[c] = 0.0
                 if conn[c] == 1:
                     g_fill[c] = _isa_g(
-                        p[1], p[j], cp[c, CP_CV_FILL], cp[c, CP_XT], temp[1], temp[j]
+                        p[1], p[j], cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT], temp[1], temp[j]
                     )
                 elif conn[c] == 2:
-                    g_exh[c] = _isa_g(p[j], P_ATM, cp[c, CP_CV_EXH], cp[c, CP_XT], temp[j], t_wall)
-                g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, CP_LEAK], temp[j], t_wall)
+                    g_exh[c] = _isa_g(
+                        p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], temp[j], t_wall
+                    )
+                g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, lay.CP_LEAK], temp[j], t_wall)
             for q in range(n_aw):
                 c = aw[q]
                 j = 2 + c
@@ -573,10 +494,10 @@ def run_cycle(
             energy_in[0] -= h
             energy_in[1] += h
             energy_in[1] -= enthalpy_flow_kernel(f_sl + f_vac, temp[1], t_wall)
-            out_fr[n_out, FR_REG] += f_reg
-            out_fr[n_out, FR_LINE] += f_line
-            out_fr[n_out, FR_SUPPLY_LEAK] += f_sl
-            out_fr[n_out, FR_VAC] += f_vac
+            out_fr[n_out, lay.FR_REG] += f_reg
+            out_fr[n_out, lay.FR_LINE] += f_line
+            out_fr[n_out, lay.FR_SUPPLY_LEAK] += f_sl
+            out_fr[n_out, lay.FR_VAC] += f_vac
             for q in range(n_aw):
                 c = aw[q]
                 j = 2 + c
@@ -593,13 +514,15 @@ def run_cycle(
                 out_fch[n_out, c] += f_in
                 out_fexh[n_out, c] += f_ex
                 out_fleak[n_out, c] += f_lk
-                cum[CM_EXHAUST] += f_ex * dt
-                cum[CM_LEAK] += f_lk * dt
-            cum[CM_REG] += f_reg * dt
-            cum[CM_LINE] += f_line * dt
-            cum[CM_LEAK] += f_sl * dt
-            cum[CM_VAC] += f_vac * dt
-            # ----- pistons (eq. 4.13, 4.14) with the pressures at sub-step start
+                cum[lay.CM_EXHAUST] += f_ex * dt
+                cum[lay.CM_LEAK] += f_lk * dt
+            cum[lay.CM_REG] += f_reg * dt
+            cum[lay.CM_LINE] += f_line * dt
+            cum[lay.CM_LEAK] += f_sl * dt
+            cum[lay.CM_VAC] += f_vac * dt
+            # ----- pistons (eq. 4.13, 4.14) with the pressures at sub-step start: force
+            # and friction from physics/; the stick/slip switching, end stops and stroke
+            # records are the integrator's (semi-implicit Euler), so they stay here
             for i in range(na):
                 ca = 2 + 2 * i
                 cb = ca + 1
@@ -607,13 +530,17 @@ def run_cycle(
                 vdot[cb] = 0.0
                 if stuck[i] == 1 and awake[2 * i] == 0 and awake[2 * i + 1] == 0:
                     continue
-                stroke = ap[i, AP_STROKE]
+                stroke = ap[i, lay.AP_STROKE]
                 force = piston_net_force_kernel(
-                    p[ca], p[cb], cp[2 * i, CP_AREA], cp[2 * i + 1, CP_AREA], ap[i, AP_AROD]
+                    p[ca],
+                    p[cb],
+                    cp[2 * i, lay.CP_AREA],
+                    cp[2 * i + 1, lay.CP_AREA],
+                    ap[i, lay.AP_AROD],
                 )
-                fs = ap[i, AP_FS] * fric[i]
-                fc = ap[i, AP_FC] * fric[i]
-                cvf = ap[i, AP_CVF]
+                fs = ap[i, lay.AP_FS] * fric[i]
+                fc = ap[i, lay.AP_FC] * fric[i]
+                cvf = ap[i, lay.AP_CVF]
                 if stuck[i] == 1:
                     blocked = (x[i] <= 0.0 and force <= 0.0) or (x[i] >= stroke and force >= 0.0)
                     if blocked or abs(force) <= fs:
@@ -630,13 +557,13 @@ def run_cycle(
                     v_old = 0.0
                 else:
                     v_old = v[i]
-                ff = friction_force_kernel(v_old, force, fs, fc, cvf, _DV)
-                acc = (force - ff) / ap[i, AP_MASS]
+                ff = friction_force_kernel(v_old, force, fs, fc, cvf, lay.STICK_BAND)
+                acc = (force - ff) / ap[i, lay.AP_MASS]
                 v_new = v_old + acc * dt
                 if v_old != 0.0 and v_new * v_old < 0.0:
                     v_new = 0.0
                     stuck[i] = 1
-                elif abs(v_new) < _DV and abs(force) <= fs:
+                elif abs(v_new) < lay.STICK_BAND and abs(force) <= fs:
                     # inside the Karnopp band with a force below breakaway: sticks
                     v_new = 0.0
                     stuck[i] = 1
@@ -661,13 +588,14 @@ def run_cycle(
                         n_ev += 1
                     mv_t0[i, 0] = -1.0
                     mv_t0[i, 3] = 1.0
-                vdot[ca] = cp[2 * i, CP_AREA] * (x_new - x[i]) / dt
-                vdot[cb] = -cp[2 * i + 1, CP_AREA] * (x_new - x[i]) / dt
+                vdot[ca] = cp[2 * i, lay.CP_AREA] * (x_new - x[i]) / dt
+                vdot[cb] = -cp[2 * i + 1, lay.CP_AREA] * (x_new - x[i]) / dt
                 if x_new != x[i]:
                     x_moved = True
                 x[i] = x_new
                 v[i] = v_new
-            # ----- mass and energy update (eq. 4.7-4.9), heat exchange to the wall
+            # ----- mass and energy update (eq. 4.7-4.9), heat exchange to the wall; the
+            # step is physics' (inlined: same code, same bits), the volume follows the piston
             for j in range(nn):
                 if j >= 2 and awake[j - 2] == 0 and vdot[j] == 0.0:
                     continue
@@ -684,11 +612,11 @@ def run_cycle(
                 if vac_on:
                     # an ejector reaches its full vacuum from ~50 % of the nominal supply
                     # gauge pressure on; below that the attainable vacuum falls linearly
-                    drive = 2.0 * (pm_new - P_ATM) / (sp[SP_P_SET] - P_ATM)
+                    drive = 2.0 * (pm_new - P_ATM) / (sp[lay.SP_P_SET] - P_ATM)
                     drive = min(max(drive, 0.0), 1.0)
-                    ss[SS_VAC] += dt * (drive - ss[SS_VAC]) / sp[SP_VAC_TAU_ON]
+                    ss[lay.SS_VAC] += dt * (drive - ss[lay.SS_VAC]) / sp[lay.SP_VAC_TAU_ON]
                 else:
-                    ss[SS_VAC] -= dt * ss[SS_VAC] / sp[SP_VAC_TAU_OFF]
+                    ss[lay.SS_VAC] -= dt * ss[lay.SS_VAC] / sp[lay.SP_VAC_TAU_OFF]
         # ----------------------------------------- finish the 1 ms sample
         if nsub > 1:  # sums of the sub-steps -> mean flows over the sample
             for q in range(n_aw):
@@ -709,13 +637,13 @@ def run_cycle(
             dp_max = d
         dp_prev = dp_max
         n_out += 1
-        istate[IS_SAMPLE] += 1
-        ss[SS_TIME] = istate[IS_SAMPLE] * SAMPLE_DT
+        istate[lay.IS_SAMPLE] += 1
+        ss[lay.SS_TIME] = istate[lay.IS_SAMPLE] * SAMPLE_DT
     return n_out, 0, n_ev, total_sub
 
 
 @njit(cache=True, nogil=True)
-def first_order_recursion_kernel(x: F64, gain: float, pole: float) -> F64:
+def first_order_recursion_kernel(x: FloatArray, gain: float, pole: float) -> FloatArray:
     """``y[k] = gain * x[k] + pole * y[k-1]``, ``y[-1] = 0``: the sensors' first-order lag
     and the house-pressure drift (:func:`pneufdd.sim.sensors.first_order_recursion`)."""
     y = np.empty_like(x)
@@ -728,8 +656,8 @@ def first_order_recursion_kernel(x: F64, gain: float, pole: float) -> F64:
 
 @njit(cache=True, nogil=True)
 def sensor_reading_kernel(
-    x: F64,
-    z: F64,
+    x: FloatArray,
+    z: FloatArray,
     kind: int,
     gain: float,
     offset: float,
@@ -737,7 +665,7 @@ def sensor_reading_kernel(
     low: float,
     high: float,
     step: float,
-) -> F64:
+) -> FloatArray:
     """What a sensor records for the true signal ``x`` (:func:`pneufdd.sim.sensors.apply_sensor`).
 
     In the sensor's unit, ``gain * x + offset + noise * z`` clipped to ``[low, high]``
@@ -748,11 +676,11 @@ def sensor_reading_kernel(
     """
     y = np.empty_like(x)
     for k in range(x.size):
-        if kind == SENSOR_PRESSURE:
+        if kind == lay.SENSOR_PRESSURE:
             v = x[k] - P_ATM
             v = v * gain
             v = v / 1e5
-        elif kind == SENSOR_FLOW:
+        elif kind == lay.SENSOR_FLOW:
             v = x[k] * gain
         else:
             v = x[k] * gain
@@ -765,10 +693,10 @@ def sensor_reading_kernel(
         v = np.rint(v)
         v = v * step
         v = v + low
-        if kind == SENSOR_PRESSURE:
+        if kind == lay.SENSOR_PRESSURE:
             v = v * 1e5
             v = v + P_ATM
-        elif kind == SENSOR_POSITION:
+        elif kind == lay.SENSOR_POSITION:
             v = v * 1e-3
         y[k] = v
     return y
@@ -776,14 +704,14 @@ def sensor_reading_kernel(
 
 @njit(cache=True, nogil=True)
 def truth_rows_kernel(
-    p: F64,
-    x: F64,
-    fch: F64,
-    fexh: F64,
-    fr: F64,
-    source: npt.NDArray[np.int64],
-    column: npt.NDArray[np.int64],
-    store: F64,
+    p: FloatArray,
+    x: FloatArray,
+    fch: FloatArray,
+    fexh: FloatArray,
+    fr: FloatArray,
+    source: IntArray,
+    column: IntArray,
+    store: FloatArray,
     first: int,
     n: int,
 ) -> None:
@@ -799,13 +727,13 @@ def truth_rows_kernel(
     for r in range(source.size):
         c = column[r]
         kind = source[r]
-        if kind == TRUTH_NODE_PRESSURE:
+        if kind == lay.TRUTH_NODE_PRESSURE:
             for k in range(n):
                 store[r, first + k] = p[k, c]
-        elif kind == TRUTH_POSITION:
+        elif kind == lay.TRUTH_POSITION:
             for k in range(n):
                 store[r, first + k] = x[k, c]
-        elif kind == TRUTH_CHAMBER_FLOW:
+        elif kind == lay.TRUTH_CHAMBER_FLOW:
             for k in range(n):
                 store[r, first + k] = fch[k, c] - fexh[k, c]
         else:

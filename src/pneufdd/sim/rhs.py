@@ -33,8 +33,6 @@ from pneufdd.sim.compile import Plant
 
 __all__ = ["SegmentSolution", "plant_derivatives", "solve_segment"]
 
-_DV = 1e-4  # Karnopp velocity band [m/s], as in the kernel
-
 
 @njit(cache=True)
 def _edge(
@@ -162,7 +160,7 @@ def plant_derivatives(
             ap[i, lay.AP_FS] * fric[i],
             ap[i, lay.AP_FC] * fric[i],
             ap[i, lay.AP_CVF],
-            _DV,
+            lay.STICK_BAND,
         )
         acc = (force - ff) / ap[i, lay.AP_MASS]
         at_stop = (x[i] <= 0.0 and v[i] <= 0.0 and acc < 0.0) or (
