@@ -7,6 +7,9 @@ Two forms of the chamber dynamics are provided:
 * :func:`chamber_energy_derivatives` (and its kernel) - the mass and energy
   balances, eq. 4.7-4.9 with the heat-transfer terms kept. The chamber states are
   its air mass m and temperature T; the pressure follows from eq. 4.7.
+  :func:`chamber_energy_step_kernel` is the same balance as one time step of the
+  internal energy (the digital twin's node update), with the enthalpy each flow
+  carries from :func:`enthalpy_flow_kernel`.
 
 The digital twin uses the energy form. Eq. 4.10 with alpha_in != alpha_out does not
 conserve mass over a fill/exhaust cycle unless the temperature is tracked: at a fixed
