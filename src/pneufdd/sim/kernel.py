@@ -26,12 +26,13 @@ sub-steps of a linearly-implicit scheme:
 
 The kernel takes five typed records (:mod:`pneufdd.sim.records`: plant parameters,
 PLC program, the cycle's random draws, state, outputs). Its physics is the compiled
-functions of :mod:`pneufdd.physics`, which :mod:`pneufdd.sim.rhs` calls too: valve and
-orifice flow (eq. 4.6, 4.3), chamber volume and pressure (eq. 4.11, 4.7), the enthalpy
-an edge carries and a node's mass and energy step (eq. 4.7-4.9), the piston force
-(eq. 4.13) and Karnopp friction (eq. 4.14). The small ones are inlined
-(:func:`pneufdd.physics._jit.njit_inline`): the same machine code as the arithmetic
-written here, and bit-identical results (issue 31). What stays written here is the
+functions of :mod:`pneufdd.physics`: valve and orifice flow (eq. 4.6, 4.3), chamber
+volume and pressure (eq. 4.11, 4.7), the enthalpy an edge carries and a node's mass and
+energy step (eq. 4.7-4.9), the piston force (eq. 4.13) and Karnopp friction (eq. 4.14);
+:mod:`pneufdd.sim.rhs` calls the same ones, with the energy balance in its derivative
+form (``chamber_energy_derivatives_kernel``). The small ones are inlined
+(:func:`pneufdd.physics._jit.njit_inline`) and evaluate the kernel's former arithmetic
+in its order: bit-identical results, no measurable cost (issue 31). What stays here is the
 integrator itself, for which physics/ has no law: the implicit node balances and their
 elimination, the secant conductances, the stick/slip state machine and end stops, the
 freeze/wake rule, the PLC, and the twin's house-air and ejector models.
@@ -595,7 +596,7 @@ def run_cycle(
                 x[i] = x_new
                 v[i] = v_new
             # ----- mass and energy update (eq. 4.7-4.9), heat exchange to the wall; the
-            # step is physics' (inlined: same code, same bits), the volume follows the piston
+            # step is physics' (inlined, same bits), the volume follows the piston
             for j in range(nn):
                 if j >= 2 and awake[j - 2] == 0 and vdot[j] == 0.0:
                     continue
