@@ -12,16 +12,23 @@ from scipy.integrate import solve_ivp
 
 from pneufdd.errors import InputError
 from pneufdd.physics import (
+    CP_AIR,
+    CV_AIR,
     GAMMA_AIR,
+    P_ATM,
     R_AIR,
     chamber_energy_derivatives,
     chamber_energy_derivatives_kernel,
+    chamber_energy_step_kernel,
     chamber_pressure,
     chamber_pressure_derivative,
     chamber_volume,
+    enthalpy_flow_kernel,
     friction_force,
     friction_force_kernel,
     piston_force,
+    piston_force_kernel,
+    piston_net_force_kernel,
     psig_to_pa,
     stick_slip_force_from_pressures,
 )
@@ -106,9 +113,73 @@ def test_eq_4_10_creates_mass_over_a_cycle_energy_form_does_not() -> None:
     assert sol.y[0, -1] == pytest.approx(m0, rel=1e-9)
 
 
+def test_air_heat_capacities_are_defined_once() -> None:
+    """Issue 31: one c_v (and c_p) for physics, the twin's kernel and its ODE reference."""
+    from pneufdd.physics import chamber
+    from pneufdd.sim import kernel, rhs
+
+    assert chamber.CV_AIR is CV_AIR
+    assert rhs.CV_AIR is CV_AIR
+    assert not hasattr(kernel, "_CV_AIR")
+    assert not hasattr(kernel, "_CP_AIR")
+    assert not hasattr(rhs, "_CV_AIR")
+    assert CV_AIR == R_AIR / (GAMMA_AIR - 1.0)  # the expression of all three old copies
+    assert CP_AIR == GAMMA_AIR * R_AIR / (GAMMA_AIR - 1.0)
+    assert abs(CP_AIR - CV_AIR - R_AIR) <= 1e-12 * R_AIR  # Mayer's relation
+
+
+def test_enthalpy_flow_carries_the_upstream_temperature() -> None:
+    assert enthalpy_flow_kernel(2e-3, 300.0, 400.0) == CP_AIR * 2e-3 * 300.0
+    assert enthalpy_flow_kernel(-2e-3, 300.0, 400.0) == CP_AIR * -2e-3 * 400.0
+    assert enthalpy_flow_kernel(0.0, 300.0, 400.0) == 0.0
+
+
+def test_energy_step_converges_to_the_energy_derivatives() -> None:
+    """The twin's step (energy form) against eq. 4.7-4.9 in mass-temperature form."""
+    m, T, V, dV, m_in, m_out, T_in = 4e-5, 310.0, 3e-5, 2e-5, 1e-4, 3e-5, 293.15
+    P = chamber_pressure(m, T, V)
+    dm, dT = chamber_energy_derivatives(m, T, V, dV, m_in, m_out, T_in=T_in, hA=0.0)
+    h = enthalpy_flow_kernel(m_in, T_in, T) - enthalpy_flow_kernel(m_out, T, T_in)
+    errors = []
+    for dt in (1e-5, 1e-6):
+        m_new, T_new = chamber_energy_step_kernel(m, T, P, dV, dm, h, dt, T, 1.0)
+        assert m_new == m + dt * dm  # mass exactly
+        errors.append(abs((T_new - T) / dt - dT) / abs(dT))
+    # first order in dt: 1.75e-5 and 1.75e-6 of dT/dt
+    assert errors[1] < 2e-6
+    assert errors[0] / errors[1] == pytest.approx(10.0, rel=1e-3)
+    # the wall exchange relaxes the temperature: none left with decay 0, half with 0.5
+    _, T_wall = chamber_energy_step_kernel(m, T, P, 0.0, 0.0, 0.0, 1e-3, 293.15, 0.0)
+    assert T_wall == 293.15
+    _, T_half = chamber_energy_step_kernel(m, T, P, 0.0, 0.0, 0.0, 1e-3, 293.15, 0.5)
+    assert T_half == pytest.approx((T + 293.15) / 2, rel=1e-15)
+    # floors: an emptied node keeps 1e-12 kg, never below 150 K
+    m_min, T_min = chamber_energy_step_kernel(m, T, P, 0.0, -1.0, 0.0, 1e-3, 293.15, 1.0)
+    assert m_min == 1e-12
+    assert T_min >= 150.0
+
+
 # ---------------------------------------------------------------------------
 # Friction and force balance
 # ---------------------------------------------------------------------------
+
+
+@given(
+    st.floats(0.0, 1e6),
+    st.floats(0.0, 1e6),
+    st.floats(1e-6, 1e-2),
+    st.floats(0.0, 1.0),
+)
+def test_net_force_is_the_gauge_force_up_to_rounding(
+    pa: float, pb: float, aa: float, rod_share: float
+) -> None:
+    """The twin's absolute-pressure form of eq. 4.13 against piston_force_kernel."""
+    ab = aa * (1.0 - rod_share)
+    rod = aa - ab
+    net = piston_net_force_kernel(pa, pb, aa, ab, rod)
+    assert net == pa * aa - pb * ab - P_ATM * rod  # the kernel's order, bit for bit
+    scale = (pa + pb + P_ATM) * aa  # the size of the terms that cancel
+    assert net == pytest.approx(piston_force_kernel(pa, pb, aa, ab), abs=1e-14 * scale)
 
 
 def test_stick_slip_force_eq_4_15_dnc() -> None:

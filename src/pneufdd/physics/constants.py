@@ -25,6 +25,8 @@ from dataclasses import dataclass
 __all__ = [
     "ANR",
     "CAGI_SCFM",
+    "CP_AIR",
+    "CV_AIR",
     "DISSERTATION_STANDARD",
     "FT3",
     "GAMMA_AIR",
@@ -43,6 +45,12 @@ R_AIR: float = 287.058
 
 GAMMA_AIR: float = 1.4
 """Ratio of specific heats of air, k in eq. 4.2 [-]."""
+
+CV_AIR: float = R_AIR / (GAMMA_AIR - 1.0)
+"""Specific heat of air at constant volume, R/(k-1) = 717.6 [J/(kg K)] (eq. 4.8)."""
+
+CP_AIR: float = GAMMA_AIR * R_AIR / (GAMMA_AIR - 1.0)
+"""Specific heat of air at constant pressure, k R/(k-1) = 1004.7 [J/(kg K)] (eq. 4.8)."""
 
 P_ATM: float = 101_325.0
 """Standard atmospheric pressure, the zero of every gauge pressure [Pa]."""

@@ -42,6 +42,7 @@ from pneufdd.physics._jit import (
     as_float_array,
     elementwise,
     njit,
+    njit_inline,
     require,
     scalar_or_array,
 )
@@ -56,6 +57,7 @@ __all__ = [
     "friction_force_kernel",
     "piston_force",
     "piston_force_kernel",
+    "piston_net_force_kernel",
     "stick_slip_force_from_pressures",
 ]
 
@@ -203,6 +205,48 @@ def piston_force_kernel(Pa: float, Pb: float, Aa: float, Ab: float) -> float:
 
 
 _piston_ufunc = elementwise(piston_force_kernel, 4)
+
+
+@njit_inline
+def piston_net_force_kernel(Pa: float, Pb: float, Aa: float, Ab: float, A_rod: float) -> float:
+    """Net pneumatic force on a piston in absolute pressures, eq. 4.13 with areas.
+
+    .. math:: F = P_a A_a - P_b A_b - P_{atm} A_{rod}
+
+    The form the digital twin uses (its integrator and its ODE right-hand side), with
+    the rod area given on its own: an equivalent piston (twin pistons,
+    rotary drives) may have ``A_rod != Aa - Ab``. When ``A_rod = Aa - Ab`` it equals
+    :func:`piston_force_kernel` up to rounding (that one uses gauge pressures to avoid
+    cancellation; the twin keeps this order, so its results stay the same bit for bit).
+
+    Parameters
+    ----------
+    Pa, Pb : float
+        Absolute pressures in chambers A and B [Pa].
+    Aa, Ab : float
+        Piston areas on sides A and B [m^2].
+    A_rod : float
+        Rod cross-section on which the atmosphere pushes [m^2].
+
+    Returns
+    -------
+    float
+        Force towards +x (extension), friction not included [N].
+
+    Examples
+    --------
+    Section 4.2.3: 61.37 psi and 40.22 psi (gauge) in the DNC 32 (32 mm bore,
+    12 mm rod) at breakaway, the published 150 N of eq. 4.15:
+
+    >>> import math
+    >>> from pneufdd.physics.units import psig_to_pa
+    >>> Aa = math.pi / 4 * 0.032**2
+    >>> A_rod = math.pi / 4 * 0.012**2
+    >>> F = piston_net_force_kernel(psig_to_pa(61.37), psig_to_pa(40.22), Aa, Aa - A_rod, A_rod)
+    >>> round(F, 1)
+    148.6
+    """
+    return Pa * Aa - Pb * Ab - P_ATM * A_rod
 
 
 def piston_force(

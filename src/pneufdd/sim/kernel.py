@@ -25,41 +25,26 @@ sub-steps of a linearly-implicit scheme:
   until the difference exceeds a wake threshold.
 
 The kernel takes five typed records (:mod:`pneufdd.sim.records`: plant parameters,
-PLC program, the cycle's random draws, state, outputs) and evaluates the physics
-through the compiled functions :mod:`pneufdd.physics` exposes and tests: valve and
-orifice flow (``isa_mass_flow_kernel``, ``orifice_mass_flow_kernel``), chamber
-volume and pressure (``chamber_volume_kernel``, ``chamber_pressure_kernel``) and
-Karnopp friction (``friction_force_kernel``); :mod:`pneufdd.sim.rhs` uses the same
-functions. The body stays one loop on purpose: split into compiled stage functions
-(measured, issue 13) the cycle took 43 % longer, because numba passes and
-reference-counts every array argument of every stage call once per sub-step; with
-the stages inlined (``inline="always"``) about 50 % longer, the stages' array
-bindings keeping reference counts, and with reference counting off 3-6 % longer
-(``docs/twin.md``, Numerics).
-For the same reason the kernel's own helpers take scalars only and are inlined
-(``inline="always"``), and so are the small private helpers of the flow kernels and
-the chamber volume/pressure kernels (:func:`pneufdd.physics._jit.njit_inline`);
-the ISA valve kernel stays one compiled function shared by its five call sites
-(inlining it everywhere cost 4 s more compilation for about 4 % speed).
+PLC program, the cycle's random draws, state, outputs). Its physics is the compiled
+functions of :mod:`pneufdd.physics`: valve and orifice flow (eq. 4.6, 4.3), chamber
+volume and pressure (eq. 4.11, 4.7), the enthalpy an edge carries and a node's mass and
+energy step (eq. 4.7-4.9), the piston force (eq. 4.13) and Karnopp friction (eq. 4.14);
+:mod:`pneufdd.sim.rhs` calls the same ones, with the energy balance in its derivative
+form (``chamber_energy_derivatives_kernel``). The small ones are inlined
+(:func:`pneufdd.physics._jit.njit_inline`) and evaluate the kernel's former arithmetic
+in its order: bit-identical results, no measurable cost (issue 31). What stays here is the
+integrator itself, for which physics/ has no law: the implicit node balances and their
+elimination, the secant conductances, the stick/slip state machine and end stops, the
+freeze/wake rule, the PLC, and the twin's house-air and ejector models.
 
-Where the time goes (issue 13, festo-dsd, 2-core development machine, perf with
-numba's debug line table): about two thirds in the awake chambers (conductances,
-the elimination into the manifold, edge flows, mass and energy), 20-25 % in the
-per-sample bookkeeping (PLC, freeze/wake, recording), 5 % in the pistons. On
-average 11 of the 18 chambers are awake: the held chambers of resting actuators
-follow every manifold dip caused by another actuator's stroke (time constant
-C/g of about 0.2 ms) and need about 0.5 s to settle thermally afterwards, and some
-actuator moves in 68 % of the samples. Only 2.5 % of the samples have every piston
-at rest and no chamber pressure changing by more than 500 Pa per ms (10.5 % below
-2 kPa per ms), so quiet-period macro steps over several milliseconds were not
-built: they could save at most a few per cent. Loosening the freeze threshold
-(30 -> 100 Pa) saved nothing measurable and moved step starts by up to 20 ms after
-three cycles: the cycle's timing integrates small changes of the supply dynamics.
-Work that cannot change anything is skipped instead (bit-identical results): node
-pressures are kept current rather than recomputed three times per sample, the
-sub-step loops run over a list of the awake chambers, and the position switches,
-the release checks and the spool logic run only after a piston moved, while a
-solenoid waits for its release, or after a solenoid changed.
+The body stays one loop on purpose (``docs/twin.md``, Numerics): split into compiled
+stage functions the cycle took 43 % longer (numba passes and reference-counts every
+array argument of every stage call once per sub-step), with the stages inlined about
+50 % longer, with reference counting off 3-6 % longer. For the same reason its helpers
+take scalars only and are inlined; the ISA valve kernel stays one compiled function
+shared by its five call sites (inlining it everywhere cost 4 s more compilation for
+about 4 % speed). Where the time goes, and the work skipped while it cannot change
+anything: ``docs/twin.md``, Speed (issue 13, item 3).
 
 The kernel releases the GIL (``nogil``): the diagnosis's simulation checks run
 independent explanations on several threads of one process
@@ -77,82 +62,20 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 from numba import njit
 
-from pneufdd.physics.chamber import chamber_pressure_kernel, chamber_volume_kernel
+from pneufdd.array_types import FloatArray, IntArray
+from pneufdd.physics.chamber import (
+    chamber_energy_step_kernel,
+    chamber_pressure_kernel,
+    chamber_volume_kernel,
+    enthalpy_flow_kernel,
+)
 from pneufdd.physics.constants import GAMMA_AIR, P_ATM, R_AIR
 from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
-from pneufdd.physics.friction import friction_force_kernel
-from pneufdd.sim.layout import (
-    AP_AROD,
-    AP_CVF,
-    AP_FC,
-    AP_FS,
-    AP_MASS,
-    AP_OFF_DELAY,
-    AP_ON_DELAY,
-    AP_STROKE,
-    CM_EXHAUST,
-    CM_LEAK,
-    CM_LINE,
-    CM_REG,
-    CM_VAC,
-    CP_AREA,
-    CP_CV_EXH,
-    CP_CV_FILL,
-    CP_DEAD,
-    CP_LEAK,
-    CP_TAU_TH,
-    CP_XT,
-    FR_LINE,
-    FR_REG,
-    FR_SUPPLY_LEAK,
-    FR_VAC,
-    IS_CYCLE_DONE,
-    IS_PHASE,
-    IS_SAMPLE,
-    IS_STEP,
-    SAMPLE_DT,
-    SENSOR_FLOW,
-    SENSOR_POSITION,
-    SENSOR_PRESSURE,
-    SP_COMP_BAND,
-    SP_COMP_PERIOD,
-    SP_COMP_PHASE,
-    SP_DP_TOL,
-    SP_LINE_CV,
-    SP_LINE_XT,
-    SP_N_MAX,
-    SP_N_MOVE,
-    SP_NOZZLE,
-    SP_OU_DT,
-    SP_P_HOUSE,
-    SP_P_SET,
-    SP_REG_CV,
-    SP_REG_EFFECT,
-    SP_REG_XT,
-    SP_SUPPLY_LEAK,
-    SP_T_WALL,
-    SP_TAU_TH,
-    SP_V_MAN,
-    SP_V_RES,
-    SP_VAC_LEVEL,
-    SP_VAC_OFF_DELAY,
-    SP_VAC_ON_DELAY,
-    SP_VAC_TAU_OFF,
-    SP_VAC_TAU_ON,
-    SP_WINDOW,
-    SS_PHASE_END,
-    SS_TIME,
-    SS_VAC,
-    TRUTH_CHAMBER_FLOW,
-    TRUTH_NODE_PRESSURE,
-    TRUTH_POSITION,
-    VK_BISTABLE,
-    VK_CLOSED_CENTRE,
-    VK_MONOSTABLE,
-)
+from pneufdd.physics.friction import friction_force_kernel, piston_net_force_kernel
+from pneufdd.sim import layout as lay
+from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 
 __all__ = [
@@ -163,11 +86,7 @@ __all__ = [
     "truth_rows_kernel",
 ]
 
-F64 = npt.NDArray[np.float64]
 _G = GAMMA_AIR
-_CV_AIR = R_AIR / (GAMMA_AIR - 1.0)
-_CP_AIR = GAMMA_AIR * R_AIR / (GAMMA_AIR - 1.0)
-_DV = 1e-4  # Karnopp velocity band [m/s]
 # Travel after a breakaway, without re-sticking, that makes it the start of sustained
 # motion (the stroke start of section 3.3) rather than a stick-slip creep [m].
 _SUSTAINED_TRAVEL = 2e-4
@@ -226,12 +145,6 @@ def _house_pressure(
     return p_house + band * (saw - 0.5) + drift
 
 
-@njit(cache=True, inline="always")
-def _enthalpy_flow(f: float, ti: float, tj: float) -> float:
-    """Enthalpy carried by an edge flow f (i -> j positive, upstream temperature) [W]."""
-    return _CP_AIR * f * (ti if f > 0.0 else tj)
-
-
 @njit(cache=True, nogil=True)
 def run_cycle(
     plant: PlantParams,
@@ -270,22 +183,22 @@ def run_cycle(
     has_vac = ns > nc
     nsteps = dwell.size
     max_samples = out_p.shape[0]
-    t_wall = sp[SP_T_WALL]
-    window = sp[SP_WINDOW]
-    n_move = int(sp[SP_N_MOVE])
-    n_max = int(sp[SP_N_MAX])
-    dp_tol = sp[SP_DP_TOL]
-    t0 = ss[SS_TIME]
-    ou_dt = sp[SP_OU_DT]
+    t_wall = sp[lay.SP_T_WALL]
+    window = sp[lay.SP_WINDOW]
+    n_move = int(sp[lay.SP_N_MOVE])
+    n_max = int(sp[lay.SP_N_MAX])
+    dp_tol = sp[lay.SP_DP_TOL]
+    t0 = ss[lay.SS_TIME]
+    ou_dt = sp[lay.SP_OU_DT]
     n_ou = ou.size
-    comp_period = sp[SP_COMP_PERIOD]
-    comp_phase = sp[SP_COMP_PHASE]
-    p_house = sp[SP_P_HOUSE]
-    comp_band = sp[SP_COMP_BAND]
+    comp_period = sp[lay.SP_COMP_PERIOD]
+    comp_phase = sp[lay.SP_COMP_PHASE]
+    p_house = sp[lay.SP_P_HOUSE]
+    comp_band = sp[lay.SP_COMP_BAND]
     vol = np.empty(nn)
     vdot = np.zeros(nn)
-    vol[0] = sp[SP_V_RES]
-    vol[1] = sp[SP_V_MAN]
+    vol[0] = sp[lay.SP_V_RES]
+    vol[1] = sp[lay.SP_V_MAN]
     p = np.empty(nn)
     energy_in = np.zeros(nn)
     dm = np.zeros(nn)
@@ -303,20 +216,20 @@ def run_cycle(
     dp_prev = 1e9
     spool_changed = True
     n_out = 0
-    istate[IS_STEP] = 0
-    istate[IS_PHASE] = -1  # -1: step not yet started
-    istate[IS_CYCLE_DONE] = 0
+    istate[lay.IS_STEP] = 0
+    istate[lay.IS_PHASE] = -1  # -1: step not yet started
+    istate[lay.IS_CYCLE_DONE] = 0
 
     # heat exchange: the gas temperature relaxes to the wall with exp(-dt / tau)
     decay = np.ones((n_max + 1, nn))
     for q in range(1, n_max + 1):
         for j in range(nn):
-            tau = sp[SP_TAU_TH] if j < 2 else cp[j - 2, CP_TAU_TH]
+            tau = sp[lay.SP_TAU_TH] if j < 2 else cp[j - 2, lay.CP_TAU_TH]
             decay[q, j] = math.exp(-SAMPLE_DT / q / tau)
     for c in range(nc):
         i = c // 2  # eq. 4.11, chamber A (c even) or B (c odd)
         vol[2 + c] = chamber_volume_kernel(
-            x[i], cp[c, CP_AREA], cp[c, CP_DEAD], ap[i, AP_STROKE], float(c % 2)
+            x[i], cp[c, lay.CP_AREA], cp[c, lay.CP_DEAD], ap[i, lay.AP_STROKE], float(c % 2)
         )
     # node pressures [Pa]: kept current, recomputed only where a node's state changes
     for j in range(nn):
@@ -330,15 +243,15 @@ def run_cycle(
     eff_changed = True
 
     while True:
-        t = ss[SS_TIME]
+        t = ss[lay.SS_TIME]
         # ---------------------------------------------------------- switches
         if x_moved:
             for i in range(na):
                 sw[2 * i] = 1 if x[i] <= window else 0
-                sw[2 * i + 1] = 1 if x[i] >= ap[i, AP_STROKE] - window else 0
+                sw[2 * i + 1] = 1 if x[i] >= ap[i, lay.AP_STROKE] - window else 0
             x_moved = False
         if has_vac:
-            sw[nc] = 1 if ss[SS_VAC] >= sp[SP_VAC_LEVEL] else 0
+            sw[nc] = 1 if ss[lay.SS_VAC] >= sp[lay.SP_VAC_LEVEL] else 0
         # ---------------------------------------------------------------- PLC
         if armed:
             armed = False
@@ -353,15 +266,15 @@ def run_cycle(
                     pending = True
                 elif cmd[s] == 1 and (rel_sw[s] >= 0 or rel_t[s] >= 0.0):
                     armed = True
-        k = istate[IS_STEP]
-        if istate[IS_PHASE] == 1 and t >= ss[SS_PHASE_END] - 1e-9:
+        k = istate[lay.IS_STEP]
+        if istate[lay.IS_PHASE] == 1 and t >= ss[lay.SS_PHASE_END] - 1e-9:
             k += 1
-            istate[IS_STEP] = k
-            istate[IS_PHASE] = -1
+            istate[lay.IS_STEP] = k
+            istate[lay.IS_PHASE] = -1
             if k >= nsteps:
-                istate[IS_CYCLE_DONE] = 1
+                istate[lay.IS_CYCLE_DONE] = 1
                 break
-        if istate[IS_PHASE] == -1:
+        if istate[lay.IS_PHASE] == -1:
             step_t[k] = t
             for a in range(act_start[k], act_start[k + 1]):
                 s = act_sol[a]
@@ -380,25 +293,29 @@ def run_cycle(
                     rel_t[s] = t + act_dur[a] if mode == 1 else -1.0
                     armed = armed or mode <= 1
             pending = True
-            istate[IS_PHASE] = 0
-        if istate[IS_PHASE] == 0:
+            istate[lay.IS_PHASE] = 0
+        if istate[lay.IS_PHASE] == 0:
             ok = True
             for w in range(wait_start[k], wait_start[k + 1]):
                 if sw[wait_sw[w]] != wait_val[w]:
                     ok = False
                     break
             if ok:
-                istate[IS_PHASE] = 1
-                ss[SS_PHASE_END] = t + dwell[k] + jitter[k]
+                istate[lay.IS_PHASE] = 1
+                ss[lay.SS_PHASE_END] = t + dwell[k] + jitter[k]
         # ------------------------------------------------- solenoids -> spools
         if pending:
             pending = False
             for s in range(ns):
                 if eff[s] != cmd[s]:
                     if s < nc:
-                        delay = ap[s // 2, AP_ON_DELAY] if cmd[s] == 1 else ap[s // 2, AP_OFF_DELAY]
+                        delay = (
+                            ap[s // 2, lay.AP_ON_DELAY]
+                            if cmd[s] == 1
+                            else ap[s // 2, lay.AP_OFF_DELAY]
+                        )
                     else:
-                        delay = sp[SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[SP_VAC_OFF_DELAY]
+                        delay = sp[lay.SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[lay.SP_VAC_OFF_DELAY]
                     if t - chg[s] >= delay - 1e-9:
                         eff[s] = cmd[s]
                         eff_changed = True
@@ -408,14 +325,14 @@ def run_cycle(
             ea = eff[2 * i]
             eb = eff[2 * i + 1]
             old = spool[i]
-            if vkind[i] == VK_BISTABLE:
+            if vkind[i] == lay.VK_BISTABLE:
                 if ea == 1 and eb == 0:
                     spool[i] = 1
                 elif eb == 1 and ea == 0:
                     spool[i] = -1
-            elif vkind[i] == VK_MONOSTABLE:
+            elif vkind[i] == lay.VK_MONOSTABLE:
                 spool[i] = 1 if ea == 1 else -1
-            elif vkind[i] == VK_CLOSED_CENTRE:
+            elif vkind[i] == lay.VK_CLOSED_CENTRE:
                 if ea == 1 and eb == 0:
                     spool[i] = 1
                 elif eb == 1 and ea == 0:
@@ -444,7 +361,7 @@ def run_cycle(
             out_p[n_out, j] = p[j]
         for i in range(na):
             out_x[n_out, i] = x[i]
-        out_vac[n_out] = ss[SS_VAC]
+        out_vac[n_out] = ss[lay.SS_VAC]
         for s in range(ns):
             out_cmd[n_out, s] = cmd[s]
         for s in range(nsw):
@@ -463,7 +380,7 @@ def run_cycle(
                 any_moving = True
         for c in range(nc):
             i = c // 2
-            if stuck[i] == 0 or cp[c, CP_LEAK] > 0.0:
+            if stuck[i] == 0 or cp[c, lay.CP_LEAK] > 0.0:
                 awake[c] = 1
                 continue
             if conn[c] == 1:
@@ -515,7 +432,7 @@ def run_cycle(
                 w_ou = u_ou - i_ou
                 drift = ou[i_ou] * (1.0 - w_ou) + ou[i_ou + 1] * w_ou
             ph = _house_pressure(ts, comp_period, comp_phase, p_house, comp_band, drift)
-            p_src = sp[SP_P_SET] + sp[SP_REG_EFFECT] * (ph - sp[SP_P_HOUSE])
+            p_src = sp[lay.SP_P_SET] + sp[lay.SP_REG_EFFECT] * (ph - sp[lay.SP_P_HOUSE])
             if p_src > ph:
                 p_src = ph
             for j in range(nn):
@@ -523,14 +440,14 @@ def run_cycle(
                 dm[j] = 0.0
             # ----- conductances at the start of the sub-step
             if p_src > p[0]:
-                g_sr = _isa_g(p_src, p[0], sp[SP_REG_CV], sp[SP_REG_XT], t_wall, temp[0])
+                g_sr = _isa_g(p_src, p[0], sp[lay.SP_REG_CV], sp[lay.SP_REG_XT], t_wall, temp[0])
             else:
                 g_sr = 0.0  # non-relieving regulator: no back flow
-            g_rm = _isa_g(p[0], p[1], sp[SP_LINE_CV], sp[SP_LINE_XT], temp[0], temp[1])
-            g_ml = _orifice_g(p[1], P_ATM, sp[SP_SUPPLY_LEAK], temp[1], t_wall)
+            g_rm = _isa_g(p[0], p[1], sp[lay.SP_LINE_CV], sp[lay.SP_LINE_XT], temp[0], temp[1])
+            g_ml = _orifice_g(p[1], P_ATM, sp[lay.SP_SUPPLY_LEAK], temp[1], t_wall)
             g_mv = 0.0
             if vac_on:
-                g_mv = _orifice_g(p[1], P_ATM, sp[SP_NOZZLE], temp[1], t_wall)
+                g_mv = _orifice_g(p[1], P_ATM, sp[lay.SP_NOZZLE], temp[1], t_wall)
             a_r = vol[0] / (_G * R_AIR * temp[0] * dt)
             a_m = vol[1] / (_G * R_AIR * temp[1] * dt)
             lhs_m = a_m + g_rm + g_ml + g_mv
@@ -543,11 +460,13 @@ def run_cycle(
                 g_exh[c] = 0.0
                 if conn[c] == 1:
                     g_fill[c] = _isa_g(
-                        p[1], p[j], cp[c, CP_CV_FILL], cp[c, CP_XT], temp[1], temp[j]
+                        p[1], p[j], cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT], temp[1], temp[j]
                     )
                 elif conn[c] == 2:
-                    g_exh[c] = _isa_g(p[j], P_ATM, cp[c, CP_CV_EXH], cp[c, CP_XT], temp[j], t_wall)
-                g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, CP_LEAK], temp[j], t_wall)
+                    g_exh[c] = _isa_g(
+                        p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], temp[j], t_wall
+                    )
+                g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, lay.CP_LEAK], temp[j], t_wall)
             for q in range(n_aw):
                 c = aw[q]
                 j = 2 + c
@@ -571,15 +490,15 @@ def run_cycle(
             f_vac = g_mv * (pm_new - P_ATM)
             dm[0] += f_reg - f_line
             dm[1] += f_line - f_sl - f_vac
-            energy_in[0] += _CP_AIR * f_reg * t_wall
-            h = _enthalpy_flow(f_line, temp[0], temp[1])
+            energy_in[0] += enthalpy_flow_kernel(f_reg, t_wall, t_wall)
+            h = enthalpy_flow_kernel(f_line, temp[0], temp[1])
             energy_in[0] -= h
             energy_in[1] += h
-            energy_in[1] -= _enthalpy_flow(f_sl + f_vac, temp[1], t_wall)
-            out_fr[n_out, FR_REG] += f_reg
-            out_fr[n_out, FR_LINE] += f_line
-            out_fr[n_out, FR_SUPPLY_LEAK] += f_sl
-            out_fr[n_out, FR_VAC] += f_vac
+            energy_in[1] -= enthalpy_flow_kernel(f_sl + f_vac, temp[1], t_wall)
+            out_fr[n_out, lay.FR_REG] += f_reg
+            out_fr[n_out, lay.FR_LINE] += f_line
+            out_fr[n_out, lay.FR_SUPPLY_LEAK] += f_sl
+            out_fr[n_out, lay.FR_VAC] += f_vac
             for q in range(n_aw):
                 c = aw[q]
                 j = 2 + c
@@ -589,20 +508,22 @@ def run_cycle(
                 f_lk = g_leak[c] * (pc_new - P_ATM)
                 dm[1] -= f_in
                 dm[j] += f_in - f_ex - f_lk
-                h = _enthalpy_flow(f_in, temp[1], temp[j])
+                h = enthalpy_flow_kernel(f_in, temp[1], temp[j])
                 energy_in[1] -= h
                 energy_in[j] += h
-                energy_in[j] -= _enthalpy_flow(f_ex + f_lk, temp[j], t_wall)
+                energy_in[j] -= enthalpy_flow_kernel(f_ex + f_lk, temp[j], t_wall)
                 out_fch[n_out, c] += f_in
                 out_fexh[n_out, c] += f_ex
                 out_fleak[n_out, c] += f_lk
-                cum[CM_EXHAUST] += f_ex * dt
-                cum[CM_LEAK] += f_lk * dt
-            cum[CM_REG] += f_reg * dt
-            cum[CM_LINE] += f_line * dt
-            cum[CM_LEAK] += f_sl * dt
-            cum[CM_VAC] += f_vac * dt
-            # ----- pistons (eq. 4.13, 4.14) with the pressures at sub-step start
+                cum[lay.CM_EXHAUST] += f_ex * dt
+                cum[lay.CM_LEAK] += f_lk * dt
+            cum[lay.CM_REG] += f_reg * dt
+            cum[lay.CM_LINE] += f_line * dt
+            cum[lay.CM_LEAK] += f_sl * dt
+            cum[lay.CM_VAC] += f_vac * dt
+            # ----- pistons (eq. 4.13, 4.14) with the pressures at sub-step start: force
+            # and friction from physics/; the stick/slip switching, end stops and stroke
+            # records are the integrator's (semi-implicit Euler), so they stay here
             for i in range(na):
                 ca = 2 + 2 * i
                 cb = ca + 1
@@ -610,12 +531,17 @@ def run_cycle(
                 vdot[cb] = 0.0
                 if stuck[i] == 1 and awake[2 * i] == 0 and awake[2 * i + 1] == 0:
                     continue
-                stroke = ap[i, AP_STROKE]
-                force = p[ca] * cp[2 * i, CP_AREA] - p[cb] * cp[2 * i + 1, CP_AREA]
-                force -= P_ATM * ap[i, AP_AROD]
-                fs = ap[i, AP_FS] * fric[i]
-                fc = ap[i, AP_FC] * fric[i]
-                cvf = ap[i, AP_CVF]
+                stroke = ap[i, lay.AP_STROKE]
+                force = piston_net_force_kernel(
+                    p[ca],
+                    p[cb],
+                    cp[2 * i, lay.CP_AREA],
+                    cp[2 * i + 1, lay.CP_AREA],
+                    ap[i, lay.AP_AROD],
+                )
+                fs = ap[i, lay.AP_FS] * fric[i]
+                fc = ap[i, lay.AP_FC] * fric[i]
+                cvf = ap[i, lay.AP_CVF]
                 if stuck[i] == 1:
                     blocked = (x[i] <= 0.0 and force <= 0.0) or (x[i] >= stroke and force >= 0.0)
                     if blocked or abs(force) <= fs:
@@ -632,13 +558,13 @@ def run_cycle(
                     v_old = 0.0
                 else:
                     v_old = v[i]
-                ff = friction_force_kernel(v_old, force, fs, fc, cvf, _DV)
-                acc = (force - ff) / ap[i, AP_MASS]
+                ff = friction_force_kernel(v_old, force, fs, fc, cvf, lay.STICK_BAND)
+                acc = (force - ff) / ap[i, lay.AP_MASS]
                 v_new = v_old + acc * dt
                 if v_old != 0.0 and v_new * v_old < 0.0:
                     v_new = 0.0
                     stuck[i] = 1
-                elif abs(v_new) < _DV and abs(force) <= fs:
+                elif abs(v_new) < lay.STICK_BAND and abs(force) <= fs:
                     # inside the Karnopp band with a force below breakaway: sticks
                     v_new = 0.0
                     stuck[i] = 1
@@ -663,26 +589,21 @@ def run_cycle(
                         n_ev += 1
                     mv_t0[i, 0] = -1.0
                     mv_t0[i, 3] = 1.0
-                vdot[ca] = cp[2 * i, CP_AREA] * (x_new - x[i]) / dt
-                vdot[cb] = -cp[2 * i + 1, CP_AREA] * (x_new - x[i]) / dt
+                vdot[ca] = cp[2 * i, lay.CP_AREA] * (x_new - x[i]) / dt
+                vdot[cb] = -cp[2 * i + 1, lay.CP_AREA] * (x_new - x[i]) / dt
                 if x_new != x[i]:
                     x_moved = True
                 x[i] = x_new
                 v[i] = v_new
-            # ----- mass and energy update (eq. 4.7-4.9), heat exchange to the wall
+            # ----- mass and energy update (eq. 4.7-4.9), heat exchange to the wall; the
+            # step is physics' (inlined, same bits), the volume follows the piston
             for j in range(nn):
                 if j >= 2 and awake[j - 2] == 0 and vdot[j] == 0.0:
                     continue
+                m_new, t_new = chamber_energy_step_kernel(
+                    m[j], temp[j], p[j], vdot[j], dm[j], energy_in[j], dt, t_wall, decay[nsub, j]
+                )
                 v_new_j = vol[j] + vdot[j] * dt
-                u = m[j] * _CV_AIR * temp[j]
-                u += dt * (energy_in[j] - p[j] * vdot[j])
-                m_new = m[j] + dt * dm[j]
-                if m_new < 1e-12:
-                    m_new = 1e-12
-                t_new = u / (m_new * _CV_AIR)
-                t_new = t_wall + (t_new - t_wall) * decay[nsub, j]
-                if t_new < 150.0:
-                    t_new = 150.0
                 m[j] = m_new
                 temp[j] = t_new
                 vol[j] = v_new_j
@@ -692,11 +613,11 @@ def run_cycle(
                 if vac_on:
                     # an ejector reaches its full vacuum from ~50 % of the nominal supply
                     # gauge pressure on; below that the attainable vacuum falls linearly
-                    drive = 2.0 * (pm_new - P_ATM) / (sp[SP_P_SET] - P_ATM)
+                    drive = 2.0 * (pm_new - P_ATM) / (sp[lay.SP_P_SET] - P_ATM)
                     drive = min(max(drive, 0.0), 1.0)
-                    ss[SS_VAC] += dt * (drive - ss[SS_VAC]) / sp[SP_VAC_TAU_ON]
+                    ss[lay.SS_VAC] += dt * (drive - ss[lay.SS_VAC]) / sp[lay.SP_VAC_TAU_ON]
                 else:
-                    ss[SS_VAC] -= dt * ss[SS_VAC] / sp[SP_VAC_TAU_OFF]
+                    ss[lay.SS_VAC] -= dt * ss[lay.SS_VAC] / sp[lay.SP_VAC_TAU_OFF]
         # ----------------------------------------- finish the 1 ms sample
         if nsub > 1:  # sums of the sub-steps -> mean flows over the sample
             for q in range(n_aw):
@@ -717,13 +638,13 @@ def run_cycle(
             dp_max = d
         dp_prev = dp_max
         n_out += 1
-        istate[IS_SAMPLE] += 1
-        ss[SS_TIME] = istate[IS_SAMPLE] * SAMPLE_DT
+        istate[lay.IS_SAMPLE] += 1
+        ss[lay.SS_TIME] = istate[lay.IS_SAMPLE] * SAMPLE_DT
     return n_out, 0, n_ev, total_sub
 
 
 @njit(cache=True, nogil=True)
-def first_order_recursion_kernel(x: F64, gain: float, pole: float) -> F64:
+def first_order_recursion_kernel(x: FloatArray, gain: float, pole: float) -> FloatArray:
     """``y[k] = gain * x[k] + pole * y[k-1]``, ``y[-1] = 0``: the sensors' first-order lag
     and the house-pressure drift (:func:`pneufdd.sim.sensors.first_order_recursion`)."""
     y = np.empty_like(x)
@@ -736,8 +657,8 @@ def first_order_recursion_kernel(x: F64, gain: float, pole: float) -> F64:
 
 @njit(cache=True, nogil=True)
 def sensor_reading_kernel(
-    x: F64,
-    z: F64,
+    x: FloatArray,
+    z: FloatArray,
     kind: int,
     gain: float,
     offset: float,
@@ -745,7 +666,7 @@ def sensor_reading_kernel(
     low: float,
     high: float,
     step: float,
-) -> F64:
+) -> FloatArray:
     """What a sensor records for the true signal ``x`` (:func:`pneufdd.sim.sensors.apply_sensor`).
 
     In the sensor's unit, ``gain * x + offset + noise * z`` clipped to ``[low, high]``
@@ -756,11 +677,11 @@ def sensor_reading_kernel(
     """
     y = np.empty_like(x)
     for k in range(x.size):
-        if kind == SENSOR_PRESSURE:
+        if kind == lay.SENSOR_PRESSURE:
             v = x[k] - P_ATM
             v = v * gain
             v = v / 1e5
-        elif kind == SENSOR_FLOW:
+        elif kind == lay.SENSOR_FLOW:
             v = x[k] * gain
         else:
             v = x[k] * gain
@@ -773,10 +694,10 @@ def sensor_reading_kernel(
         v = np.rint(v)
         v = v * step
         v = v + low
-        if kind == SENSOR_PRESSURE:
+        if kind == lay.SENSOR_PRESSURE:
             v = v * 1e5
             v = v + P_ATM
-        elif kind == SENSOR_POSITION:
+        elif kind == lay.SENSOR_POSITION:
             v = v * 1e-3
         y[k] = v
     return y
@@ -784,14 +705,14 @@ def sensor_reading_kernel(
 
 @njit(cache=True, nogil=True)
 def truth_rows_kernel(
-    p: F64,
-    x: F64,
-    fch: F64,
-    fexh: F64,
-    fr: F64,
-    source: npt.NDArray[np.int64],
-    column: npt.NDArray[np.int64],
-    store: F64,
+    p: FloatArray,
+    x: FloatArray,
+    fch: FloatArray,
+    fexh: FloatArray,
+    fr: FloatArray,
+    source: IntArray,
+    column: IntArray,
+    store: FloatArray,
     first: int,
     n: int,
 ) -> None:
@@ -807,13 +728,13 @@ def truth_rows_kernel(
     for r in range(source.size):
         c = column[r]
         kind = source[r]
-        if kind == TRUTH_NODE_PRESSURE:
+        if kind == lay.TRUTH_NODE_PRESSURE:
             for k in range(n):
                 store[r, first + k] = p[k, c]
-        elif kind == TRUTH_POSITION:
+        elif kind == lay.TRUTH_POSITION:
             for k in range(n):
                 store[r, first + k] = x[k, c]
-        elif kind == TRUTH_CHAMBER_FLOW:
+        elif kind == lay.TRUTH_CHAMBER_FLOW:
             for k in range(n):
                 store[r, first + k] = fch[k, c] - fexh[k, c]
         else:

@@ -1,12 +1,19 @@
 """Column indices of the parameter and state arrays shared by compile and kernel.
 
 The compiled integrator takes plain numpy arrays; these constants name their columns.
+The twin's sample interval and stick band are here too: the kernel and the reference
+right-hand side (:mod:`pneufdd.sim.rhs`) share them.
 """
 
 from __future__ import annotations
 
 SAMPLE_DT = 1e-3
 """Output (analog) sample interval of the twin [s]."""
+
+STICK_BAND = 1e-4
+"""Half-width of the Karnopp stick band of the twin's pistons, eq. 4.14 [m/s]
+(``v_stick`` of :func:`pneufdd.physics.friction.friction_force_kernel`); the kernel
+and :mod:`pneufdd.sim.rhs` use it."""
 
 # supply parameters (float array)
 SP_P_HOUSE = 0  # nominal house pressure [Pa abs]

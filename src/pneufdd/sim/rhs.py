@@ -25,16 +25,13 @@ from pneufdd.physics.chamber import (
     chamber_pressure_kernel,
     chamber_volume_kernel,
 )
-from pneufdd.physics.constants import GAMMA_AIR, P_ATM, R_AIR
+from pneufdd.physics.constants import CV_AIR, P_ATM
 from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
-from pneufdd.physics.friction import friction_force_kernel
+from pneufdd.physics.friction import friction_force_kernel, piston_net_force_kernel
 from pneufdd.sim import layout as lay
 from pneufdd.sim.compile import Plant
 
 __all__ = ["SegmentSolution", "plant_derivatives", "solve_segment"]
-
-_CV_AIR = R_AIR / (GAMMA_AIR - 1.0)
-_DV = 1e-4
 
 
 @njit(cache=True)
@@ -141,7 +138,7 @@ def plant_derivatives(
     dy = np.zeros(y.size)
     for j in range(nn):
         tau = sp[lay.SP_TAU_TH] if j < 2 else cp[j - 2, lay.CP_TAU_TH]
-        h_a = m[j] * _CV_AIR / tau
+        h_a = m[j] * CV_AIR / tau
         t_in = hin[j] / fin[j] if fin[j] > 0.0 else temp[j]
         dm, dt = chamber_energy_derivatives_kernel(
             m[j], temp[j], vol[j], vdot[j], fin[j], fout[j], t_in, h_a, t_wall
@@ -149,8 +146,13 @@ def plant_derivatives(
         dy[j] = dm
         dy[nn + j] = dt
     for i in range(na):
-        force = p[2 + 2 * i] * cp[2 * i, lay.CP_AREA] - p[3 + 2 * i] * cp[2 * i + 1, lay.CP_AREA]
-        force -= P_ATM * ap[i, lay.AP_AROD]
+        force = piston_net_force_kernel(
+            p[2 + 2 * i],
+            p[3 + 2 * i],
+            cp[2 * i, lay.CP_AREA],
+            cp[2 * i + 1, lay.CP_AREA],
+            ap[i, lay.AP_AROD],
+        )
         stroke = ap[i, lay.AP_STROKE]
         ff = friction_force_kernel(
             v[i],
@@ -158,7 +160,7 @@ def plant_derivatives(
             ap[i, lay.AP_FS] * fric[i],
             ap[i, lay.AP_FC] * fric[i],
             ap[i, lay.AP_CVF],
-            _DV,
+            lay.STICK_BAND,
         )
         acc = (force - ff) / ap[i, lay.AP_MASS]
         at_stop = (x[i] <= 0.0 and v[i] <= 0.0 and acc < 0.0) or (
