@@ -12,12 +12,12 @@ by name.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from pathlib import Path
-from typing import Any
 
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.recording.model import Recording
+from pneufdd.signals.events import SWITCH_PREFIX, VALVE_PREFIX
 from pneufdd.sim import MachineDescription, load_machine, parse_description
+from pneufdd.sim.loading import MachineLike
 
 __all__ = [
     "MachineLike",
@@ -27,11 +27,7 @@ __all__ = [
     "resolve_machine",
 ]
 
-MachineLike = str | Path | MachineDescription | Mapping[str, Any]
 """A built-in machine name, a TOML path, a parsed TOML mapping or a description."""
-
-VALVE_PREFIX = "U_"
-SWITCH_PREFIX = "S_"
 
 
 def recording_machine_name(recording: Recording) -> str | None:

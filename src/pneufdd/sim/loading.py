@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Mapping
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -89,14 +90,17 @@ def _read_file(path: Path) -> str:
         ) from None
 
 
-def load_machine(
-    machine: str | Path | MachineDescription | dict[str, Any],
-) -> MachineDescription:
+MachineLike = str | Path | MachineDescription | Mapping[str, Any]
+"""What every function that takes a machine accepts: a built-in name, a TOML path, a
+parsed TOML mapping or a description."""
+
+
+def load_machine(machine: MachineLike) -> MachineDescription:
     """Load a machine: a built-in name, a TOML path, a parsed mapping or a description.
 
     Parameters
     ----------
-    machine : str, Path, MachineDescription or dict
+    machine : str, Path, MachineDescription or mapping
         ``"festo-dsd"`` (see :func:`builtin_machines`), a path to a ``.toml`` file,
         an already parsed TOML mapping, or a description (returned as is).
 
@@ -117,8 +121,9 @@ def load_machine(
     """
     if isinstance(machine, MachineDescription):
         return machine
-    if isinstance(machine, dict):
-        return parse_description(machine, "<dict>")
+    if isinstance(machine, Mapping):
+        raw = machine if isinstance(machine, dict) else dict(machine)
+        return parse_description(raw, "<dict>")
     if isinstance(machine, str) and machine in builtin_machines():
         return _builtin(machine)
     path = Path(machine)

@@ -6,7 +6,6 @@ import math
 import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -21,7 +20,7 @@ from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_p
 from pneufdd.sim.description import MachineDescription, Sensor, solenoid_slots
 from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
-from pneufdd.sim.loading import load_machine
+from pneufdd.sim.loading import MachineLike, load_machine
 from pneufdd.sim.prebuilt import compiled_twin
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulatedStroke, SimulationResult
@@ -52,7 +51,6 @@ RUN_END_IDLE_S = 0.3
 mode and the DAQ runs on briefly, as on the rig, so the last cycle's final switch
 edges are in the recording and it segments as complete."""
 
-MachineLike = str | Path | MachineDescription | dict[str, Any]
 LeaksLike = Mapping[str, Any] | Iterable[Leak] | None
 
 
