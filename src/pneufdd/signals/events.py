@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -20,9 +19,6 @@ from pneufdd.array_types import FloatArray, IntArray
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.recording.model import Recording
 from pneufdd.signals.digital import Edges, debounced_edges_many
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = [
     "DEFAULT_SWITCH_DWELL_S",
