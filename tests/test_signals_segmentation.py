@@ -177,18 +177,7 @@ def test_sequence_from_a_machine_description_in_metadata() -> None:
     from pneufdd.signals.segmentation import sequence_from_machine
 
     rec, _ = make_recording(cycles=3, seed=12)
-    raw = {"step": []}
-    for valves in valve_sets():
-        do = []
-        for v in sorted(valves):
-            if v.endswith(":off"):
-                do.append({"reset": v[:-4]})
-            elif v == "U_VAC":
-                do.append({"set": v})
-            else:
-                act, side = v[2:-2], v[-1]
-                do.append({"set": v, "until": f"S_{act}_{'B' if side == 'A' else 'A'}"})
-        raw["step"].append({"do": do})
+    raw = _toy_description()
     seq = sequence_from_machine(raw)
     assert [s.valves for s in seq] == valve_sets()
     assert seq[1].switches == {("S_DNC_A", 1), ("S_DRQD_A", 1), ("S_HMPL_H_B", 1)}
