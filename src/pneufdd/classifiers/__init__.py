@@ -15,12 +15,13 @@ estimator                          method
 :class:`VectorizedMap`              vectorized map, eqs. 5.23-5.24 (section 5.3.4)
 :class:`VoronoiNeighbourClassifier` stepwise Voronoi search (section 5.3.5)
 :class:`WaveletTransformer`         DWT band features (section 5.3.3)
-:class:`BandDetector`               band detector of eq. 5.21 (from ``diagnosis.band``)
+:class:`BandDetector`               band detector of eq. 5.21 (from ``diagnosis.detection``)
 =================================  =====================================================
 
 The physics-residual detector (section 4.1) needs the twin and lives in
-:mod:`pneufdd.diagnosis.detection.residuals`. This package sits at the level of
-``diagnosis`` in the import order.
+:mod:`pneufdd.diagnosis.detection.residuals`. May import: :mod:`pneufdd.features`,
+:mod:`pneufdd.diagnosis` (the band detector) and the layers below; it comes after
+``diagnosis`` and ``calibration`` in the import order.
 """
 
 from __future__ import annotations

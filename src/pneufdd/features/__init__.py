@@ -35,6 +35,9 @@ channel and step). The step-table statistics are not registered features either
 step table summarises whichever analog channels a reference was built with, from
 the gap-repaired samples), so ``pneufdd features`` does not output them; the
 diagnosis's own columns are listed by :meth:`StepTable.feature_names`.
+
+May import: :mod:`pneufdd.signals`, :mod:`pneufdd.sim` (machine descriptions),
+:mod:`pneufdd.recording`, :mod:`pneufdd.physics` and the shared helpers.
 """
 
 from __future__ import annotations

@@ -5,6 +5,8 @@ zero-flow correction (:mod:`.valve`, section 4.2.1, Figs. 4.7-4.9), a cylinder's
 friction (:mod:`.friction`, eqs. 4.14-4.16) and the supply path (:mod:`.supply`,
 Fig. 4.13, eqs. 4.19-4.21). The twin-in-the-loop calibration of a whole machine
 description is :mod:`pneufdd.calibration`.
+
+May import: :mod:`pneufdd.physics` and the shared helpers only.
 """
 
 from __future__ import annotations

@@ -6,6 +6,9 @@ OPC UA) -> :class:`~pneufdd.monitor.samples.SampleAssembler` ->
 :class:`~pneufdd.monitor.live.MachineMonitor` (per-cycle score, CUSUM, location and
 sizing, leak lives) -> :class:`~pneufdd.monitor.database.HistoryDatabase` (SQLAlchemy).
 :mod:`pneufdd.monitor.history` writes one JSON line per diagnosed file.
+
+May import: :mod:`pneufdd.diagnosis`, :mod:`pneufdd.features` and the layers below;
+not report or cli.
 """
 
 from __future__ import annotations

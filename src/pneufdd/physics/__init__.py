@@ -2,6 +2,8 @@
 
 One module per physical topic (constants, units, flow, chamber, friction, leaks,
 economics). Engineering symbols (P1, Cv, xT) are used only inside this package.
+
+May import: :mod:`pneufdd.errors`, :mod:`pneufdd.array_types` (the bottom of the chain).
 """
 
 from __future__ import annotations

@@ -1,4 +1,8 @@
-"""Acquire: the :class:`Recording` data model and its readers and writer."""
+"""Acquire: the :class:`Recording` data model and its readers and writer.
+
+May import: :mod:`pneufdd.physics` (units) and the shared helpers (``errors``,
+``array_types``); the acquire layer of ISO 13374, below everything but physics.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,8 @@
-"""Report: the self-contained HTML leak report and its figures."""
+"""Report: the self-contained HTML leak report and its figures.
+
+May import: :mod:`pneufdd.diagnosis`, :mod:`pneufdd.calibration`,
+:mod:`pneufdd.features` and the layers below; not cli.
+"""
 
 from __future__ import annotations
 

@@ -3,6 +3,8 @@
 >>> from pneufdd.sim import builtin_machines
 >>> builtin_machines()
 ('carton-sorter', 'festo-dsd', 'press-fit-cell')
+
+May import: :mod:`pneufdd.physics`, :mod:`pneufdd.recording` and the shared helpers.
 """
 
 from __future__ import annotations
