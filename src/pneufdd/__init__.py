@@ -18,7 +18,7 @@ from pneufdd._lazy import lazy_getattr
 
 if TYPE_CHECKING:
     from pneufdd.diagnosis.diagnoser import LeakDiagnoser
-    from pneufdd.diagnosis.engine import Diagnosis
+    from pneufdd.diagnosis.findings import Diagnosis
     from pneufdd.location import Location
     from pneufdd.recording import Recording
 
@@ -28,7 +28,7 @@ __version__ = "0.1.0"
 _LAZY = {
     "Recording": "pneufdd.recording",
     "LeakDiagnoser": "pneufdd.diagnosis.diagnoser",
-    "Diagnosis": "pneufdd.diagnosis.engine",
+    "Diagnosis": "pneufdd.diagnosis.findings",
     "Location": "pneufdd.location",
 }
 

@@ -28,7 +28,8 @@ from pathlib import Path
 
 from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.diagnosis.effects.twin import SIGNATURE_SIZES_SLPM, UNCERTAINTY_PLANTS
-from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.machine import MachineLike
 from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table

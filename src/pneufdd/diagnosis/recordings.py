@@ -23,7 +23,8 @@ from pneufdd.diagnosis.effects.twin import (
     compute_signatures,
     signature_spread,
 )
-from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.machine import (
     MachineLike,

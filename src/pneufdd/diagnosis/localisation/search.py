@@ -56,7 +56,7 @@ from pneufdd.diagnosis.localisation.model_choice import (
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
-__all__ = ["LeakEstimate", "Localisation", "LocalisationSettings", "locate"]
+__all__ = ["Localisation", "LocalisationSettings", "SizedLocation", "locate"]
 
 Whitener = Callable[[FloatArray], FloatArray]
 
@@ -260,8 +260,12 @@ class LocalisationSettings:
 
 
 @dataclass(frozen=True)
-class LeakEstimate:
-    """One leak found by the decomposition.
+class SizedLocation:
+    """A location the decomposition chose, with the leak flow it needs there.
+
+    The search's own result, before costing: :func:`pneufdd.diagnosis.engine.diagnose`
+    reports each leak once, as a :class:`~pneufdd.diagnosis.findings.LeakFinding`
+    (with its orifice, average flow and cost) in ``Diagnosis.leaks``.
 
     Attributes
     ----------
@@ -291,8 +295,9 @@ class Localisation:
 
     Attributes
     ----------
-    leaks : tuple of LeakEstimate
-        Leaks found, largest flow first.
+    leaks : tuple of SizedLocation
+        Locations of the chosen explanation with their leak flows, largest flow
+        first (the leaks are reported, costed, in ``Diagnosis.leaks``).
     rss_null : float
         Weighted residual sum of squares without any leak [-].
     rss : float
@@ -310,7 +315,7 @@ class Localisation:
         (:mod:`pneufdd.diagnosis.localisation.check`); ``rss`` is then the simulated residual.
     """
 
-    leaks: tuple[LeakEstimate, ...]
+    leaks: tuple[SizedLocation, ...]
     rss_null: float
     rss: float
     dof: int
@@ -513,7 +518,7 @@ def _composite_competitors(
     return [fit[1] for sub, fit in fits.items() if len(sub) == 2 and supply not in sub]
 
 
-def _leak_estimate(
+def _sized_location(
     slot: int,
     subset: Subset,
     sizes: FloatArray,
@@ -523,7 +528,7 @@ def _leak_estimate(
     s2: float,
     explained: float,
     settings: LocalisationSettings,
-) -> LeakEstimate:
+) -> SizedLocation:
     """The chosen leak in ``slot`` with its ambiguity group and confidence."""
     group = ambiguity_group(
         slot,
@@ -540,7 +545,7 @@ def _leak_estimate(
         _forced_member(slot, subset, sizes, locations, model),
         _composite_competitors(slot, subset, fits, locations),
     )
-    return LeakEstimate(
+    return SizedLocation(
         location=locations[group.members[0]],
         mass_flow=float(group.sizes[0]),
         ambiguity_group=tuple(locations[a] for a in group.members),
@@ -659,7 +664,7 @@ def locate(
     s2 = max(1.0, rss / max(dof - len(subset), 1))
     explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
     leaks = [
-        _leak_estimate(slot, subset, coef, fits, model, locations, s2, explained, settings)
+        _sized_location(slot, subset, coef, fits, model, locations, s2, explained, settings)
         for slot in range(len(subset))
     ]
     leaks.sort(key=lambda leak: -leak.mass_flow)
