@@ -19,6 +19,7 @@ from pneufdd.diagnosis.diagnoser import (
 from pneufdd.diagnosis.effects.twin import SIGNATURE_SIZES_SLPM
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.reference.model import DetectionSettings
+from pneufdd.errors import InputError
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 
 
@@ -29,13 +30,13 @@ def test_clone_gives_equal_params():
         signature_mass_flows=(slpm_to_kg_s(20.0), slpm_to_kg_s(80.0)),
         uncertainty_plants=0,
         detection=DetectionSettings(startup_cycles=2),
-        localisation=LocalisationSettings(min_flow=1e-4),
+        localisation=LocalisationSettings(min_mass_flow=1e-4),
         workers=1,
     )
     twin = clone(diagnoser)
     assert twin is not diagnoser
     assert twin.get_params() == diagnoser.get_params()
-    assert twin.get_params()["localisation"].min_flow == 1e-4
+    assert twin.get_params()["localisation"].min_mass_flow == 1e-4
     assert twin.get_params()["detection"].startup_cycles == 2
     assert twin.get_params()["signature_mass_flows"] == diagnoser.signature_mass_flows
     # clone copies the settings and learns nothing
@@ -98,3 +99,21 @@ def test_public_face_is_lazy_and_has_simulate():
         ).stdout
     )
     assert loaded == ["pneufdd", "pneufdd._lazy"]
+
+
+def test_min_mass_flow_keeps_its_pnref_key():
+    # the setting says what it is; the .pnref header keeps the key files always had,
+    # so files written before load with the same value
+    settings = LocalisationSettings(min_mass_flow=1e-4)
+    data = settings.to_dict()
+    assert data["min_flow"] == 1e-4
+    assert "min_mass_flow" not in data
+    assert list(data) == [  # the header's key order is unchanged too
+        "min_flow" if name == "min_mass_flow" else name
+        for name in LocalisationSettings.__dataclass_fields__
+    ]
+    assert LocalisationSettings.from_dict(data) == settings
+    saved_before = {**LocalisationSettings().to_dict(), "min_flow": 8.6e-5}
+    assert LocalisationSettings.from_dict(saved_before).min_mass_flow == 8.6e-5
+    with pytest.raises(InputError, match="min_mass_flow"):
+        LocalisationSettings.from_dict({"min_mass_flow": 1e-4})
