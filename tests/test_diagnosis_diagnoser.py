@@ -10,14 +10,10 @@ import pytest
 from sklearn.base import clone
 
 import pneufdd
-from pneufdd.diagnosis.diagnoser import (
-    SIGNATURE_MASS_FLOWS,
-    LeakDiagnoser,
-    NotFittedError,
-    signature_ladder_slpm,
-)
+from pneufdd.diagnosis.diagnoser import LeakDiagnoser, NotFittedError
 from pneufdd.diagnosis.effects.twin import SIGNATURE_SIZES_SLPM
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
+from pneufdd.diagnosis.recordings import SIGNATURE_MASS_FLOWS, signature_ladder_slpm
 from pneufdd.diagnosis.reference.model import DetectionSettings
 from pneufdd.errors import InputError
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s

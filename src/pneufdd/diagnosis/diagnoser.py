@@ -20,59 +20,29 @@ from pathlib import Path
 from sklearn.base import BaseEstimator
 
 from pneufdd.diagnosis.cost import CostSettings
-from pneufdd.diagnosis.effects.twin import SIGNATURE_SIZES_SLPM, UNCERTAINTY_PLANTS
+from pneufdd.diagnosis.effects.twin import UNCERTAINTY_PLANTS
 from pneufdd.diagnosis.engine import diagnose
 from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.machine import MachineLike
-from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.recordings import (
+    SIGNATURE_MASS_FLOWS,
+    build_reference_from_recordings,
+    run_table,
+)
 from pneufdd.diagnosis.reference.file import load_reference, save_reference
 from pneufdd.diagnosis.reference.model import DetectionSettings, ReferenceModel
 from pneufdd.errors import InputError, describe
-from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.progress import Progress
 from pneufdd.recording.model import Recording
 
-__all__ = ["SIGNATURE_MASS_FLOWS", "LeakDiagnoser", "NotFittedError", "signature_ladder_slpm"]
-
-SIGNATURE_MASS_FLOWS: tuple[float, ...] = tuple(
-    float(slpm_to_kg_s(size)) for size in SIGNATURE_SIZES_SLPM
-)
-"""Default ladder of leak flows simulated per location, at nominal supply pressure
-(3, 8, 15, 30, 50, 80, 120, 170, 230 SLPM) [kg/s]."""
+__all__ = ["LeakDiagnoser", "NotFittedError"]
 
 RecordingLike = Recording | str | Path
 
 
 class NotFittedError(InputError):
     """``diagnose`` or ``save`` was called before ``fit`` (or ``load``)."""
-
-
-def signature_ladder_slpm(mass_flows: Sequence[float]) -> tuple[float, ...]:
-    """A ladder of leak flows [kg/s] as the twin's leak valves are set [SLPM].
-
-    The twin sets its leaks by their flow at nominal supply pressure in SLPM
-    (:func:`pneufdd.diagnosis.effects.twin.compute_signatures`); each flow is converted
-    with :func:`pneufdd.physics.units.kg_s_to_slpm` and rounded to 12 significant
-    digits, so a ladder written as ``slpm_to_kg_s(size)`` simulates exactly ``size``
-    (the round trip alone leaves 50.00000000000001 of 50).
-
-    Parameters
-    ----------
-    mass_flows : sequence of float
-        Leak flows at nominal supply pressure [kg/s].
-
-    Returns
-    -------
-    tuple of float
-        The same flows [SLPM: 0 degC, 1013 mbar].
-
-    Examples
-    --------
-    >>> signature_ladder_slpm(SIGNATURE_MASS_FLOWS) == SIGNATURE_SIZES_SLPM
-    True
-    """
-    return tuple(float(f"{float(kg_s_to_slpm(float(flow))):.12g}") for flow in mass_flows)
 
 
 def _recordings(items: Sequence[RecordingLike]) -> tuple[list[Recording], list[str]]:
@@ -109,7 +79,7 @@ class LeakDiagnoser(BaseEstimator):  # type: ignore[misc]
         check the best explanations with the machine's digital twin.
     signature_mass_flows : sequence of float
         Ladder of leak flows simulated per location, at the nominal supply pressure
-        (:data:`SIGNATURE_MASS_FLOWS`; a ladder in SLPM is
+        (:data:`~pneufdd.diagnosis.recordings.SIGNATURE_MASS_FLOWS`; a ladder in SLPM is
         ``[slpm_to_kg_s(x) for x in sizes]``, :mod:`pneufdd.physics.units`) [kg/s].
     signature_cycles : int
         Simulated cycles per signature point [-].
@@ -220,7 +190,7 @@ class LeakDiagnoser(BaseEstimator):  # type: ignore[misc]
             names,
             machine=machine,
             signature_cycles=self.signature_cycles,
-            signature_sizes=signature_ladder_slpm(self.signature_mass_flows),
+            signature_mass_flows=tuple(float(x) for x in self.signature_mass_flows),
             uncertainty_plants=self.uncertainty_plants,
             settings=self.detection,
             localisation=self._localisation_settings(),
