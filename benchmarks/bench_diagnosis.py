@@ -22,12 +22,13 @@ SEED = 9_500_000  # this benchmark's seeds (below the development and campaign r
 def _case() -> tuple[Any, Any]:
     """A supply-only reference with every location's signatures, and the leaky run."""
     from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+    from pneufdd.physics.units import slpm_to_kg_s
     from pneufdd.sim import simulate
 
     model = build_reference_from_recordings(
         [simulate("festo-dsd", cycles=14, seed=SEED + 1)],
         channels=("P_In", "Q_In"),
-        signature_sizes=(15.0, 50.0, 120.0, 230.0),
+        signature_mass_flows=[slpm_to_kg_s(x) for x in (15.0, 50.0, 120.0, 230.0)],
         uncertainty_plants=1,
         workers=2,
     )

@@ -11,6 +11,7 @@ from datetime import UTC, datetime
 
 from pneufdd.diagnosis.recordings import build_reference_from_recordings
 from pneufdd.diagnosis.reference.model import ReferenceModel
+from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.recording import Recording
 from pneufdd.sim import simulate
 from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
@@ -25,7 +26,7 @@ def reference(channels: tuple[str, ...] = ("P_In", "Q_In")) -> ReferenceModel:
     return build_reference_from_recordings(
         refs,
         list(channels),
-        signature_sizes=(30.0, 120.0),
+        signature_mass_flows=(slpm_to_kg_s(30.0), slpm_to_kg_s(120.0)),
         signature_cycles=1,
         uncertainty_plants=0,
         workers=1,

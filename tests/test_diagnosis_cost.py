@@ -1,4 +1,4 @@
-"""Leak cost by eq. 1.1 and the equivalent sharp-edged orifice."""
+"""Leak cost by eq. 1.1, the equivalent sharp-edged orifice and the leak findings."""
 
 from __future__ import annotations
 
@@ -12,10 +12,11 @@ from pneufdd.diagnosis.cost import (
     CostSettings,
     annual_cost,
     cost_leaks,
-    equivalent_orifice_mm,
+    equivalent_orifice,
 )
+from pneufdd.diagnosis.findings import LeakFinding
 from pneufdd.errors import InputError
-from pneufdd.physics.units import kg_s_to_scfm, psig_to_pa, scfm_to_kg_s
+from pneufdd.physics.units import kg_s_to_scfm, kg_s_to_slpm, psig_to_pa, scfm_to_kg_s
 
 
 def test_eq_1_1_by_hand():
@@ -50,13 +51,13 @@ def test_section_1_1_example_total():
 def test_orifice_inverts_figure_1_2(inch, psig, cfm):
     # Figure 1.2 gives flows of well-rounded orifices (Cd ~ 1); the sharp-edged flow
     # is x 0.61, so the equivalent sharp-edged diameter of that flow is the table's.
-    d = equivalent_orifice_mm(scfm_to_kg_s(0.61 * cfm), psig_to_pa(psig))
-    assert d == pytest.approx(25.4 * inch, rel=0.07)
+    d = equivalent_orifice(scfm_to_kg_s(0.61 * cfm), psig_to_pa(psig))
+    assert d == pytest.approx(0.0254 * inch, rel=0.07)
 
 
 def test_orifice_scales_with_square_root_of_flow():
-    d1 = equivalent_orifice_mm(1e-3, 6e5)
-    d4 = equivalent_orifice_mm(4e-3, 6e5)
+    d1 = equivalent_orifice(1e-3, 6e5)
+    d4 = equivalent_orifice(4e-3, 6e5)
     assert d4 == pytest.approx(2 * d1, rel=1e-12)
 
 
@@ -92,7 +93,8 @@ def test_cost_is_eq_1_1_of_the_average_flow():
     assert total == leak.annual_cost
     assert leak.flow_slpm == pytest.approx(55.0, rel=1e-12)  # nominal flow unchanged
     assert leak.average_flow_slpm == pytest.approx(4.5, rel=1e-12)
-    assert leak.orifice_mm == pytest.approx(equivalent_orifice_mm(nominal, 6e5), rel=1e-12)
+    assert leak.orifice_diameter == equivalent_orifice(nominal, 6e5)
+    assert leak.orifice_mm == pytest.approx(1e3 * equivalent_orifice(nominal, 6e5), rel=1e-12)
     assert leak.cost_basis == COST_BASIS_AVERAGE
     # linear in the average flow
     (double,), _ = cost_leaks(
@@ -133,3 +135,39 @@ def test_unknown_average_assumes_continuous_leakage():
     assert by["b"].annual_cost == pytest.approx(0.1 * by["a"].annual_cost, rel=1e-12)
     with pytest.raises(InputError, match="average leak flow at b"):
         cost_leaks(["b"], [1e-3], [6e5], [1.0], [("b",)], CostSettings(), [-1.0])
+
+
+def test_orifice_needs_a_pressure_above_the_atmosphere():
+    assert equivalent_orifice(-1e-3, 6e5) == 0.0  # a negative flow counts as none
+    with pytest.raises(InputError, match="leak pressure"):
+        equivalent_orifice(1e-3, 101325.0)
+
+
+def test_finding_holds_si_and_reads_slpm_and_mm():
+    # the engineer's units are computed from the SI values with the arithmetic the
+    # CLI, the JSON and the report always used: kg_s_to_slpm and x 1e3
+    (leak,), _ = cost_leaks(
+        ["DNC_B"],
+        [1.2e-3],
+        [6e5],
+        [0.8],
+        [("DNC_B", "supply")],
+        CostSettings(),
+        [6.0e-5],
+        [(1.2e-3, 1.1e-3)],
+    )
+    assert isinstance(leak, LeakFinding)
+    assert (leak.mass_flow, leak.average_mass_flow) == (1.2e-3, 6.0e-5)
+    assert leak.flow_slpm == float(kg_s_to_slpm(1.2e-3))
+    assert leak.flow_slpm == pytest.approx(1.2e-3 / 1.294 * 60_000.0, rel=1e-12)
+    assert leak.average_flow_slpm == float(kg_s_to_slpm(6.0e-5))
+    assert leak.orifice_mm == 1e3 * leak.orifice_diameter
+    assert 1e-3 < leak.orifice_diameter < 3e-3  # a 56 SLPM leak at 6 bar: about 1.6 mm
+    assert leak.ambiguity_group == ("DNC_B", "supply")
+    assert leak.group_mass_flows == (1.2e-3, 1.1e-3)
+    assert leak.confidence == 0.8
+    # without group flows they are unknown, not made up
+    (bare,), _ = cost_leaks(["a"], [1e-3], [6e5], [1.0], [("a",)], CostSettings())
+    assert bare.group_mass_flows == ()
+    with pytest.raises(AttributeError):
+        leak.flow_slpm = 1.0  # type: ignore[misc]

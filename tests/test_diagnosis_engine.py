@@ -14,9 +14,11 @@ from pneufdd.diagnosis.cost import (
 )
 from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.findings import LeakFinding
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import ChannelError, InputError, MachineError
 from pneufdd.location import Location
+from pneufdd.physics.units import kg_s_to_slpm
 
 
 @pytest.fixture(scope="module")
@@ -198,3 +200,30 @@ def test_supply_check_needs_supply_sensors():
     result = diagnose(lines_only, synth_table(10, {"X_A": 5e-4}, seed=42))
     assert result.supply is None
     assert result.to_dict()["supply_check"] is None
+
+
+def test_one_finding_per_leak_in_si(reference):
+    # Diagnosis.leaks holds one LeakFinding per leak, the located one costed: the
+    # localisation's sized locations are the same leaks, not a second result to read
+    result = diagnose(reference, synth_table(10, {"X_A": 7e-4}, seed=45))
+    assert result.localisation is not None
+    (leak,) = result.leaks
+    (sized,) = result.localisation.leaks
+    assert isinstance(leak, LeakFinding)
+    assert (leak.location, leak.mass_flow, leak.confidence) == (
+        sized.location,
+        sized.mass_flow,
+        sized.confidence,
+    )
+    assert leak.ambiguity_group == sized.ambiguity_group
+    assert leak.group_mass_flows == sized.group_mass_flows
+    assert leak.mass_flow == pytest.approx(7e-4, rel=0.1)  # [kg/s]
+    assert 5e-4 < leak.orifice_diameter < 5e-3  # [m]
+    # the JSON and the table show the finding's SLPM and mm properties, unrounded
+    (row,) = result.to_dict()["leaks"]
+    assert row["flow_slpm"] == leak.flow_slpm == float(kg_s_to_slpm(leak.mass_flow))
+    assert row["orifice_mm"] == leak.orifice_mm == 1e3 * leak.orifice_diameter
+    assert row["average_flow_slpm"] == leak.average_flow_slpm
+    table = result.to_pandas()
+    assert table.loc[0, "flow_slpm"] == leak.flow_slpm
+    assert table.loc[0, "annual_cost"] == leak.annual_cost == result.total_annual_cost

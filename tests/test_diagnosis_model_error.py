@@ -144,8 +144,8 @@ def test_localisation_settings_round_trip_and_validation():
     assert LocalisationSettings.from_dict(settings.to_dict()) == settings
     with pytest.raises(InputError, match="max_leaks"):
         LocalisationSettings(max_leaks=3)
-    with pytest.raises(InputError, match="min_flow"):
-        LocalisationSettings(min_flow=-1.0)
+    with pytest.raises(InputError, match="min_mass_flow"):
+        LocalisationSettings(min_mass_flow=-1.0)
     with pytest.raises(InputError, match="colour"):
         LocalisationSettings.from_dict({"colour": 1})
     assert replace(settings, simulate_explanations=False).simulate_explanations is False

@@ -26,7 +26,7 @@ from pneufdd.monitor.database import HistoryDatabase
 from pneufdd.monitor.live import MachineMonitor, run_stream
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.monitor.sources import ChannelTags, MqttSource, OpcUaSource
-from pneufdd.physics.units import kg_s_to_l_min_anr, pa_to_bar_gauge
+from pneufdd.physics.units import kg_s_to_l_min_anr, pa_to_bar_gauge, slpm_to_kg_s
 from pneufdd.recording.model import ANALOG, Channel, Recording
 
 
@@ -246,7 +246,7 @@ def tag_reference():
     return build_reference_from_recordings(
         refs,
         ["P_In", "Q_In"],
-        signature_sizes=(30.0, 120.0),
+        signature_mass_flows=(slpm_to_kg_s(30.0), slpm_to_kg_s(120.0)),
         signature_cycles=1,
         uncertainty_plants=0,
         workers=1,

@@ -23,3 +23,6 @@ def test_readme_python_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     result = namespace["result"]
     assert [str(leak.location) for leak in result.leaks] == ["FEED_A"]  # type: ignore[attr-defined]
     assert result.leaks[0].flow_slpm == pytest.approx(40.0, rel=0.15)  # type: ignore[attr-defined]
+    leak = result.leaks[0]  # type: ignore[attr-defined]
+    assert leak.mass_flow == pytest.approx(40.0 * 1.294 / 60_000.0, rel=0.15)  # [kg/s]
+    assert leak.orifice_mm == 1e3 * leak.orifice_diameter

@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from rich.table import Table
 
 if TYPE_CHECKING:
-    from pneufdd.diagnosis.engine import Diagnosis
+    from pneufdd.diagnosis.findings import Diagnosis
 
 __all__ = ["leak_table", "register"]
 

@@ -91,6 +91,7 @@ def build(
     from pneufdd.diagnosis.recordings import build_reference, parse_channels
     from pneufdd.diagnosis.reference.file import save_reference
     from pneufdd.diagnosis.reference.model import RECOMMENDED_REFERENCE_CYCLES
+    from pneufdd.physics.units import slpm_to_kg_s
 
     console = Console(stderr=True)
     inputs: dict[str, str | Path | None] = {f"RECORDINGS[{i}]": r for i, r in enumerate(recordings)}
@@ -124,7 +125,7 @@ def build(
             machine=description,
             with_signatures=signatures,
             signature_cycles=signature_cycles,
-            signature_sizes=ladder,
+            signature_mass_flows=None if ladder is None else [slpm_to_kg_s(x) for x in ladder],
             progress=progress,
             **({} if uncertainty_plants is None else {"uncertainty_plants": uncertainty_plants}),
         )

@@ -7,15 +7,15 @@ users need only :class:`pneufdd.LeakDiagnoser`.
 
 from __future__ import annotations
 
-from pneufdd.diagnosis.cost import CostedLeak, CostSettings, annual_cost, equivalent_orifice_mm
+from pneufdd.diagnosis.cost import CostSettings, annual_cost, equivalent_orifice
 from pneufdd.diagnosis.detection.band import BandDetector
 from pneufdd.diagnosis.detection.statistic import CycleDistanceDetector
 from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.signatures import SignatureSet
-from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.findings import Diagnosis, LeakFinding
 from pneufdd.diagnosis.localisation.model_choice import Explanation
 from pneufdd.diagnosis.localisation.search import (
-    LeakEstimate,
     Localisation,
     LocalisationSettings,
     locate,
@@ -32,13 +32,12 @@ __all__ = [
     "MIN_REFERENCE_CYCLES",
     "BandDetector",
     "CostSettings",
-    "CostedLeak",
     "CycleDistanceDetector",
     "DetectionSettings",
     "Diagnosis",
     "Explanation",
     "LeakEffectModel",
-    "LeakEstimate",
+    "LeakFinding",
     "Localisation",
     "LocalisationSettings",
     "ReferenceModel",
@@ -46,7 +45,7 @@ __all__ = [
     "StepTable",
     "annual_cost",
     "diagnose",
-    "equivalent_orifice_mm",
+    "equivalent_orifice",
     "load_reference",
     "locate",
     "save_reference",

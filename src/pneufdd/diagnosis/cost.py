@@ -1,11 +1,11 @@
-"""What a leak costs: flow in SLPM, equivalent orifice and annual cost by eq. 1.1.
+"""What a leak costs: equivalent orifice and annual cost by eq. 1.1.
 
 Two flows describe a leak on a sequenced machine:
 
-- its **nominal flow** (``flow_slpm``): the leak flow while its line is pressurised,
+- its **nominal flow** (``mass_flow``): the leak flow while its line is pressurised,
   at the machine's supply pressure. This is what a technician finds with an
   ultrasonic detector and what the equivalent orifice is computed from;
-- its **average flow** (``average_flow_slpm``): the mean leaked flow over an
+- its **average flow** (``average_mass_flow``): the mean leaked flow over an
   operating cycle. A ``supply`` leak blows all cycle, so the two are equal; a leak on
   an actuator line only loses air while that line holds pressure (with a 5/3
   closed-centre valve it blows until the isolated chamber is empty, with a 5/2
@@ -14,7 +14,8 @@ Two flows describe a leak on a sequenced machine:
 The annual cost of eq. 1.1 is that of the air really lost: the average flow times the
 operating hours (1.1's "leakage rate" is a continuous flow). When the average flow is
 not known (a reference without signature mean flows) the nominal flow is used, i.e.
-continuous leakage is assumed; :attr:`CostedLeak.cost_basis` says which.
+continuous leakage is assumed;
+:attr:`~pneufdd.diagnosis.findings.LeakFinding.cost_basis` says which.
 
 .. math::
 
@@ -29,7 +30,8 @@ The equivalent orifice is the sharp-edged orifice (discharge coefficient 0.61, t
 Figure 1.2 note) that passes the leak's mass flow from the leak's nominal absolute
 pressure to the atmosphere (eq. 4.2-4.3). Both formulas are those of
 :mod:`pneufdd.physics.economics` and :mod:`pneufdd.physics.leaks`; this module adds
-the units an engineer reads (SLPM, mm) and the ranking.
+the ranking and makes the :class:`~pneufdd.diagnosis.findings.LeakFinding` of each leak
+(SI values; SLPM and mm are its read-only properties).
 """
 
 from __future__ import annotations
@@ -38,22 +40,21 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from pneufdd.diagnosis.findings import LeakFinding
 from pneufdd.errors import InputError, describe
 from pneufdd.location import Location
 from pneufdd.physics.constants import P_ATM, T_ROOM
 from pneufdd.physics.economics import leak_annual_cost
 from pneufdd.physics.leaks import SHARP_EDGE_CD, equivalent_orifice_diameter
-from pneufdd.physics.units import kg_s_to_slpm
 
 __all__ = [
     "COST_BASIS_AVERAGE",
     "COST_BASIS_CONTINUOUS",
     "SHARP_EDGED_CD",
     "CostSettings",
-    "CostedLeak",
     "annual_cost",
     "cost_leaks",
-    "equivalent_orifice_mm",
+    "equivalent_orifice",
 ]
 
 SHARP_EDGED_CD: float = SHARP_EDGE_CD
@@ -125,16 +126,16 @@ def annual_cost(mass_flow: float, settings: CostSettings) -> float:
     )
 
 
-def equivalent_orifice_mm(mass_flow: float, pressure: float, temperature: float = T_ROOM) -> float:
+def equivalent_orifice(mass_flow: float, pressure: float, temperature: float = T_ROOM) -> float:
     """Diameter of the sharp-edged orifice passing ``mass_flow`` from ``pressure``.
 
     Delegates to :func:`pneufdd.physics.leaks.equivalent_orifice_diameter`
-    (eq. 4.2-4.3 with C_d = 0.61) and returns millimetres.
+    (eq. 4.2-4.3 with C_d = 0.61), after checking the pressure.
 
     Parameters
     ----------
     mass_flow : float
-        Leak mass flow [kg/s].
+        Leak mass flow (negative counts as 0) [kg/s].
     pressure : float
         Upstream absolute pressure [Pa].
     temperature : float
@@ -143,61 +144,24 @@ def equivalent_orifice_mm(mass_flow: float, pressure: float, temperature: float 
     Returns
     -------
     float
-        Equivalent orifice diameter [mm].
+        Equivalent orifice diameter [m].
+
+    Raises
+    ------
+    InputError
+        If ``pressure`` is not above the atmosphere's.
 
     Examples
     --------
     A 1/16 in (1.5875 mm) orifice at 90 psig leaks 5.72 cfm x 0.61 (Figure 1.2):
 
     >>> from pneufdd.physics.units import psig_to_pa, scfm_to_kg_s
-    >>> round(equivalent_orifice_mm(scfm_to_kg_s(5.72 * 0.61), psig_to_pa(90.0)), 2)
+    >>> round(1e3 * equivalent_orifice(scfm_to_kg_s(5.72 * 0.61), psig_to_pa(90.0)), 2)
     1.56
     """
     if not math.isfinite(pressure) or pressure <= P_ATM:
         raise InputError(describe("leak pressure [Pa]", pressure, "> 101325 Pa absolute"))
-    diameter = equivalent_orifice_diameter(max(float(mass_flow), 0.0), pressure, temperature)
-    return 1e3 * float(diameter)
-
-
-@dataclass(frozen=True)
-class CostedLeak:
-    """A leak with its flow, orifice and cost.
-
-    Attributes
-    ----------
-    location : Location
-        Most likely location.
-    mass_flow : float
-        Nominal leak flow: while its line is pressurised, at the machine's supply
-        pressure [kg/s].
-    flow_slpm : float
-        Nominal leak flow at the dissertation's standard conditions [SLPM].
-    orifice_mm : float
-        Equivalent sharp-edged orifice diameter of the nominal flow [mm].
-    annual_cost : float
-        Cost per year by eq. 1.1 of the average flow [$].
-    confidence : float
-        Confidence that a leak lies in the ambiguity group [-].
-    ambiguity_group : tuple of Location
-        Locations the sensors cannot tell apart.
-    average_mass_flow : float
-        Mean leaked flow over an operating cycle [kg/s].
-    average_flow_slpm : float
-        Mean leaked flow over an operating cycle [SLPM].
-    cost_basis : str
-        :data:`COST_BASIS_AVERAGE` or :data:`COST_BASIS_CONTINUOUS`.
-    """
-
-    location: Location
-    mass_flow: float
-    flow_slpm: float
-    orifice_mm: float
-    annual_cost: float
-    confidence: float
-    ambiguity_group: tuple[Location, ...]
-    average_mass_flow: float
-    average_flow_slpm: float
-    cost_basis: str
+    return float(equivalent_orifice_diameter(max(float(mass_flow), 0.0), pressure, temperature))
 
 
 def cost_leaks(
@@ -208,7 +172,8 @@ def cost_leaks(
     groups: Sequence[tuple[Location, ...]],
     settings: CostSettings,
     average_flows: Sequence[float | None] | None = None,
-) -> tuple[list[CostedLeak], float]:
+    group_mass_flows: Sequence[tuple[float, ...]] | None = None,
+) -> tuple[list[LeakFinding], float]:
     """Cost each leak and rank them, largest annual cost first.
 
     Parameters
@@ -228,10 +193,12 @@ def cost_leaks(
     average_flows : sequence of float or None, optional
         Mean leaked flow of each leak over an operating cycle [kg/s]; None (for all
         or one leak) prices that leak at its nominal flow (continuous leakage).
+    group_mass_flows : sequence of tuple of float, optional
+        Nominal flow each member of each leak's group would need [kg/s].
 
     Returns
     -------
-    leaks : list of CostedLeak
+    leaks : list of LeakFinding
         Ranked leaks.
     total : float
         Sum of the annual costs [$].
@@ -256,25 +223,33 @@ def cost_leaks(
     """
     if average_flows is None:
         average_flows = [None] * len(locations)
+    if group_mass_flows is None:
+        group_mass_flows = [()] * len(locations)
     rows = []
-    for loc, flow, p, conf, group, mean in zip(
-        locations, mass_flows, pressures, confidences, groups, average_flows, strict=True
+    for loc, flow, p, conf, group, mean, group_flows in zip(
+        locations,
+        mass_flows,
+        pressures,
+        confidences,
+        groups,
+        average_flows,
+        group_mass_flows,
+        strict=True,
     ):
         if mean is not None and (not math.isfinite(mean) or mean < 0):
             raise InputError(describe(f"average leak flow at {loc} [kg/s]", mean, ">= 0"))
         lost = float(flow) if mean is None else float(mean)
         rows.append(
-            CostedLeak(
+            LeakFinding(
                 location=loc,
                 mass_flow=float(flow),
-                flow_slpm=float(kg_s_to_slpm(float(flow))),
-                orifice_mm=equivalent_orifice_mm(float(flow), float(p)),
+                average_mass_flow=lost,
+                orifice_diameter=equivalent_orifice(float(flow), float(p)),
                 annual_cost=annual_cost(lost, settings),
                 confidence=float(conf),
                 ambiguity_group=tuple(group),
-                average_mass_flow=lost,
-                average_flow_slpm=float(kg_s_to_slpm(lost)),
                 cost_basis=COST_BASIS_CONTINUOUS if mean is None else COST_BASIS_AVERAGE,
+                group_mass_flows=tuple(float(x) for x in group_flows),
             )
         )
     rows.sort(key=lambda r: -r.annual_cost)

@@ -1,23 +1,14 @@
 """``LeakDiagnoser``: the public face of leak diagnosis, fitted once per machine.
 
-It follows scikit-learn's conventions: settings are stored by ``__init__`` as given,
+It follows scikit-learn's conventions: settings are stored by ``__init__`` as given
+(``get_params``, ``set_params`` and :func:`sklearn.base.clone` work),
 :meth:`LeakDiagnoser.fit` learns from leak-free recordings of one machine and returns
 the diagnoser, learned attributes end in ``_`` (``reference_``), and
 :meth:`LeakDiagnoser.diagnose` refuses to run before ``fit``. The fitted state is the
 reference model, saved and loaded as a ``.pnref`` file (JSON header + arrays, never
 pickle).
 
-Examples
---------
->>> from pneufdd import LeakDiagnoser
->>> from pneufdd.sim import simulate
->>> free = [simulate("festo-dsd", cycles=7, seed=s) for s in (1, 2)]
->>> diagnoser = LeakDiagnoser(channels=["P_In", "Q_In"], signature_sizes_slpm=(20, 80),
-...                           workers=1).fit(free)                  # doctest: +SKIP
->>> result = diagnoser.diagnose(simulate("festo-dsd", cycles=12,
-...                             leaks={"DNC_B": "50slpm"}, seed=3))  # doctest: +SKIP
->>> [(str(leak.location), round(leak.flow_slpm)) for leak in result.leaks]  # doctest: +SKIP
-[('DNC_B', 50)]
+The class's docstring has a worked example.
 """
 
 from __future__ import annotations
@@ -26,12 +17,19 @@ from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
+from sklearn.base import BaseEstimator
+
 from pneufdd.diagnosis.cost import CostSettings
-from pneufdd.diagnosis.effects.twin import SIGNATURE_SIZES_SLPM, UNCERTAINTY_PLANTS
-from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.effects.twin import UNCERTAINTY_PLANTS
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.machine import MachineLike
-from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.recordings import (
+    SIGNATURE_MASS_FLOWS,
+    build_reference_from_recordings,
+    run_table,
+)
 from pneufdd.diagnosis.reference.file import load_reference, save_reference
 from pneufdd.diagnosis.reference.model import DetectionSettings, ReferenceModel
 from pneufdd.errors import InputError, describe
@@ -65,7 +63,7 @@ def _recordings(items: Sequence[RecordingLike]) -> tuple[list[Recording], list[s
     return recordings, names
 
 
-class LeakDiagnoser:
+class LeakDiagnoser(BaseEstimator):  # type: ignore[misc]
     """Detect, locate, size and cost compressed-air leaks on one machine.
 
     Parameters
@@ -79,9 +77,10 @@ class LeakDiagnoser:
     simulate_explanations : bool
         When the leak signatures do not explain a run (typically two large leaks),
         check the best explanations with the machine's digital twin.
-    signature_sizes_slpm : sequence of float
-        Ladder of leak sizes simulated per location [SLPM at the nominal supply
-        pressure; 0 degC, 1013 mbar basis].
+    signature_mass_flows : sequence of float
+        Ladder of leak flows simulated per location, at the nominal supply pressure
+        (:data:`~pneufdd.diagnosis.recordings.SIGNATURE_MASS_FLOWS`; a ladder in SLPM is
+        ``[slpm_to_kg_s(x) for x in sizes]``, :mod:`pneufdd.physics.units`) [kg/s].
     signature_cycles : int
         Simulated cycles per signature point [-].
     uncertainty_plants : int
@@ -103,6 +102,28 @@ class LeakDiagnoser:
     reference_ : ReferenceModel
         The leak-free reference learned by :meth:`fit`: detector statistics, the
         machine description, leak signatures and settings.
+
+    Examples
+    --------
+    Fit on two short leak-free runs of the press-fit cell's digital twin (a small
+    ladder, no plausible plants, to keep it quick) and diagnose a run with one leak:
+
+    >>> from pneufdd import LeakDiagnoser, simulate
+    >>> from pneufdd.physics.units import slpm_to_kg_s
+    >>> leak_free = [simulate("press-fit-cell", cycles=6, seed=s) for s in (1, 2)]
+    >>> diagnoser = LeakDiagnoser(
+    ...     channels=["P_In", "Q_In"],
+    ...     signature_mass_flows=[slpm_to_kg_s(20.0), slpm_to_kg_s(80.0)],
+    ...     signature_cycles=1,
+    ...     uncertainty_plants=0,
+    ...     workers=1,
+    ... ).fit(leak_free)
+    >>> run = simulate("press-fit-cell", cycles=8, leaks={"FEED_A": "50slpm"}, seed=3)
+    >>> result = diagnoser.diagnose(run)
+    >>> [str(leak.location) for leak in result.leaks]
+    ['FEED_A']
+    >>> 40.0 < result.leaks[0].flow_slpm < 60.0
+    True
     """
 
     def __init__(
@@ -110,7 +131,7 @@ class LeakDiagnoser:
         channels: Sequence[str] | None = None,
         max_leaks: int = 2,
         simulate_explanations: bool = True,
-        signature_sizes_slpm: Sequence[float] = SIGNATURE_SIZES_SLPM,
+        signature_mass_flows: Sequence[float] = SIGNATURE_MASS_FLOWS,
         signature_cycles: int = 2,
         uncertainty_plants: int = UNCERTAINTY_PLANTS,
         detection: DetectionSettings | None = None,
@@ -121,7 +142,7 @@ class LeakDiagnoser:
         self.channels = channels
         self.max_leaks = max_leaks
         self.simulate_explanations = simulate_explanations
-        self.signature_sizes_slpm = signature_sizes_slpm
+        self.signature_mass_flows = signature_mass_flows
         self.signature_cycles = signature_cycles
         self.uncertainty_plants = uncertainty_plants
         self.detection = detection
@@ -169,7 +190,7 @@ class LeakDiagnoser:
             names,
             machine=machine,
             signature_cycles=self.signature_cycles,
-            signature_sizes=tuple(float(x) for x in self.signature_sizes_slpm),
+            signature_mass_flows=tuple(float(x) for x in self.signature_mass_flows),
             uncertainty_plants=self.uncertainty_plants,
             settings=self.detection,
             localisation=self._localisation_settings(),

@@ -7,28 +7,31 @@
    feature change is decomposed into non-negative leak effects
    (:func:`~pneufdd.diagnosis.localisation.search.locate`) of the reference's
    :class:`~pneufdd.diagnosis.effects.model.LeakEffectModel`.
-3. **Cost** (eq. 1.1): :mod:`pneufdd.diagnosis.cost`.
+3. **Cost** (eq. 1.1): :mod:`pneufdd.diagnosis.cost`, one
+   :class:`~pneufdd.diagnosis.findings.LeakFinding` per leak in the
+   :class:`~pneufdd.diagnosis.findings.Diagnosis`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pneufdd.array_types import FloatArray
-from pneufdd.diagnosis.cost import CostedLeak, CostSettings, cost_leaks
-from pneufdd.diagnosis.detection.residuals import SupplyCheck, supply_check
+from pneufdd.diagnosis.cost import CostSettings, cost_leaks
+from pneufdd.diagnosis.detection.residuals import supply_check
 from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.findings import Diagnosis, LeakFinding
 from pneufdd.diagnosis.localisation.model_choice import Explanation
 from pneufdd.diagnosis.localisation.search import (
-    LeakEstimate,
     Localisation,
     LocalisationSettings,
+    SizedLocation,
     Whitener,
     locate,
 )
@@ -38,197 +41,11 @@ from pneufdd.features.step_table import StepTable
 from pneufdd.location import SUPPLY
 from pneufdd.parallel import resolve_threads
 from pneufdd.physics.units import kg_s_to_slpm
-from pneufdd.signals.quality import MAX_REPAIR_S
 
 if TYPE_CHECKING:
-    import pandas as pd
+    pass
 
-__all__ = ["Diagnosis", "diagnose", "run_whitener", "whitener"]
-
-
-@dataclass(frozen=True)
-class Diagnosis:
-    """Everything :func:`diagnose` found about one run.
-
-    Attributes
-    ----------
-    detected : bool
-        Run-level decision of the per-cycle statistic.
-    cycles_analyzed : int
-        Complete cycles of the run used.
-    cycle_scores : ndarray
-        Per-cycle statistic ``T`` [-].
-    cycle_threshold : float
-        Per-cycle threshold of ``T`` [-].
-    run_score, run_threshold : float
-        The run's statistic (median ``T`` of its cycles, or the mean for references
-        saved with ``run_statistic="mean"``) and its threshold [-].
-    p_value : float
-        Probability of a leak-free run scoring at least ``run_score`` [-].
-    reference_false_alarm_rate : float
-        Cross-validated per-cycle false-alarm rate on the reference cycles [-].
-    band_fraction : ndarray
-        Per-cycle out-of-band fraction of the band method (empty without traces) [-].
-    band_alarms : int
-        Cycles flagged by the band method.
-    leaks : list of CostedLeak
-        Leaks found, largest annual cost first.
-    total_annual_cost : float
-        Sum of the leaks' annual costs [$].
-    localisation : Localisation or None
-        Fit statistics of the decomposition (None when not run).
-    observed_change : ndarray
-        Mean feature change of the run against the reference [feature unit].
-    notes : list of str
-        Plain-language remarks (missing signatures, unexplained deviations...).
-    startup_cycles : int
-        Complete cycles at the start of the run left out as start-up cycles
-        (:attr:`~pneufdd.diagnosis.reference.model.DetectionSettings.startup_cycles`).
-    cycles_skipped : tuple of (int, str)
-        Complete cycles of the run left out by the gap rule
-        (:mod:`pneufdd.signals.quality`): each one's number and the channel whose
-        gap skipped it.
-    gaps_repaired : int
-        Short gaps (NaN, infinite or out-of-range samples) repaired by interpolation.
-    supply : SupplyCheck, optional
-        The eq. 4.19-4.21 verdict on the supply flow and pressure against the
-        reference (None without supply sensors):
-        :func:`pneufdd.diagnosis.detection.residuals.supply_check`.
-    """
-
-    detected: bool
-    cycles_analyzed: int
-    cycle_scores: FloatArray
-    cycle_threshold: float
-    run_score: float
-    run_threshold: float
-    p_value: float
-    reference_false_alarm_rate: float
-    band_fraction: FloatArray
-    band_alarms: int
-    leaks: list[CostedLeak]
-    total_annual_cost: float
-    localisation: Localisation | None
-    observed_change: FloatArray
-    settings: CostSettings
-    notes: list[str] = field(default_factory=list)
-    startup_cycles: int = 0
-    cycles_skipped: tuple[tuple[int, str], ...] = ()
-    gaps_repaired: int = 0
-    supply: SupplyCheck | None = None
-
-    def to_pandas(self) -> pd.DataFrame:
-        """The leaks as a table, one row per leak, largest annual cost first.
-
-        Columns: ``location``, ``ambiguity_group`` (comma separated),
-        ``flow_slpm`` (while the line is pressurised) and ``average_flow_slpm`` (over
-        the operating cycle) [SLPM: 0 degC, 1013 mbar], ``orifice_mm`` [mm],
-        ``annual_cost`` [$/yr], ``confidence`` [-], ``cost_basis``.
-        """
-        import pandas as pd
-
-        return pd.DataFrame(
-            [
-                {
-                    "location": str(leak.location),
-                    "ambiguity_group": ", ".join(str(x) for x in leak.ambiguity_group),
-                    "flow_slpm": leak.flow_slpm,
-                    "average_flow_slpm": leak.average_flow_slpm,
-                    "orifice_mm": leak.orifice_mm,
-                    "annual_cost": leak.annual_cost,
-                    "confidence": leak.confidence,
-                    "cost_basis": leak.cost_basis,
-                }
-                for leak in self.leaks
-            ],
-            columns=[
-                "location",
-                "ambiguity_group",
-                "flow_slpm",
-                "average_flow_slpm",
-                "orifice_mm",
-                "annual_cost",
-                "confidence",
-                "cost_basis",
-            ],
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-compatible summary (the ``--json`` output of ``pneufdd diagnose``)."""
-
-        def num(x: float) -> float | None:
-            return None if not math.isfinite(x) else float(x)
-
-        return {
-            "detected": self.detected,
-            "cycles_analyzed": self.cycles_analyzed,
-            "startup_cycles_excluded": self.startup_cycles,
-            "data_gaps": {
-                "rule": "samples NaN, infinite or out of their quantity's physical range are "
-                f"gaps; gaps up to {MAX_REPAIR_S:g} s are interpolated, a cycle touched by a "
-                "longer one is skipped (docs/data-quality.md)",
-                "cycles_skipped": len(self.cycles_skipped),
-                "skipped": [
-                    {"cycle": cycle, "channel": channel} for cycle, channel in self.cycles_skipped
-                ],
-                "gaps_repaired": self.gaps_repaired,
-            },
-            "leaks": [
-                {
-                    "location": str(leak.location),
-                    "flow_slpm": num(leak.flow_slpm),
-                    "average_flow_slpm": num(leak.average_flow_slpm),
-                    "orifice_mm": num(leak.orifice_mm),
-                    "annual_cost": num(leak.annual_cost),
-                    "cost_basis": leak.cost_basis,
-                    "confidence": num(leak.confidence),
-                    "ambiguity_group": [str(x) for x in leak.ambiguity_group],
-                }
-                for leak in self.leaks
-            ],
-            "alternative_explanations": []
-            if self.localisation is None
-            else [
-                {
-                    "locations": [str(x) for x in alt.locations],
-                    "flows_slpm": [num(float(kg_s_to_slpm(f))) for f in alt.mass_flows],
-                    "rss": num(alt.rss),
-                }
-                for alt in self.localisation.alternatives
-            ],
-            "total_annual_cost": num(self.total_annual_cost),
-            "supply_check": None if self.supply is None else self.supply.to_dict(),
-            "detection": {
-                "statistic": "supply-fluctuation-projected standardised step distance",
-                "run_score": num(self.run_score),
-                "run_threshold": num(self.run_threshold),
-                "p_value": num(self.p_value),
-                "cycle_scores": [num(x) for x in self.cycle_scores],
-                "cycle_threshold": num(self.cycle_threshold),
-                "cycles_flagged": int(np.sum(self.cycle_scores > self.cycle_threshold)),
-                "reference_false_alarm_rate": num(self.reference_false_alarm_rate),
-                "band_cycles_flagged": self.band_alarms,
-                "band_out_of_band_fraction": [num(x) for x in self.band_fraction],
-            },
-            "fit": None
-            if self.localisation is None
-            else {
-                "explained_fraction": num(self.localisation.explained),
-                "rss": num(self.localisation.rss),
-                "rss_without_leak": num(self.localisation.rss_null),
-                "dof": self.localisation.dof,
-                "checked_by_simulation": self.localisation.simulated,
-            },
-            "cost_settings": {
-                "basis": "annual_cost = eq. 1.1 of average_flow_slpm (mean leaked flow "
-                "over the operating cycle) x hours; flow_slpm = leak flow while its line "
-                "is pressurised, at the machine's supply pressure",
-                "hours": self.settings.hours,
-                "price_per_kwh": self.settings.price_per_kwh,
-                "kw_per_100_cfm": self.settings.kw_per_100_cfm,
-            },
-            "notes": list(self.notes),
-        }
+__all__ = ["check_compatible", "diagnose", "imitated_size", "run_whitener", "whitener"]
 
 
 def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "run") -> StepTable:
@@ -329,7 +146,9 @@ def whitener(
     return whiten
 
 
-def _average_flows(signatures: SignatureSet, found: tuple[LeakEstimate, ...]) -> list[float | None]:
+def _average_flows(
+    signatures: SignatureSet, found: tuple[SizedLocation, ...]
+) -> list[float | None]:
     """Mean leaked flow of each leak over the operating cycle [kg/s] (None: unknown)."""
     averages = [
         signatures.average_flow(signatures.locations.index(leak.location), leak.mass_flow)
@@ -350,7 +169,7 @@ def _average_flows(signatures: SignatureSet, found: tuple[LeakEstimate, ...]) ->
 
 
 def _nominal_pressures(
-    reference: ReferenceModel, signatures: SignatureSet, found: tuple[LeakEstimate, ...]
+    reference: ReferenceModel, signatures: SignatureSet, found: tuple[SizedLocation, ...]
 ) -> list[float]:
     """Pressure at which each leak's nominal flow is stated [Pa]."""
     pressures = []
@@ -590,7 +409,7 @@ def _locate_and_cost(
     localisation_settings: LocalisationSettings,
     notes: list[str],
     threads: int = 1,
-) -> tuple[Localisation | None, list[CostedLeak], float]:
+) -> tuple[Localisation | None, list[LeakFinding], float]:
     """Location, size and cost of the leaks behind a detected deviation."""
     effects = reference.leak_effects(threads=threads)
     if effects is None:
@@ -624,6 +443,7 @@ def _locate_and_cost(
         [leak.ambiguity_group for leak in found],
         settings,
         _average_flows(sig, found),
+        [leak.group_mass_flows for leak in found],
     )
     if found and sig.mean_flow is None:
         notes.append(
@@ -694,7 +514,7 @@ def diagnose(
     observed = np.asarray(np.mean(X, axis=0) - det.mean_, dtype=np.float64)
     notes: list[str] = []
     found: Localisation | None = None
-    leaks: list[CostedLeak] = []
+    leaks: list[LeakFinding] = []
     total = 0.0
     if detected:
         found, leaks, total = _locate_and_cost(

@@ -23,7 +23,8 @@ from pneufdd.diagnosis.effects.twin import (
     compute_signatures,
     signature_spread,
 )
-from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.diagnosis.machine import (
     MachineLike,
@@ -50,18 +51,55 @@ from pneufdd.features.step_summaries import (
     trace_offsets,
 )
 from pneufdd.features.step_table import StepTable
+from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import check_channels
 from pneufdd.signals.segmentation import Cycle
 
 __all__ = [
+    "SIGNATURE_MASS_FLOWS",
     "build_reference",
     "build_reference_from_recordings",
     "diagnose_recording",
     "parse_channels",
     "run_table",
+    "signature_ladder_slpm",
 ]
+
+SIGNATURE_MASS_FLOWS: tuple[float, ...] = tuple(
+    float(slpm_to_kg_s(size)) for size in SIGNATURE_SIZES_SLPM
+)
+"""Default ladder of leak flows simulated per location, at nominal supply pressure
+(3, 8, 15, 30, 50, 80, 120, 170, 230 SLPM) [kg/s]."""
+
+
+def signature_ladder_slpm(mass_flows: Sequence[float]) -> tuple[float, ...]:
+    """A ladder of leak flows [kg/s] as the twin's leak valves are set [SLPM].
+
+    The twin sets its leaks by their flow at nominal supply pressure in SLPM
+    (:func:`pneufdd.diagnosis.effects.twin.compute_signatures`); each flow is converted
+    with :func:`pneufdd.physics.units.kg_s_to_slpm` and rounded to 12 significant
+    digits, so a ladder written as ``slpm_to_kg_s(size)`` simulates exactly ``size``
+    (the round trip alone leaves 50.00000000000001 of 50).
+
+    Parameters
+    ----------
+    mass_flows : sequence of float
+        Leak flows at nominal supply pressure [kg/s].
+
+    Returns
+    -------
+    tuple of float
+        The same flows [SLPM: 0 degC, 1013 mbar].
+
+    Examples
+    --------
+    >>> signature_ladder_slpm(SIGNATURE_MASS_FLOWS) == SIGNATURE_SIZES_SLPM
+    True
+    """
+    return tuple(float(f"{float(kg_s_to_slpm(float(flow))):.12g}") for flow in mass_flows)
+
 
 TRACE_RATE_HZ = 100.0
 """Rate of the step-aligned templates of the band method [Hz]."""
@@ -93,7 +131,7 @@ def build_reference_from_recordings(
     machine: MachineLike | None = None,
     with_signatures: bool = True,
     signature_cycles: int = 2,
-    signature_sizes: Sequence[float] | None = None,
+    signature_mass_flows: Sequence[float] | None = None,
     uncertainty_plants: int = UNCERTAINTY_PLANTS,
     settings: DetectionSettings | None = None,
     localisation: LocalisationSettings | None = None,
@@ -120,9 +158,9 @@ def build_reference_from_recordings(
         description).
     signature_cycles : int
         Simulated cycles per signature point.
-    signature_sizes : sequence of float, optional
-        Signature ladder [SLPM at nominal supply pressure]; the default ladder of
-        :mod:`pneufdd.diagnosis.effects.twin` when omitted.
+    signature_mass_flows : sequence of float, optional
+        Signature ladder: leak flows at nominal supply pressure
+        (:data:`SIGNATURE_MASS_FLOWS` when omitted) [kg/s].
     uncertainty_plants : int
         Plausible plants drawn around the description to measure the signatures'
         model uncertainty (:func:`~pneufdd.diagnosis.effects.twin.signature_spread`);
@@ -186,7 +224,9 @@ def build_reference_from_recordings(
             sequence=sequence,
             cycles=signature_cycles,
             channels=analog,
-            sizes_slpm=SIGNATURE_SIZES_SLPM if signature_sizes is None else signature_sizes,
+            sizes_slpm=signature_ladder_slpm(
+                SIGNATURE_MASS_FLOWS if signature_mass_flows is None else signature_mass_flows
+            ),
             progress=progress,
             workers=workers,
         )

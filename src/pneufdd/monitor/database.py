@@ -17,7 +17,7 @@ Tables (schema version :data:`SCHEMA_VERSION`, migrations in :data:`MIGRATIONS`)
 ``alarms``
     leaks declared and repairs, with location(s), size, cost and confidence.
 ``diagnoses``
-    every location/sizing run (JSON of :meth:`~pneufdd.diagnosis.engine.Diagnosis.to_dict`).
+    every location/sizing run (JSON of :meth:`~pneufdd.diagnosis.findings.Diagnosis.to_dict`).
 ``leaks``
     tracked leaks with a life: ``new``, ``growing``, ``stable``, ``repaired``.
 ``leak_sizes``

@@ -2,7 +2,7 @@
 
 A plant engineer diagnoses a machine every shift; the history shows whether a leak
 is new, growing or fixed. Each line of the history file is the JSON summary of one
-:class:`~pneufdd.diagnosis.engine.Diagnosis` with the time and the run's name.
+:class:`~pneufdd.diagnosis.findings.Diagnosis` with the time and the run's name.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from pneufdd.diagnosis.engine import Diagnosis
+from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.errors import FileFormatError, describe
 
 __all__ = ["HistoryEntry", "append_history", "location_trends", "read_history"]

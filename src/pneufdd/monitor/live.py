@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pneufdd.diagnosis.cost import CostSettings
-from pneufdd.diagnosis.engine import Diagnosis, diagnose
+from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, describe
 from pneufdd.monitor.alarms import Alarm

@@ -19,7 +19,8 @@ import numpy as np
 
 from pneufdd import __version__
 from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
-from pneufdd.diagnosis.engine import Diagnosis, check_compatible
+from pneufdd.diagnosis.engine import check_compatible
+from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import FileExistsInputError, describe
 from pneufdd.features.step_table import StepTable

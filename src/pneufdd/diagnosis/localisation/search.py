@@ -61,13 +61,16 @@ from pneufdd.diagnosis.localisation.model_choice import (
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
-__all__ = ["LeakEstimate", "Localisation", "LocalisationSettings", "locate"]
+__all__ = ["Localisation", "LocalisationSettings", "SizedLocation", "locate"]
 
 Whitener = Callable[[FloatArray], FloatArray]
 
 
 _SWITCHES = ("simulate_explanations", "group_model_error")
 """The settings that are on or off (the rest are numbers)."""
+
+_FILE_KEYS = {"min_mass_flow": "min_flow"}
+"""Settings stored under another key in ``.pnref`` files (the key files have always had)."""
 
 
 @dataclass(frozen=True)
@@ -97,9 +100,10 @@ class LocalisationSettings:
     collinear_cos : float
         Alternatives whose weighted signature has at least this cosine similarity
         with the chosen one join the group [-].
-    min_flow : float
+    min_mass_flow : float
         Smallest leak reported; a model needing a smaller leak is not considered
-        (2 SLPM by default, below the leak valve's first turn) [kg/s].
+        (2 SLPM by default, below the leak valve's first turn); ``min_flow`` in the
+        ``.pnref`` file [kg/s].
     relative_tolerance : float
         Alternatives whose weighted residual is at most ``1 + relative_tolerance``
         times the best join the group, and disjoint explanations within it are listed:
@@ -201,7 +205,7 @@ class LocalisationSettings:
     first_leak_gain: float = 0.0
     group_ratio: float = 0.05
     collinear_cos: float = 0.995
-    min_flow: float = 4.3e-5
+    min_mass_flow: float = 4.3e-5
     relative_tolerance: float = 0.5
     max_extrapolation: float = 1.25
     refine_top: int = 20
@@ -241,16 +245,24 @@ class LocalisationSettings:
             )
 
     def to_dict(self) -> dict[str, float | int | bool]:
-        """JSON-compatible form."""
-        return asdict(self)
+        """JSON-compatible form, with the keys of the ``.pnref`` file.
+
+        Examples
+        --------
+        >>> LocalisationSettings(min_mass_flow=1e-4).to_dict()["min_flow"]
+        0.0001
+        """
+        return {_FILE_KEYS.get(name, name): value for name, value in asdict(self).items()}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, object]) -> LocalisationSettings:
         """Inverse of :meth:`to_dict`; unknown keys are an error."""
-        known = {f.name for f in fields(cls)}
+        known = {_FILE_KEYS.get(f.name, f.name) for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
             raise InputError(describe("localisation settings", unknown, sorted(known)))
+        attribute = {key: name for name, key in _FILE_KEYS.items()}
+        data = {attribute.get(key, key): value for key, value in data.items()}
         # settings added later take, for references saved before, the behaviour
         # those references were built with
         before = {
@@ -266,8 +278,12 @@ class LocalisationSettings:
 
 
 @dataclass(frozen=True)
-class LeakEstimate:
-    """One leak found by the decomposition.
+class SizedLocation:
+    """A location the decomposition chose, with the leak flow it needs there.
+
+    The search's own result, before costing: :func:`pneufdd.diagnosis.engine.diagnose`
+    reports each leak once, as a :class:`~pneufdd.diagnosis.findings.LeakFinding`
+    (with its orifice, average flow and cost) in ``Diagnosis.leaks``.
 
     Attributes
     ----------
@@ -297,8 +313,9 @@ class Localisation:
 
     Attributes
     ----------
-    leaks : tuple of LeakEstimate
-        Leaks found, largest flow first.
+    leaks : tuple of SizedLocation
+        Locations of the chosen explanation with their leak flows, largest flow
+        first (the leaks are reported, costed, in ``Diagnosis.leaks``).
     rss_null : float
         Weighted residual sum of squares without any leak [-].
     rss : float
@@ -316,7 +333,7 @@ class Localisation:
         (:mod:`pneufdd.diagnosis.localisation.check`); ``rss`` is then the simulated residual.
     """
 
-    leaks: tuple[LeakEstimate, ...]
+    leaks: tuple[SizedLocation, ...]
     rss_null: float
     rss: float
     dof: int
@@ -357,7 +374,7 @@ def _refit_pairs_with_interaction(
     ranked = sorted(
         (fit[1], sub)
         for sub, fit in fits.items()
-        if len(sub) == 2 and np.all(fit[0] >= settings.min_flow)
+        if len(sub) == 2 and np.all(fit[0] >= settings.min_mass_flow)
     )
     for _, sub in ranked[: settings.refine_top]:
         term = coupling(*sub)
@@ -365,7 +382,7 @@ def _refit_pairs_with_interaction(
             continue
         start = (float(fits[sub][0][0]), float(fits[sub][0][1]))
         a, b, rss = model.refine_pair(sub[0], sub[1], whiten(term)[0], start)
-        if rss < fits[sub][1] and min(a, b) >= settings.min_flow:
+        if rss < fits[sub][1] and min(a, b) >= settings.min_mass_flow:
             fits[sub] = (np.array([a, b]), rss)
             if rss < best[2][2]:
                 best[2] = (sub, fits[sub][0], rss)
@@ -392,7 +409,7 @@ def _check_by_simulation(
         partners=3 if pairs_too else 0,
         probed_locations=settings.probes,
         top_pairs=3 if pairs_too else 0,
-        min_pair_flow=settings.min_flow,
+        min_pair_flow=settings.min_mass_flow,
         keep_within=settings.keep_within or math.inf,
     )
     checked = verify_explanations(
@@ -413,7 +430,7 @@ def _check_by_simulation(
         k = len(cand)
         if (
             k <= settings.max_leaks
-            and np.all(cand_sizes >= settings.min_flow)
+            and np.all(cand_sizes >= settings.min_mass_flow)
             and (k not in sim_best or cand_rss < sim_best[k][2])
         ):
             sim_best[k] = (cand, cand_sizes, cand_rss)
@@ -523,7 +540,7 @@ def _composite_competitors(
     return [fit[1] for sub, fit in fits.items() if len(sub) == 2 and supply not in sub]
 
 
-def _leak_estimate(
+def _sized_location(
     slot: int,
     subset: Subset,
     sizes: FloatArray,
@@ -533,7 +550,7 @@ def _leak_estimate(
     s2: float,
     explained: float,
     settings: LocalisationSettings,
-) -> LeakEstimate:
+) -> SizedLocation:
     """The chosen leak in ``slot`` with its ambiguity group and confidence."""
     group = ambiguity_group(
         slot,
@@ -543,14 +560,14 @@ def _leak_estimate(
         len(locations),
         model.secant,
         s2,
-        settings.min_flow,
+        settings.min_mass_flow,
         settings.group_ratio,
         settings.relative_tolerance,
         settings.collinear_cos,
         _forced_member(slot, subset, sizes, locations, model),
         _composite_competitors(slot, subset, fits, locations),
     )
-    return LeakEstimate(
+    return SizedLocation(
         location=locations[group.members[0]],
         mass_flow=float(group.sizes[0]),
         ambiguity_group=tuple(locations[a] for a in group.members),
@@ -614,7 +631,7 @@ def locate(
     )
     rss_null = float(target @ target)
     dof = int(target.size)
-    fits, best = _signature_fits(model, n_loc, settings.max_leaks, settings.min_flow, rss_null)
+    fits, best = _signature_fits(model, n_loc, settings.max_leaks, settings.min_mass_flow, rss_null)
     _refit_pairs_with_interaction(effects, model, whiten, fits, best, settings)
     chosen = choose_leak_count(
         best,
@@ -669,7 +686,7 @@ def locate(
     s2 = max(1.0, rss / max(dof - len(subset), 1))
     explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
     leaks = [
-        _leak_estimate(slot, subset, coef, fits, model, locations, s2, explained, settings)
+        _sized_location(slot, subset, coef, fits, model, locations, s2, explained, settings)
         for slot in range(len(subset))
     ]
     leaks.sort(key=lambda leak: -leak.mass_flow)
@@ -678,7 +695,7 @@ def locate(
         locations,
         subset,
         rss,
-        settings.min_flow,
+        settings.min_mass_flow,
         settings.relative_tolerance,
         settings.max_alternatives,
     )
@@ -688,7 +705,7 @@ def locate(
         coef,
         model,
         rss,
-        settings.min_flow,
+        settings.min_mass_flow,
         settings.both_lines_max_ratio,
         settings.max_alternatives,
     ):

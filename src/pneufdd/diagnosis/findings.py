@@ -1,0 +1,293 @@
+"""What a diagnosis found: one :class:`LeakFinding` per leak, and the :class:`Diagnosis`.
+
+A leak found on a run is reported once, as a :class:`LeakFinding`: its location and
+ambiguity group, its flows [kg/s], its equivalent orifice [m], its annual cost and the
+confidence in it. The quantities are SI; the units an engineer reads (SLPM: 0 degC,
+1013 mbar, 1.294 kg/m^3; mm) are read-only properties computed from them
+(:mod:`pneufdd.physics.units`). :class:`Diagnosis` gathers the findings with the
+detection's statistics, the fit of the decomposition
+(:class:`~pneufdd.diagnosis.localisation.search.Localisation`) and the notes, and writes
+the ``--json`` summary (:meth:`Diagnosis.to_dict`) and the leak table
+(:meth:`Diagnosis.to_pandas`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.detection.residuals import SupplyCheck
+from pneufdd.diagnosis.localisation.search import Localisation
+from pneufdd.location import Location
+from pneufdd.physics.units import kg_s_to_slpm
+from pneufdd.signals.quality import MAX_REPAIR_S
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from pneufdd.diagnosis.cost import CostSettings
+
+__all__ = ["Diagnosis", "LeakFinding"]
+
+M_TO_MM = 1e3
+"""Millimetres per metre, for the orifice diameter an engineer reads [mm/m]."""
+
+
+@dataclass(frozen=True)
+class LeakFinding:
+    """One leak found on a run: where, how large, what it costs (SI values).
+
+    Made by :func:`pneufdd.diagnosis.cost.cost_leaks`; :attr:`Diagnosis.leaks` holds
+    one per leak, largest annual cost first.
+
+    Attributes
+    ----------
+    location : Location
+        Most likely location.
+    mass_flow : float
+        Nominal leak flow: while its line is pressurised, at the machine's supply
+        pressure (what an ultrasonic detector finds) [kg/s].
+    average_mass_flow : float
+        Mean leaked flow over an operating cycle (``mass_flow`` when unknown, see
+        ``cost_basis``) [kg/s].
+    orifice_diameter : float
+        Equivalent sharp-edged orifice (C_d = 0.61) of the nominal flow [m].
+    annual_cost : float
+        Cost per year by eq. 1.1 of the average flow [$].
+    confidence : float
+        Confidence that a leak lies in the ambiguity group [-].
+    ambiguity_group : tuple of Location
+        Locations the sensors cannot tell apart (best first, ``location`` included).
+    cost_basis : str
+        :data:`~pneufdd.diagnosis.cost.COST_BASIS_AVERAGE` or
+        :data:`~pneufdd.diagnosis.cost.COST_BASIS_CONTINUOUS`.
+    group_mass_flows : tuple of float
+        Nominal flow each member of the ambiguity group would need to explain the run
+        (empty when not known) [kg/s].
+
+    Examples
+    --------
+    >>> from pneufdd.location import SUPPLY
+    >>> from pneufdd.physics.units import slpm_to_kg_s
+    >>> leak = LeakFinding(SUPPLY, slpm_to_kg_s(30.0), slpm_to_kg_s(30.0), 1.2e-3,
+    ...                    310.0, 0.9, (SUPPLY,), "nominal flow, continuous leakage assumed")
+    >>> round(leak.flow_slpm, 9), round(leak.orifice_mm, 9)
+    (30.0, 1.2)
+    """
+
+    location: Location
+    mass_flow: float
+    average_mass_flow: float
+    orifice_diameter: float
+    annual_cost: float
+    confidence: float
+    ambiguity_group: tuple[Location, ...]
+    cost_basis: str
+    group_mass_flows: tuple[float, ...] = ()
+
+    @property
+    def flow_slpm(self) -> float:
+        """Nominal leak flow [SLPM: 0 degC, 1013 mbar]."""
+        return float(kg_s_to_slpm(self.mass_flow))
+
+    @property
+    def average_flow_slpm(self) -> float:
+        """Mean leaked flow over an operating cycle [SLPM: 0 degC, 1013 mbar]."""
+        return float(kg_s_to_slpm(self.average_mass_flow))
+
+    @property
+    def orifice_mm(self) -> float:
+        """Equivalent sharp-edged orifice diameter [mm]."""
+        return M_TO_MM * self.orifice_diameter
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Everything :func:`~pneufdd.diagnosis.engine.diagnose` found about one run.
+
+    Attributes
+    ----------
+    detected : bool
+        Run-level decision of the per-cycle statistic.
+    cycles_analyzed : int
+        Complete cycles of the run used.
+    cycle_scores : ndarray
+        Per-cycle statistic ``T`` [-].
+    cycle_threshold : float
+        Per-cycle threshold of ``T`` [-].
+    run_score, run_threshold : float
+        The run's statistic (median ``T`` of its cycles, or the mean for references
+        saved with ``run_statistic="mean"``) and its threshold [-].
+    p_value : float
+        Probability of a leak-free run scoring at least ``run_score`` [-].
+    reference_false_alarm_rate : float
+        Cross-validated per-cycle false-alarm rate on the reference cycles [-].
+    band_fraction : ndarray
+        Per-cycle out-of-band fraction of the band method (empty without traces) [-].
+    band_alarms : int
+        Cycles flagged by the band method.
+    leaks : list of LeakFinding
+        Leaks found, largest annual cost first.
+    total_annual_cost : float
+        Sum of the leaks' annual costs [$].
+    localisation : Localisation or None
+        Fit statistics of the decomposition, its alternative explanations and the
+        locations it sized, largest flow first (None when not run).
+    observed_change : ndarray
+        Mean feature change of the run against the reference [feature unit].
+    settings : CostSettings
+        Economic inputs of eq. 1.1 the leaks were costed with.
+    notes : list of str
+        Plain-language remarks (missing signatures, unexplained deviations...).
+    startup_cycles : int
+        Complete cycles at the start of the run left out as start-up cycles
+        (:attr:`~pneufdd.diagnosis.reference.model.DetectionSettings.startup_cycles`).
+    cycles_skipped : tuple of (int, str)
+        Complete cycles of the run left out by the gap rule
+        (:mod:`pneufdd.signals.quality`): each one's number and the channel whose
+        gap skipped it.
+    gaps_repaired : int
+        Short gaps (NaN, infinite or out-of-range samples) repaired by interpolation.
+    supply : SupplyCheck, optional
+        The eq. 4.19-4.21 verdict on the supply flow and pressure against the
+        reference (None without supply sensors):
+        :func:`pneufdd.diagnosis.detection.residuals.supply_check`.
+    """
+
+    detected: bool
+    cycles_analyzed: int
+    cycle_scores: FloatArray
+    cycle_threshold: float
+    run_score: float
+    run_threshold: float
+    p_value: float
+    reference_false_alarm_rate: float
+    band_fraction: FloatArray
+    band_alarms: int
+    leaks: list[LeakFinding]
+    total_annual_cost: float
+    localisation: Localisation | None
+    observed_change: FloatArray
+    settings: CostSettings
+    notes: list[str] = field(default_factory=list)
+    startup_cycles: int = 0
+    cycles_skipped: tuple[tuple[int, str], ...] = ()
+    gaps_repaired: int = 0
+    supply: SupplyCheck | None = None
+
+    def to_pandas(self) -> pd.DataFrame:
+        """The leaks as a table, one row per leak, largest annual cost first.
+
+        Columns: ``location``, ``ambiguity_group`` (comma separated),
+        ``flow_slpm`` (while the line is pressurised) and ``average_flow_slpm`` (over
+        the operating cycle) [SLPM: 0 degC, 1013 mbar], ``orifice_mm`` [mm],
+        ``annual_cost`` [$/yr], ``confidence`` [-], ``cost_basis``.
+        """
+        import pandas as pd
+
+        return pd.DataFrame(
+            [
+                {
+                    "location": str(leak.location),
+                    "ambiguity_group": ", ".join(str(x) for x in leak.ambiguity_group),
+                    "flow_slpm": leak.flow_slpm,
+                    "average_flow_slpm": leak.average_flow_slpm,
+                    "orifice_mm": leak.orifice_mm,
+                    "annual_cost": leak.annual_cost,
+                    "confidence": leak.confidence,
+                    "cost_basis": leak.cost_basis,
+                }
+                for leak in self.leaks
+            ],
+            columns=[
+                "location",
+                "ambiguity_group",
+                "flow_slpm",
+                "average_flow_slpm",
+                "orifice_mm",
+                "annual_cost",
+                "confidence",
+                "cost_basis",
+            ],
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible summary (the ``--json`` output of ``pneufdd diagnose``)."""
+
+        def num(x: float) -> float | None:
+            return None if not math.isfinite(x) else float(x)
+
+        return {
+            "detected": self.detected,
+            "cycles_analyzed": self.cycles_analyzed,
+            "startup_cycles_excluded": self.startup_cycles,
+            "data_gaps": {
+                "rule": "samples NaN, infinite or out of their quantity's physical range are "
+                f"gaps; gaps up to {MAX_REPAIR_S:g} s are interpolated, a cycle touched by a "
+                "longer one is skipped (docs/data-quality.md)",
+                "cycles_skipped": len(self.cycles_skipped),
+                "skipped": [
+                    {"cycle": cycle, "channel": channel} for cycle, channel in self.cycles_skipped
+                ],
+                "gaps_repaired": self.gaps_repaired,
+            },
+            "leaks": [
+                {
+                    "location": str(leak.location),
+                    "flow_slpm": num(leak.flow_slpm),
+                    "average_flow_slpm": num(leak.average_flow_slpm),
+                    "orifice_mm": num(leak.orifice_mm),
+                    "annual_cost": num(leak.annual_cost),
+                    "cost_basis": leak.cost_basis,
+                    "confidence": num(leak.confidence),
+                    "ambiguity_group": [str(x) for x in leak.ambiguity_group],
+                }
+                for leak in self.leaks
+            ],
+            "alternative_explanations": []
+            if self.localisation is None
+            else [
+                {
+                    "locations": [str(x) for x in alt.locations],
+                    "flows_slpm": [num(float(kg_s_to_slpm(f))) for f in alt.mass_flows],
+                    "rss": num(alt.rss),
+                }
+                for alt in self.localisation.alternatives
+            ],
+            "total_annual_cost": num(self.total_annual_cost),
+            "supply_check": None if self.supply is None else self.supply.to_dict(),
+            "detection": {
+                "statistic": "supply-fluctuation-projected standardised step distance",
+                "run_score": num(self.run_score),
+                "run_threshold": num(self.run_threshold),
+                "p_value": num(self.p_value),
+                "cycle_scores": [num(x) for x in self.cycle_scores],
+                "cycle_threshold": num(self.cycle_threshold),
+                "cycles_flagged": int(np.sum(self.cycle_scores > self.cycle_threshold)),
+                "reference_false_alarm_rate": num(self.reference_false_alarm_rate),
+                "band_cycles_flagged": self.band_alarms,
+                "band_out_of_band_fraction": [num(x) for x in self.band_fraction],
+            },
+            "fit": None
+            if self.localisation is None
+            else {
+                "explained_fraction": num(self.localisation.explained),
+                "rss": num(self.localisation.rss),
+                "rss_without_leak": num(self.localisation.rss_null),
+                "dof": self.localisation.dof,
+                "checked_by_simulation": self.localisation.simulated,
+            },
+            "cost_settings": {
+                "basis": "annual_cost = eq. 1.1 of average_flow_slpm (mean leaked flow "
+                "over the operating cycle) x hours; flow_slpm = leak flow while its line "
+                "is pressurised, at the machine's supply pressure",
+                "hours": self.settings.hours,
+                "price_per_kwh": self.settings.price_per_kwh,
+                "kw_per_100_cfm": self.settings.kw_per_100_cfm,
+            },
+            "notes": list(self.notes),
+        }
