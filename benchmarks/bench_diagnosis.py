@@ -44,7 +44,7 @@ def run() -> list[BenchResult]:
 
     def on(threads: int) -> None:
         result = diagnose(model, table, threads=threads)
-        if result.localisation is None or not result.localisation.simulated:
+        if result.localisation is None or not result.localisation.checked_by_simulation:
             raise RuntimeError("the benchmark's run was not checked by simulation")
         out[threads] = json.dumps(result.to_dict(), sort_keys=True)
 

@@ -278,7 +278,7 @@ def test_locate_simulates_only_when_the_signatures_misfit():
     # one leak: the signatures explain it; nothing is simulated
     single = locate(sim({2: 1.7}), effects, _whiten)
     assert not calls
-    assert not single.simulated
+    assert not single.checked_by_simulation
     (leak,) = single.leaks
     assert leak.location == Location("L2", "A")
     assert leak.mass_flow == pytest.approx(1.7, rel=0.03)  # interpolated between 1 and 2
@@ -288,7 +288,7 @@ def test_locate_simulates_only_when_the_signatures_misfit():
     assert plain.rss > 3.0 * plain.dof
     result = locate(truth, effects, _whiten)
     assert calls
-    assert result.simulated
+    assert result.checked_by_simulation
     assert _found(result) == pytest.approx({"L1_A": 2.5, "L4_A": 1.2}, rel=0.01)
     assert result.rss < 1e-3 * plain.rss
 
@@ -388,12 +388,12 @@ def test_diagnose_checks_two_large_leaks_by_simulation_end_to_end():
         diagnose(model, table, threads=0)
     assert result.detected
     assert result.localisation is not None
-    assert result.localisation.simulated
+    assert result.localisation.checked_by_simulation
     assert any("digital twin" in note for note in result.notes)
     assert _found(result) == pytest.approx(truth, rel=0.1)
     plain = diagnose(model, table, localisation=LocalisationSettings(simulate_explanations=False))
     assert plain.localisation is not None
-    assert not plain.localisation.simulated
+    assert not plain.localisation.checked_by_simulation
     assert result.localisation.rss < plain.localisation.rss
 
 

@@ -315,7 +315,7 @@ def _imitated_second_leak(
     """Why the second of two leaks is not reported, when it is no larger than the first's
     model error imitates (:attr:`LocalisationSettings.imitation_z`); else None."""
     found = localisation.leaks
-    if len(found) != 2 or settings.imitation_z <= 0.0 or localisation.simulated:
+    if len(found) != 2 or settings.imitation_z <= 0.0 or localisation.checked_by_simulation:
         return None
     index = effects.locations.index
     large, small = sorted(found, key=lambda leak: -leak.mass_flow)
@@ -428,7 +428,7 @@ def _locate_and_cost(
     )
     if not localisation.leaks:
         notes.append("leak detected but no combination of leak signatures explains it")
-    if localisation.simulated:
+    if localisation.checked_by_simulation:
         notes.append(
             "the leak signatures alone did not explain this run (leaks that interact, "
             "typically two large ones): locations and sizes were checked by simulating "

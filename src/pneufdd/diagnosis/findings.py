@@ -279,7 +279,7 @@ class Diagnosis:
                 "rss": num(self.localisation.rss),
                 "rss_without_leak": num(self.localisation.rss_null),
                 "dof": self.localisation.dof,
-                "checked_by_simulation": self.localisation.simulated,
+                "checked_by_simulation": self.localisation.checked_by_simulation,
             },
             "cost_settings": {
                 "basis": "annual_cost = eq. 1.1 of average_flow_slpm (mean leaked flow "

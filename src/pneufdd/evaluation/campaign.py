@@ -443,7 +443,7 @@ def run_job(job: Job) -> list[dict[str, Any]]:
                 if loc is None
                 else [[str(x) for x in alt.locations] for alt in loc.alternatives],
                 "seconds": seconds,
-                "simulated": bool(loc is not None and loc.simulated),
+                "simulated": bool(loc is not None and loc.checked_by_simulation),
             }
         )
     return records

@@ -328,7 +328,7 @@ class Localisation:
         Other explanations that share no location with the chosen one yet fit about
         as well (e.g. one supply leak versus leaks on both lines of an actuator
         without line sensors), best first; empty when the chosen one stands alone.
-    simulated : bool
+    checked_by_simulation : bool
         True when the explanations were checked and sized by simulation
         (:mod:`pneufdd.diagnosis.localisation.check`); ``rss`` is then the simulated residual.
     """
@@ -339,7 +339,7 @@ class Localisation:
     dof: int
     explained: float
     alternatives: tuple[Explanation, ...] = ()
-    simulated: bool = False
+    checked_by_simulation: bool = False
 
 
 def _signature_fits(
