@@ -7,8 +7,9 @@ import os
 import pytest
 
 from pneufdd.cli.app import main
-from pneufdd.cli.outputs import check_outputs, write_text_atomic
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import FileExistsInputError, InputError
+from pneufdd.files import write_text_atomic
 
 
 def test_links_to_an_input_are_the_input(tmp_path) -> None:

@@ -48,9 +48,10 @@ def demo(
     from pneufdd.diagnosis.engine import diagnose
     from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
     from pneufdd.diagnosis.reference.file import save_reference
+    from pneufdd.files import write_text_atomic
     from pneufdd.physics.leaks import leak_mass_flow
     from pneufdd.physics.units import kg_s_to_slpm, psig_to_pa
-    from pneufdd.report.html import render_report, write_text_atomic
+    from pneufdd.report.html import render_report
     from pneufdd.sim import as_exported, load_machine, run_simulation, simulate, vary_machine
 
     console = Console()

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from pneufdd.cli.exit_codes import ExitCode
-from pneufdd.cli.outputs import check_outputs, write_text_atomic
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption, read_recording
 from pneufdd.errors import InputError, describe
+from pneufdd.files import write_text_atomic
 
 if TYPE_CHECKING:
     from rich.table import Table

@@ -72,7 +72,7 @@ def run_batch(
             out.print(line, markup=False, highlight=False)
         lines.append(line)
     if json_out is not None:
-        from pneufdd.report.html import write_text_atomic
+        from pneufdd.files import write_text_atomic
 
         write_text_atomic(json_out, "\n".join(lines) + "\n")
     Console(stderr=True).print(

@@ -32,11 +32,12 @@ def evaluate(
     """
     from rich.console import Console
 
-    from pneufdd.cli.outputs import atomic_target, check_outputs, write_text_atomic
+    from pneufdd.cli.outputs import check_outputs
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.errors import InputError, describe
     from pneufdd.evaluation.compare import compare, confusion_figures
     from pneufdd.evaluation.labelled import labelled_frames, read_manifest, write_labelled
+    from pneufdd.files import atomic_target, write_text_atomic
 
     console = Console()
     if not campaign_dir.is_dir():
@@ -92,11 +93,11 @@ def vector_map(
 
     from rich.console import Console
 
-    from pneufdd.cli.outputs import write_text_atomic
     from pneufdd.cli.simulate import MAX_CYCLES
     from pneufdd.errors import InputError, describe
     from pneufdd.evaluation.vector_sum import check_lines, vector_sum_check
     from pneufdd.features import TABLE_4_5
+    from pneufdd.files import write_text_atomic
     from pneufdd.report.classifier_figures import sign_table_figure, vector_map_figure
 
     if out.exists() and not out.is_dir():

@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from pneufdd.cli.outputs import atomic_target, check_outputs
+from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption, read_recordings
 from pneufdd.errors import FileExistsInputError, InputError, NoCompleteCycleError, describe
+from pneufdd.files import atomic_target
 
 if TYPE_CHECKING:
     import pandas as pd

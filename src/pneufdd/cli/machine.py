@@ -116,7 +116,7 @@ def draft(
     from rich.console import Console
 
     from pneufdd.calibration.draft import draft_machine
-    from pneufdd.cli.outputs import write_text_atomic
+    from pneufdd.files import write_text_atomic
     from pneufdd.sim import load_machine
 
     inputs: dict[str, Path | None] = {f"RECORDINGS[{k}]": p for k, p in enumerate(recordings)}
@@ -172,8 +172,8 @@ def calibrate(
 
     from pneufdd.calibration.calibrate import calibrate_machine
     from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.files import write_text_atomic
     from pneufdd.report.calibration import render_calibration_report
-    from pneufdd.report.html import write_text_atomic
     from pneufdd.sim import load_machine
     from pneufdd.sim.variation import machine_to_toml
 

@@ -9,7 +9,7 @@ and its outputs named by the option that gave them. The rules (issue 14):
 * an output may not be a folder, nor lie inside a path that is a file;
 * an existing output is replaced only with ``--overwrite``.
 
-Writing goes through :func:`write_text_atomic` / :func:`atomic_target`: a temporary
+Writing goes through :mod:`pneufdd.files` (``write_text_atomic``, ``atomic_target``): a temporary
 file in the target's folder, renamed into place once complete, so an error (or
 Ctrl-C) never leaves a partial file under the user's name.
 
@@ -34,14 +34,12 @@ Examples
 from __future__ import annotations
 
 import os
-import tempfile
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Mapping
 from pathlib import Path
 
 from pneufdd.errors import FileExistsInputError, InputError, describe
 
-__all__ = ["atomic_target", "check_outputs", "same_file", "write_bytes_atomic", "write_text_atomic"]
+__all__ = ["check_outputs", "same_file"]
 
 
 def _key(path: Path) -> Path:
@@ -119,36 +117,3 @@ def check_outputs(
             raise FileExistsInputError(
                 describe(name, str(path), "a new file (or pass --overwrite to replace it)")
             )
-
-
-@contextmanager
-def atomic_target(path: str | Path) -> Iterator[Path]:
-    """A temporary path beside ``path``; renamed onto ``path`` if the block succeeds.
-
-    The temporary file gets the permissions a new file gets (not mkstemp's 0600).
-    On any error the temporary file is removed and ``path`` is left as it was.
-    """
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        yield Path(tmp)
-        os.replace(tmp, target)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
-
-
-def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (see :func:`atomic_target`)."""
-    with atomic_target(path) as tmp:
-        tmp.write_bytes(data)
-    return Path(path)
-
-
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_target`)."""
-    return write_bytes_atomic(path, text.encode("utf-8"))

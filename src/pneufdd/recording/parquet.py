@@ -45,8 +45,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
-import secrets
 import zlib
 from datetime import datetime
 from pathlib import Path
@@ -57,6 +55,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.errors import ChannelError, FileFormatError, InputError, describe
+from pneufdd.files import atomic_target
 from pneufdd.recording._files import FileExistsInputError, check_input_file, file_label
 from pneufdd.recording.model import Channel, Recording
 
@@ -176,50 +175,11 @@ def _recording_info(recording: Recording) -> dict[str, Any]:
     }
 
 
-def _temporary_path(path: Path) -> Path:
-    """Create and return an empty, unique temporary file beside ``path``."""
-    while True:
-        tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
-        try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        except FileExistsError:  # pragma: no cover - 48-bit name collision
-            continue
-        os.close(fd)
-        return tmp
-
-
 def _refuse_overwrite(path: Path) -> FileExistsInputError:
     return FileExistsInputError(
         f"{file_label(path)} exists; refusing to overwrite it "
         "(pass overwrite=True to replace it, or choose another path)"
     )
-
-
-def _sync_folder(folder: Path) -> None:
-    """Flush the folder entry of a renamed file to disk where the OS allows it (POSIX)."""
-    with contextlib.suppress(OSError):
-        fd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
-def _commit(tmp: Path, path: Path, overwrite: bool) -> None:
-    """Move the finished temporary file to ``path`` in one step."""
-    if overwrite:
-        os.replace(tmp, path)
-        return
-    try:  # a hard link fails if path appeared meanwhile: no race with another writer
-        os.link(tmp, path)
-    except FileExistsError:
-        raise _refuse_overwrite(path) from None
-    except OSError:  # file system without hard links
-        if path.exists():
-            raise _refuse_overwrite(path) from None
-        os.replace(tmp, path)
-    else:
-        tmp.unlink()
 
 
 def write_parquet(recording: Recording, path: str | Path, overwrite: bool = False) -> Path:
@@ -281,9 +241,9 @@ def write_parquet(recording: Recording, path: str | Path, overwrite: bool = Fals
             _KEY_CHECKSUM: str(zlib.crc32(info)).encode(),
         }
     )
-    tmp = _temporary_path(path)
-    try:
-        with pq.ParquetWriter(
+    with (
+        atomic_target(path, overwrite, _refuse_overwrite) as tmp,
+        pq.ParquetWriter(
             tmp,
             schema,
             compression="zstd",
@@ -291,15 +251,10 @@ def write_parquet(recording: Recording, path: str | Path, overwrite: bool = Fals
             use_dictionary=["name", "kind", "unit", "dtype", "values_uint8.list.element"],
             write_statistics=list(_SCALAR_COLUMNS),
             write_page_checksum=True,
-        ) as writer:
-            for name in recording.channels:
-                writer.write_table(_channel_table(recording.info(name), schema))
-        with tmp.open("rb") as handle:
-            os.fsync(handle.fileno())
-        _commit(tmp, path, overwrite)
-    finally:
-        tmp.unlink(missing_ok=True)
-    _sync_folder(path.parent)
+        ) as writer,
+    ):
+        for name in recording.channels:
+            writer.write_table(_channel_table(recording.info(name), schema))
     return path
 
 

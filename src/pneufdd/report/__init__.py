@@ -6,6 +6,6 @@ May import: :mod:`pneufdd.diagnosis`, :mod:`pneufdd.calibration`,
 
 from __future__ import annotations
 
-from pneufdd.report.html import render_report, write_report, write_text_atomic
+from pneufdd.report.html import render_report, write_report
 
-__all__ = ["render_report", "write_report", "write_text_atomic"]
+__all__ = ["render_report", "write_report"]

@@ -9,8 +9,6 @@ from __future__ import annotations
 import base64
 import html
 import math
-import os
-import tempfile
 import warnings
 from datetime import UTC, datetime
 from pathlib import Path
@@ -22,8 +20,8 @@ from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
 from pneufdd.diagnosis.engine import check_compatible
 from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.reference.model import ReferenceModel
-from pneufdd.errors import FileExistsInputError, describe
 from pneufdd.features.step_table import StepTable
+from pneufdd.files import write_text_atomic
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.report.figures import (
     band_figure,
@@ -33,7 +31,7 @@ from pneufdd.report.figures import (
     to_png,
 )
 
-__all__ = ["render_report", "write_report", "write_text_atomic"]
+__all__ = ["render_report", "write_report"]
 
 _STYLE = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em;
@@ -341,23 +339,6 @@ def render_report(
     )
 
 
-def write_text_atomic(path: Path, text: str, overwrite: bool = True) -> Path:
-    """Write ``text`` to ``path`` via a temporary file and a rename."""
-    if path.exists() and not overwrite:
-        raise FileExistsInputError(describe(f"output file {str(path)!r}", "exists", "overwrite"))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        _default_mode(tmp)
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def write_report(
     path: str | Path,
     reference: ReferenceModel,
@@ -371,10 +352,3 @@ def write_report(
     return write_text_atomic(
         Path(path), render_report(reference, run, diagnosis, title, run_name), overwrite
     )
-
-
-def _default_mode(path: str) -> None:
-    """Give a temporary file the mode a new file gets (mkstemp makes it 0600)."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, 0o666 & ~umask)

@@ -47,7 +47,6 @@ import math
 import operator
 import os
 import statistics
-import tempfile
 from dataclasses import dataclass, fields, replace
 from importlib import resources
 from pathlib import Path
@@ -57,6 +56,7 @@ import numpy as np
 import tomli_w
 
 from pneufdd.errors import FileExistsInputError, InputError, MachineError, describe
+from pneufdd.files import write_text_atomic
 from pneufdd.physics.constants import PSI
 from pneufdd.sim.description import (
     MAX_SUPPLY_PSIG,
@@ -633,6 +633,7 @@ def write_machine(
 
     Examples
     --------
+    >>> import tempfile
     >>> plant = vary_machine("festo-dsd", 1.0, seed=7)
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     out = write_machine(plant, Path(folder) / "plant.toml", header="plant, seed 7")
@@ -659,29 +660,4 @@ def write_machine(
                 describe(f"output file {str(path)!r}", "exists", "a new file, or overwrite=True")
             )
     text = machine_to_toml(machine, header)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # the mode a new file gets (mkstemp makes it 0600)
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            try:  # a hard link fails if the file appeared meanwhile: no race
-                os.link(tmp, path)
-            except FileExistsError:
-                raise FileExistsInputError(
-                    describe(
-                        f"output file {str(path)!r}", "exists", "a new file, or overwrite=True"
-                    )
-                ) from None
-            except OSError:  # file system without hard links
-                os.replace(tmp, path)
-            else:
-                os.unlink(tmp)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_text_atomic(path, text, overwrite)

@@ -51,8 +51,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import zipfile
 import zlib
 from pathlib import Path
@@ -71,6 +69,7 @@ from pneufdd.errors import (
     MissingFileError,
     describe,
 )
+from pneufdd.files import atomic_target
 from pneufdd.physics.units import UNITS
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
@@ -104,6 +103,12 @@ def _header(model: ReferenceModel) -> dict[str, Any]:
     }
 
 
+def _reference_exists(target: Path) -> FileExistsInputError:
+    return FileExistsInputError(
+        describe(f"reference file {str(target)!r}", "exists", "overwrite=True")
+    )
+
+
 def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = False) -> Path:
     """Write ``model`` to ``path`` atomically.
 
@@ -123,9 +128,7 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
     """
     target = Path(path)
     if target.exists() and not overwrite:
-        raise FileExistsInputError(
-            describe(f"reference file {str(target)!r}", "exists", "overwrite=True")
-        )
+        raise _reference_exists(target)
     arrays: dict[str, npt.NDArray[Any]] = {
         "header": np.array(json.dumps(_header(model), allow_nan=False)),
         "features": model.features,
@@ -154,16 +157,8 @@ def save_reference(model: ReferenceModel, path: str | Path, overwrite: bool = Fa
             arrays["sig_deviation_sizes"] = sig.deviation_sizes
         if sig.baseline is not None:
             arrays["sig_baseline"] = sig.baseline
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        _default_mode(tmp)
-        with os.fdopen(fd, "wb") as handle:
-            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_target(target, overwrite, _reference_exists) as tmp, tmp.open("wb") as handle:
+        np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
     return target
 
 
@@ -457,10 +452,3 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
     if model.feature_names != names:
         raise _bad(source, "feature_names", "inconsistent with channels/n_steps", "consistent")
     return model
-
-
-def _default_mode(path: str) -> None:
-    """Give a temporary file the mode a new file gets (mkstemp makes it 0600)."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, 0o666 & ~umask)
