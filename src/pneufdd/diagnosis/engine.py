@@ -25,6 +25,7 @@ from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.cost import CostSettings, cost_leaks
 from pneufdd.diagnosis.detection.residuals import supply_check
 from pneufdd.diagnosis.effects.model import LeakEffectModel
+from pneufdd.diagnosis.effects.piecewise import Whitener
 from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.diagnosis.findings import Diagnosis, LeakFinding
 from pneufdd.diagnosis.localisation.model_choice import Explanation
@@ -32,7 +33,6 @@ from pneufdd.diagnosis.localisation.search import (
     Localisation,
     LocalisationSettings,
     SizedLocation,
-    Whitener,
     locate,
 )
 from pneufdd.diagnosis.reference.model import ReferenceModel

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.localisation.model_choice import Subset
 from pneufdd.errors import InputError, describe
 from pneufdd.parallel import thread_map
 
@@ -44,7 +45,6 @@ __all__ = [
     "verify_explanations",
 ]
 
-Subset = tuple[int, ...]
 SimulatedEffect = Callable[[Mapping[int, float]], FloatArray | None]
 """Whitened effect of leaks ``{location index: size [kg/s]}`` by simulation, or None."""
 SimulateMany = Callable[[Sequence[Mapping[int, float]]], list[FloatArray | None]]

@@ -40,7 +40,7 @@ import numpy as np
 
 from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.effects.model import LeakEffectModel
-from pneufdd.diagnosis.effects.piecewise import WhitenedEffects
+from pneufdd.diagnosis.effects.piecewise import WhitenedEffects, Whitener
 from pneufdd.diagnosis.localisation.check import (
     SimulatedEffect,
     SimulationCheckSettings,
@@ -62,8 +62,6 @@ from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
 __all__ = ["Localisation", "LocalisationSettings", "SizedLocation", "locate"]
-
-Whitener = Callable[[FloatArray], FloatArray]
 
 
 _SWITCHES = ("simulate_explanations", "group_model_error")
