@@ -18,6 +18,15 @@ def import_data(
     ],
     out: Annotated[Path, typer.Option("--out", help="Recording to write (.parquet).")],
     overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+    export_format: Annotated[
+        str | None,
+        typer.Option(
+            "--format",
+            help="Layout of a CSV export: twincat-scope, tia-trace, codesys-trace or csv-de "
+            "(the map then needs only the roles; its own options win). TDMS and Parquet "
+            "are read as they are.",
+        ),
+    ] = None,
 ) -> None:
     """Read DATA through the tag map and write it as a pneufdd recording (SI units)."""
     from rich.console import Console
@@ -26,13 +35,14 @@ def import_data(
     from pneufdd.recording.tag_map import load_tag_map, read_mapped
 
     check_outputs({"--out": out}, {"DATA": data, "--map": tag_map}, overwrite)
-    recording = read_mapped(data, load_tag_map(tag_map))
+    recording = read_mapped(data, load_tag_map(tag_map, preset=export_format))
     recording.write(out, overwrite=overwrite)
     rates = sorted({recording.rate(c) for c in recording.channels})
     Console(stderr=True).print(
         f"wrote {out}: {len(recording.analog_channels)} analog, "
         f"{len(recording.digital_channels)} digital channels, "
-        f"{recording.duration:.3f} s at {', '.join(f'{r:g}' for r in rates)} Hz",
+        f"{recording.duration:.3f} s at {', '.join(f'{r:g}' for r in rates)} Hz, "
+        f"starting {recording.start_time.isoformat()}",
         highlight=False,
         soft_wrap=True,
     )

@@ -54,6 +54,22 @@ def simulate_command(
     seed: Annotated[int, typer.Option(min=0, help="Random seed (same seed, same bytes).")] = 0,
     out: Annotated[Path, typer.Option(help="Output Parquet file.")] = Path("run.parquet"),
     overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
+    export_format: Annotated[
+        str | None,
+        typer.Option(
+            "--export-format",
+            help="Write OUT (.csv) as a field export instead of Parquet: twincat-scope, "
+            "tia-trace, codesys-trace or csv-de (read back with `pneufdd import --format`).",
+        ),
+    ] = None,
+    export_map: Annotated[
+        Path | None,
+        typer.Option(
+            "--export-map",
+            help="Tag map (.toml) giving the export's column names and units; default: the "
+            "channel names in bar(g), l/min (ANR), mm, and the role map written as OUT.toml.",
+        ),
+    ] = None,
     max_cycle_s: Annotated[
         float,
         typer.Option(
@@ -72,11 +88,13 @@ def simulate_command(
         TimeRemainingColumn,
     )
 
+    from pneufdd.cli.simulate_export import check_export, write_export
     from pneufdd.sim import load_machine, simulate
     from pneufdd.sim.leaks import resolve_leaks
     from pneufdd.sim.schedule import schedule_from_options
 
     check_outputs({"--out": out}, {"--machine": machine}, overwrite)
+    check_export(export_format, out, export_map, overwrite)
     if cycles > MAX_CYCLES:
         raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
     if not 0.0 < max_cycle_s <= 3600.0:  # also refuses nan
@@ -115,6 +133,10 @@ def simulate_command(
             progress=lambda done, total: bar.update(task, completed=done),
             schedule=schedule,
         )
+    if export_format is not None:
+        written = write_export(recording, export_format, out, export_map, overwrite)
+        err.print(f"wrote {written}, {recording.duration:.1f} s", markup=False)
+        return
     path = recording.write(out, overwrite=overwrite)
     err.print(
         f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)",

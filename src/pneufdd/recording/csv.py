@@ -179,9 +179,21 @@ def _read_table(path: Path, columns: list[str], dialect: dict[str, str]) -> pd.D
 
 
 def _time_base(
-    label: str, time_column: str, time: npt.NDArray[np.float64], tolerance: float
+    label: str,
+    time_column: str,
+    time: npt.NDArray[np.float64],
+    tolerance: float,
+    line_offset: int = 0,
 ) -> tuple[float, float]:
-    """Check ``time`` and return ``(t0 [s], rate [Hz])``."""
+    """Check ``time`` and return ``(t0 [s], rate [Hz])``.
+
+    ``line_offset``: lines before the header row (a field export's preamble), so that
+    messages name the file's own line numbers.
+    """
+
+    def _line(row: int) -> int:
+        return row + _HEADER_LINES + 1 + line_offset
+
     if time.size < 2:
         raise FileFormatError(
             describe(

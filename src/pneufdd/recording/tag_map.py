@@ -12,9 +12,12 @@ each column plays, in which unit and, for a flow, on which standard basis::
     "B1.4"   = { role = "S_FEED_B" }
 
 Optional top-level keys: ``ignore`` (columns present in the file but not used),
-``rate_hz`` (the expected sample rate; a file at another rate is refused),
-``delimiter`` and ``decimal`` (CSV dialect). :func:`read_mapped` reads a CSV, TDMS or
-Parquet file with a map; every command that reads recordings takes ``--map``.
+``rate_hz`` (the expected sample rate; a file at another rate is refused), and the
+layout of a field export (``preset``, ``delimiter``, ``decimal``, ``skip_rows``,
+``data_skip``, ``true_values``, ``false_values``, ``timezone``, ``start_time``; time
+columns in s, ms, us or as date-times, several of them:
+:mod:`pneufdd.recording.csv_layout`). :func:`read_mapped` reads a CSV, TDMS or Parquet
+file with a map; every command that reads recordings takes ``--map``.
 
 The same file serves live sources (``pneufdd monitor --tags``, ``docs/monitor.md``):
 each column may add ``node`` (OPC UA node id; default ``ns=2;s=<column>``) and
@@ -36,7 +39,7 @@ import math
 import re
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +48,13 @@ import numpy as np
 from pneufdd.errors import ChannelError, FileFormatError, InputError, UnitError, describe
 from pneufdd.physics.units import UNITS
 from pneufdd.recording._files import check_input_file, file_label
+from pneufdd.recording.csv_layout import (
+    LAYOUT_KEYS,
+    CsvLayout,
+    TimeSpec,
+    parse_layout,
+    parse_time_spec,
+)
 from pneufdd.recording.model import DIGITAL, Channel, Recording
 
 __all__ = [
@@ -138,6 +148,7 @@ class TagMap:
     live: tuple[LiveTag, ...] = ()
     lateness_s: float = 1.0
     end: str | None = None
+    layout: CsvLayout = field(default_factory=lambda: CsvLayout(times={"time": TimeSpec()}))
 
     @property
     def time_column(self) -> str | None:
@@ -157,9 +168,7 @@ def _unit(source: str, column: str, role: str, entry: Mapping[str, Any]) -> str:
     where = f"{source}: columns.{column!r}"
     unit = entry.get("unit")
     basis = entry.get("basis")
-    if role == "time":
-        if unit not in (None, "s"):
-            raise UnitError(describe(f"{where}.unit (time)", unit, ["s"]))
+    if role == "time":  # s, ms, us or datetime: checked by parse_time_spec
         return "s"
     if role[:2] in ("U_", "S_"):
         if unit not in (None, "1"):
@@ -198,7 +207,8 @@ def _unit(source: str, column: str, role: str, entry: Mapping[str, Any]) -> str:
 
 
 _LIVE_KEYS = ("node", "rate_hz")
-_COLUMN_KEYS = ("role", "unit", "basis", *_LIVE_KEYS)
+_LAYOUT_COLUMN_KEYS = ("format", "timezone", "time")
+_COLUMN_KEYS = ("role", "unit", "basis", *_LIVE_KEYS, *_LAYOUT_COLUMN_KEYS)
 
 
 def _node(where: str, entry: Mapping[str, Any]) -> str | None:
@@ -258,7 +268,34 @@ def _parse_channel_form(data: Mapping[str, Any], source: str) -> TagMap:
     return TagMap(columns=(), source=source, live=tuple(live), lateness_s=lateness, end=end)
 
 
-def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool = False) -> TagMap:
+def _column_layout(
+    where: str, column: str, role: str, entry: Mapping[str, Any], layout: dict[str, Any]
+) -> None:
+    """Collect a column's time spec (role ``time``) or its ``time`` column (a channel)."""
+    if role == "time":
+        if "time" in entry:
+            raise InputError(describe(f"{where}.time (a time column)", entry["time"], "none"))
+        layout["times"][column] = parse_time_spec(where, entry)
+        return
+    for key in ("format", "timezone"):
+        if key in entry:
+            raise InputError(
+                describe(f"{where}.{key} (role {role})", entry[key], "time columns only")
+            )
+    time = entry.get("time")
+    if time is not None:
+        if not isinstance(time, str):
+            raise InputError(describe(f"{where}.time", time, "the name of a time column"))
+        layout["channel_time"][column] = time
+
+
+def parse_tag_map(
+    data: Mapping[str, Any],
+    source: str = "<map>",
+    *,
+    live: bool = False,
+    preset: str | None = None,
+) -> TagMap:
     """Validate a parsed tag-map TOML document.
 
     Parameters
@@ -270,6 +307,9 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
     live : bool
         For a live source (``pneufdd monitor --tags``): the ``[channels]`` form is
         allowed too (module docstring).
+    preset : str, optional
+        A named export layout (``--format``, :data:`~pneufdd.recording.csv_layout.PRESETS`);
+        wins over the map's ``preset``.
 
     Raises
     ------
@@ -297,7 +337,7 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
                 "one form: [columns] keyed by PLC tag, or [channels] keyed by channel",
             )
         )
-    known = {"columns", "ignore", "rate_hz", "delimiter", "decimal", "lateness_s", "end"}
+    known = {"columns", "ignore", "rate_hz", "lateness_s", "end", *LAYOUT_KEYS}
     unknown = sorted(set(data) - known)
     if unknown:
         raise InputError(describe(f"{source}: unknown top-level key", unknown[0], sorted(known)))
@@ -309,6 +349,7 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
     roles: list[ColumnRole] = []
     live_tags: list[LiveTag] = []
     seen: dict[str, str] = {}
+    layout_parts: dict[str, Any] = {"times": {}, "channel_time": {}}
     for column, entry in table.items():
         where = f"{source}: columns.{column!r}"
         if isinstance(entry, str):  # shorthand: "Y1.0" = "U_FEED_A"
@@ -328,7 +369,7 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
                     "P_<ACT>_A/B, Q_<ACT>_A/B, X_<ACT> (ACT: upper-case letters, digits, _)",
                 )
             )
-        if role in seen:
+        if role in seen and role != "time":  # several time columns: one per sample time
             raise ChannelError(
                 describe(
                     f"{source}: role {role!r} is given to columns {seen[role]!r} and {column!r}",
@@ -338,6 +379,7 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
             )
         seen[role] = str(column)
         roles.append(ColumnRole(str(column), role, _unit(source, str(column), role, entry)))
+        _column_layout(where, str(column), role, entry, layout_parts)
         node, rate = _node(where, entry), _grid_rate(where, entry)
         if role != "time":
             live_tags.append(LiveTag(role, str(column), node, rate, roles[-1].unit))
@@ -357,31 +399,28 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
         isinstance(rate, bool) or not isinstance(rate, int | float) or not rate >= MIN_RATE_HZ
     ):
         raise InputError(describe(f"{source}: rate_hz", rate, f"a number >= {MIN_RATE_HZ:g} Hz"))
-    dialect = {}
-    for key, default in (("delimiter", ","), ("decimal", ".")):
-        value = data.get(key, default)
-        if not isinstance(value, str) or len(value) != 1:
-            raise InputError(describe(f"{source}: {key}", value, "one character"))
-        dialect[key] = value
+    layout = parse_layout(data, source, layout_parts["times"], layout_parts["channel_time"], preset)
     lateness, end = _live_options(data, source)
     return TagMap(
         columns=tuple(roles),
         ignore=tuple(ignore),
         rate_hz=None if rate is None else float(rate),
-        delimiter=dialect["delimiter"],
-        decimal=dialect["decimal"],
+        delimiter=layout.delimiter,
+        decimal=layout.decimal,
         source=source,
         live=tuple(live_tags),
         lateness_s=lateness,
         end=end,
+        layout=layout,
     )
 
 
-def load_tag_map(path: str | Path, *, live: bool = False) -> TagMap:
+def load_tag_map(path: str | Path, *, live: bool = False, preset: str | None = None) -> TagMap:
     """Read and validate a tag-map TOML file (see :func:`parse_tag_map`).
 
     ``live=True`` (``pneufdd monitor --tags``) also allows the ``[channels]`` form, and
-    an empty file (every channel at the monitor's defaults).
+    an empty file (every channel at the monitor's defaults); ``preset`` names an export
+    layout (``pneufdd import --format``).
     """
     path = Path(path)
     if live and path.is_file() and path.stat().st_size == 0:
@@ -395,7 +434,7 @@ def load_tag_map(path: str | Path, *, live: bool = False) -> TagMap:
         raise FileFormatError(
             f"{file_label(path)} is nested too deep to read; expected a flat tag map"
         ) from exc
-    return parse_tag_map(data, path.name, live=live)
+    return parse_tag_map(data, path.name, live=live, preset=preset)
 
 
 def _check_unmapped(label: str, tag_map: TagMap, present: list[str]) -> None:
@@ -492,7 +531,11 @@ def read_mapped(path: str | Path, tag_map: TagMap) -> Recording:
     units = {c.role: c.unit for c in tag_map.channels if not c.digital}
     digital = [c.role for c in tag_map.channels if c.digital]
     meta = {"source": {"file": path.name, "tag_map": tag_map.source, "format": suffix[1:]}}
-    if suffix == ".csv":
+    if suffix == ".csv" and not tag_map.layout.plain:
+        from pneufdd.recording.field_csv import read_field_csv
+
+        rec = read_field_csv(path, tag_map, meta)
+    elif suffix == ".csv":
         from pneufdd.recording.csv import read_csv
 
         time_column = tag_map.time_column
