@@ -62,6 +62,7 @@ from pneufdd.diagnosis.detection.residuals import ResidualDetector
 from pneufdd.errors import InputError, describe
 from pneufdd.evaluation.campaign import channel_sets
 from pneufdd.evaluation.labelled import LABEL_COLUMNS, feature_channels, read_manifest
+from pneufdd.files import safe_name
 from pneufdd.sim import load_machine
 
 __all__ = ["METHODS", "Comparison", "compare", "confusion_figures"]
@@ -546,7 +547,7 @@ def confusion_figures(comparison: Comparison, out: Path) -> list[Path]:
             ax.set_title(method, fontsize=9)
         fig.suptitle(f"{machine}, plant scale {scale:g}, sensors {sensors}: runs by location")
         fig.tight_layout()
-        path = out / f"confusion-{machine}-s{scale:g}-{sensors}.png"
+        path = out / f"confusion-{safe_name(str(machine))}-s{scale:g}-{safe_name(str(sensors))}.png"
         fig.savefig(path, dpi=90)
         plt.close(fig)
         paths.append(path)
