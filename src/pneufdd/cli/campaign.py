@@ -122,7 +122,12 @@ def campaign(
     console = Console()
     with progress_bars() as progress:
         result = run_campaign(
-            design, out, workers, progress, lambda line: console.print(line), scheduler
+            design,
+            out,
+            workers,
+            progress,
+            lambda line: console.print(line, highlight=False, markup=False),
+            scheduler,
         )
     for line in result.lines():
         console.print(line, highlight=False, markup=False)

@@ -34,6 +34,7 @@ def import_data(
         f"{len(recording.digital_channels)} digital channels, "
         f"{recording.duration:.3f} s at {', '.join(f'{r:g}' for r in rates)} Hz",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
 

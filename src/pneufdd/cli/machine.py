@@ -139,6 +139,7 @@ def draft(
         f"wrote {out}: {len(machine.actuators)} actuators, {len(machine.steps)} steps, "
         f"{len(machine.sensors)} sensors; {assumed} lines assumed (marked '# assumed')",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
 
@@ -200,10 +201,11 @@ def calibrate(
         f"wrote {out}: {result.fit_line()}; not informed (left at prior): "
         f"{', '.join(result.not_informed) or 'none'}",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
     for line in result.identification_lines():
-        console.print(line, highlight=False, soft_wrap=True)
+        console.print(line, highlight=False, markup=False, soft_wrap=True)
 
 
 def register(app: typer.Typer) -> None:

@@ -181,10 +181,11 @@ def _calibrated(
         f"calibrated {origin}: {result.fit_line()}; not informed: "
         f"{', '.join(result.not_informed) or 'none'}",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
     for line in result.identification_lines():
-        console.print(line, highlight=False, soft_wrap=True)
+        console.print(line, highlight=False, markup=False, soft_wrap=True)
     return calibrated
 
 

@@ -519,10 +519,19 @@ def compare(
 
 
 def confusion_figures(comparison: Comparison, out: Path) -> list[Path]:
-    """Location confusion matrices: the engine beside the best classifier, per case."""
+    """Location confusion matrices: the engine beside the best classifier, per case.
+
+    Names (machine, locations) are drawn as plain text, never as mathtext or LaTeX,
+    and file names are made of safe components (:func:`pneufdd.files.safe_name`).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
+    with matplotlib.rc_context({"text.parse_math": False, "text.usetex": False}):
+        return _confusion_figures(comparison, out)
+
+
+def _confusion_figures(comparison: Comparison, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     paths = []
