@@ -89,3 +89,14 @@ def test_the_atomic_writer_replaces_a_link_never_writes_through_it(tmp_path, ove
         assert link.is_symlink()
     assert victim.read_bytes() == b"SQLite format 3\x00 database"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["h.db", "h.png"]
+
+
+def test_vector_map_refuses_a_machine_file_it_would_overwrite(tmp_path, capsys) -> None:
+    out = tmp_path / "vm"
+    out.mkdir()
+    machine = out / "sign_table.png"  # a TOML under the name of one of its outputs
+    machine.write_bytes(PRESS_FIT.read_bytes())
+    assert main(["vector-map", "--out", str(out), "--machine", str(machine)]) == 2
+    assert "it is --machine" in capsys.readouterr().err
+    assert machine.read_bytes() == PRESS_FIT.read_bytes()
+    assert sorted(p.name for p in out.iterdir()) == ["sign_table.png"]

@@ -93,6 +93,7 @@ def vector_map(
 
     from rich.console import Console
 
+    from pneufdd.cli.outputs import check_outputs
     from pneufdd.cli.simulate import MAX_CYCLES
     from pneufdd.errors import InputError, describe
     from pneufdd.evaluation.vector_sum import check_lines, vector_sum_check
@@ -105,6 +106,8 @@ def vector_map(
         raise InputError(describe("--out", str(out), "a folder (this is a file)"))
     if (out / "vector_sum.txt").exists():
         raise InputError(describe(f"output folder {str(out)!r}", "holds a result", "a new folder"))
+    names = ("vector_map.png", "sign_table.png", "vector_sum.txt")
+    check_outputs({f"--out {n}": out / n for n in names}, {"--machine": machine}, overwrite=True)
     if not math.isfinite(plant_scale):
         raise InputError(describe("--plant-scale", plant_scale, "a number from 0 to 5"))
     if cycles > MAX_CYCLES:
