@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -36,7 +37,53 @@ from pathlib import Path
 
 from pneufdd.errors import FileExistsInputError, describe
 
-__all__ = ["atomic_target", "new_file_mode", "write_bytes_atomic", "write_text_atomic"]
+__all__ = [
+    "MAX_NAME_CHARS",
+    "atomic_target",
+    "new_file_mode",
+    "safe_name",
+    "write_bytes_atomic",
+    "write_text_atomic",
+]
+
+MAX_NAME_CHARS = 80
+"""Longest file-name component :func:`safe_name` returns (file systems allow 255 bytes)."""
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]")
+
+
+def safe_name(text: str) -> str:
+    """A name read from a file (machine, actuator, tag), made a safe file-name component.
+
+    Every character but ASCII letters, digits, ``.``, ``_``, ``+`` and ``-`` becomes
+    ``_`` (path separators, ``..`` at the start, control characters, spaces, markup),
+    leading dots are replaced (no ``..`` or hidden file), and the result is at most
+    :data:`MAX_NAME_CHARS` long and never empty. A name that is already safe (the
+    built-in machines' names) is returned unchanged, so such files keep their names.
+    The result joined to a folder always stays inside that folder.
+
+    Parameters
+    ----------
+    text : str
+        The name as read.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> safe_name("press-fit-cell")
+    'press-fit-cell'
+    >>> safe_name("../../victim"), safe_name("/abs/path"), safe_name("..")
+    ('_._.._victim', '_abs_path', '_.')
+    >>> safe_name(""), safe_name("cell[/]")
+    ('_', 'cell___')
+    """
+    name = _UNSAFE.sub("_", str(text))[:MAX_NAME_CHARS]
+    if name.startswith("."):
+        name = "_" + name[1:]
+    return name or "_"
 
 
 def new_file_mode() -> int:

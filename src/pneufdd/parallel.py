@@ -29,13 +29,18 @@ import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor, as_completed
 from contextlib import contextmanager
-from typing import Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from pneufdd.errors import InputError, describe
 
+if TYPE_CHECKING:
+    from distributed import LocalCluster
+
 __all__ = [
+    "LOOPBACK",
     "available_cores",
     "executor",
+    "local_cluster",
     "map_unordered",
     "positive_count",
     "resolve_threads",
@@ -106,6 +111,39 @@ def resolve_workers(workers: int | None) -> int:
     return positive_count(workers, "workers")
 
 
+LOOPBACK = "127.0.0.1"
+"""The only address a local cluster listens on (issue 39: never 0.0.0.0)."""
+
+
+def local_cluster(workers: int) -> LocalCluster:
+    """A Dask cluster on this machine that only this machine can reach.
+
+    The scheduler, the workers, their nannies and every dashboard listen on the loopback
+    interface (:data:`LOOPBACK`), each on a free port; nothing listens on 0.0.0.0, so no
+    other host on the network can submit work or read the dashboards.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes, one thread each.
+
+    Returns
+    -------
+    distributed.LocalCluster
+        To be closed by the caller.
+    """
+    from distributed import LocalCluster
+
+    return LocalCluster(  # type: ignore[no-untyped-call]
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        host=LOOPBACK,  # scheduler, workers and nannies
+        dashboard_address=f"{LOOPBACK}:0",  # any free port: never collides with another
+        worker_dashboard_address=f"{LOOPBACK}:0",
+    )
+
+
 @contextmanager
 def executor(workers: int | None = None, scheduler: str | None = None) -> Iterator[Executor | None]:
     """An executor for independent jobs, or None to run them in this process.
@@ -125,17 +163,11 @@ def executor(workers: int | None = None, scheduler: str | None = None) -> Iterat
     if scheduler is None and resolve_workers(workers) == 1:
         yield None
         return
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     cluster: LocalCluster | None = None
     if scheduler is None:
-        cluster = LocalCluster(  # type: ignore[no-untyped-call]
-            n_workers=resolve_workers(workers),
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",  # any free port: never collides with another cluster
-            worker_dashboard_address=":0",
-        )
+        cluster = local_cluster(resolve_workers(workers))
         client = Client(cluster)  # type: ignore[no-untyped-call]
     else:
         if not scheduler.strip():

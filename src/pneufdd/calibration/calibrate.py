@@ -23,9 +23,10 @@ are refitted, and the result says so.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -34,6 +35,7 @@ from scipy.optimize import least_squares, lsq_linear
 
 from pneufdd.array_types import FloatArray
 from pneufdd.calibration.friction import FrictionIdentification, identify_friction
+from pneufdd.calibration.gaps import gap_checked
 from pneufdd.calibration.parameters import Parameter, actuator_table, machine_parameters
 from pneufdd.calibration.valve import PathIdentification, identify_paths
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
@@ -90,6 +92,11 @@ class Evidence:
         Mean of each line pressure channel ``P_<ACT>_A/B`` [Pa].
     cycles : int
         Complete cycles averaged.
+    cycles_skipped : tuple of (int, int, str)
+        Cycles the gap rule left out (docs/data-quality.md): the recording's place in
+        the list (0-based), the cycle's index in it and the channel with the gap.
+    gaps_repaired : int
+        Short gaps (up to 0.05 s) interpolated, over all recordings and channels.
     """
 
     supply_air_kg: FloatArray
@@ -97,6 +104,19 @@ class Evidence:
     supply_pressure_pa: FloatArray
     line_pressure_pa: dict[str, FloatArray]
     cycles: int
+    cycles_skipped: tuple[tuple[int, int, str], ...] = field(default_factory=tuple)
+    gaps_repaired: int = 0
+
+    def gap_line(self, names: Sequence[str]) -> str | None:
+        """One line on what the gap rule did (None when the data had no gaps)."""
+        if not self.cycles_skipped and not self.gaps_repaired:
+            return None
+        where = sorted({f"{names[k]} cycle {i} ({c})" for k, i, c in self.cycles_skipped})
+        return (
+            f"data gaps: {len(self.cycles_skipped)} cycle(s) skipped"
+            + (f" ({', '.join(where)})" if where else "")
+            + f", {self.gaps_repaired} short gap(s) interpolated (docs/data-quality.md)"
+        )
 
 
 def _window_sums(
@@ -117,6 +137,7 @@ def _evidence_from_windows(
     windows: Sequence[tuple[FloatArray, FloatArray]],
     line_channels: Sequence[str],
 ) -> Evidence:
+    """Per-step evidence of ``recordings`` over their step ``windows`` (cycles x steps)."""
     n_steps = windows[0][0].shape[1]
     air: list[FloatArray] = []
     dur: list[FloatArray] = []
@@ -161,24 +182,63 @@ def measure_evidence(
     recordings: Sequence[Recording],
     machine: MachineDescription,
     line_channels: Sequence[str] = (),
+    names: Sequence[str] | None = None,
 ) -> Evidence:
     """Per-step evidence of leak-free recordings, segmented with ``machine``'s sequence.
 
     The first complete cycle of a recording with three or more is left out (the twin's
-    first cycle starts from rest, a plant's may follow a stop).
+    first cycle starts from rest, a plant's may follow a stop). The gap rule of
+    ``diagnose`` applies (:func:`pneufdd.calibration.gaps.gap_checked`): NaN, infinite
+    or out-of-range samples are interpolated over up to 0.05 s, and a cycle a longer
+    gap touches is left out and reported (``Evidence.cycles_skipped``).
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        Leak-free recordings.
+    machine : MachineDescription
+        Gives the sequence.
+    line_channels : sequence of str
+        Line pressure channels to average per step.
+    names : sequence of str, optional
+        The recordings' names (files) for messages; default ``recording 1``, ...
 
     Raises
     ------
     NoCompleteCycleError
-        If no recording holds a complete cycle of the sequence.
+        If no recording holds a complete cycle of the sequence, or a recording has
+        fewer than half of its complete cycles free of long gaps.
     """
+    return _measure(recordings, machine, line_channels, names)[0]
+
+
+def _measure(
+    recordings: Sequence[Recording],
+    machine: MachineDescription,
+    line_channels: Sequence[str],
+    names: Sequence[str] | None,
+) -> tuple[Evidence, list[Recording]]:
+    """:func:`measure_evidence`, and the recordings whose gaps are all repaired."""
     sequence = plc_sequence(machine=machine)
+    whole: list[Recording] = []
     windows = []
     kept: list[Recording] = []
-    for k, rec in enumerate(recordings):
-        cycles = list(segment(rec, sequence).complete)
-        if len(cycles) >= 3:
-            cycles = cycles[1:]
+    skipped: list[tuple[int, int, str]] = []
+    repaired_gaps = 0
+    for k, raw in enumerate(recordings):
+        complete = list(segment(raw, sequence).complete)
+        if not complete:
+            continue
+        where = names[k] if names is not None else f"recording {k + 1}"
+        rec, usable, report = gap_checked(raw, complete, line_channels, where)
+        skipped += [(k, index, channel) for index, channel in report.skipped]
+        repaired_gaps += report.repaired_gaps
+        if not report.skipped:
+            whole.append(rec)
+        # the start-up cycle is left out as without gaps: the result is the one of the
+        # same recording without its damaged cycles
+        first = 1 if len(complete) >= 3 else 0
+        cycles = [c for i, c in enumerate(complete) if usable[i] and i >= first]
         if not cycles:
             continue
         start = np.array([[s.start_s for s in c.steps] for c in cycles])
@@ -195,7 +255,11 @@ def measure_evidence(
         raise NoCompleteCycleError(
             describe("complete cycles of the machine's sequence in the recordings", 0, ">= 1")
         )
-    return _evidence_from_windows(kept, windows, line_channels)
+    evidence = _evidence_from_windows(kept, windows, line_channels)
+    evidence = dataclasses.replace(
+        evidence, cycles_skipped=tuple(skipped), gaps_repaired=repaired_gaps
+    )
+    return evidence, whole
 
 
 def simulate_evidence(
@@ -582,6 +646,7 @@ def calibrate_machine(
     max_evaluations: int = 40,
     seed: int = 0,
     progress: Callable[[str, int, int], None] | None = None,
+    names: Sequence[str] | None = None,
 ) -> CalibrationResult:
     """Calibrate ``machine`` to leak-free ``recordings`` with the twin in the loop.
 
@@ -606,16 +671,26 @@ def calibrate_machine(
         Seed of the twin (the same for every evaluation: common random numbers).
     progress : callable, optional
         ``progress(task, done, total)``.
+    names : sequence of str, optional
+        The recordings' names (files) for messages.
 
     Returns
     -------
     CalibrationResult
+
+    Notes
+    -----
+    The gap rule of ``diagnose`` applies (docs/data-quality.md): short gaps (NaN,
+    infinite or out-of-range samples up to 0.05 s) are interpolated; a cycle a longer
+    gap touches is left out of the evidence and reported (``measured.cycles_skipped``),
+    and a recording with such a gap is left out of the identifications (friction,
+    fill paths), which work on whole strokes.
     """
     before = load_machine(machine)
     lines = _line_pressure_channels(before, recordings, fit_line_pressures)
-    measured = measure_evidence(recordings, before, lines)
-    identified = identify_friction(before, recordings) if fit_line_pressures else {}
-    paths = identify_paths(before, recordings) if fit_line_pressures else {}
+    measured, whole = _measure(recordings, before, lines, names)
+    identified = identify_friction(before, whole) if fit_line_pressures else {}
+    paths = identify_paths(before, whole) if fit_line_pressures else {}
     params = machine_parameters(
         before, lines, tuple(identified), {k: p.path_cv for k, p in paths.items()}
     )

@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.array_types import FloatArray
+from pneufdd.calibration.gaps import gaps_repaired
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.identification.supply import fit_supply_path
 from pneufdd.physics.constants import P_ATM, PSI
@@ -559,7 +560,7 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
     """
     if not recordings:
         raise InputError(describe("recordings", 0, "at least one"))
-    rec = recordings[0]
+    rec = gaps_repaired(recordings[0])  # the gap rule: no inf or 1e308 reaches a statistic
     ids, vacuum = _actuators(rec)
     sequence: tuple[StepSpec, ...] = learn_sequence(rec, release=_releases(rec, ids))
     starts, ends = _step_times(rec, sequence)

@@ -36,13 +36,16 @@ def build_twin(
     console = Console()
     target = prebuilt_path(directory)
     if not force and load_prebuilt_twin(directory) is not None:
-        console.print(f"up to date: {target}", highlight=False, soft_wrap=True)
+        console.print(f"up to date: {target}", highlight=False, markup=False, soft_wrap=True)
         return
     start = time.perf_counter()
     with console.status("compiling the twin ahead of time (about 15 s)"):
         path = build_prebuilt_twin(directory, force=True)
     console.print(
-        f"built {path} in {time.perf_counter() - start:.1f} s", highlight=False, soft_wrap=True
+        f"built {path} in {time.perf_counter() - start:.1f} s",
+        highlight=False,
+        markup=False,
+        soft_wrap=True,
     )
 
 

@@ -95,8 +95,10 @@ def campaign(
     """Simulate plants varied from each MACHINE, diagnose their runs, print the figures."""
     from rich.console import Console
 
+    from pneufdd.cli.outputs import check_outputs
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.evaluation import CampaignDesign, run_campaign
+    from pneufdd.evaluation.campaign import campaign_files
 
     design = CampaignDesign(
         machines=tuple(machine),
@@ -114,10 +116,18 @@ def campaign(
         seed_offset=seed_offset,
         calibrate=calibrate,
     )
+    # every file the campaign will write, checked before any work against its inputs
+    inputs = {f"--machine {name}": Path(name) for name in machine}
+    check_outputs(campaign_files(design, out), inputs, overwrite=True)
     console = Console()
     with progress_bars() as progress:
         result = run_campaign(
-            design, out, workers, progress, lambda line: console.print(line), scheduler
+            design,
+            out,
+            workers,
+            progress,
+            lambda line: console.print(line, highlight=False, markup=False),
+            scheduler,
         )
     for line in result.lines():
         console.print(line, highlight=False, markup=False)

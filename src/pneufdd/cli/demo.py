@@ -158,6 +158,7 @@ def demo(
         f"outputs: {out / 'report.html'}, {out / 'diagnosis.json'}, "
         f"{out / 'reference.pnref'} ({time.perf_counter() - start:.0f} s)",
         highlight=False,
+        markup=False,
     )
 
 

@@ -31,6 +31,7 @@ __all__ = ["leak_table", "register"]
 
 def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first") -> Table:
     """A rich table of the diagnosis' leaks."""
+    from rich.markup import escape
     from rich.table import Table
 
     from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
@@ -54,8 +55,8 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
     for i, leak in enumerate(result.leaks, start=1):
         table.add_row(
             str(i),
-            str(leak.location),
-            ", ".join(str(x) for x in leak.ambiguity_group),
+            escape(str(leak.location)),  # names from the machine file are plain text
+            escape(", ".join(str(x) for x in leak.ambiguity_group)),
             f"{leak.flow_slpm:.1f}",
             f"{leak.average_flow_slpm:.1f}",
             f"{leak.orifice_mm:.2f}",

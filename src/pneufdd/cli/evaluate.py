@@ -71,7 +71,7 @@ def evaluate(
     )
     figures = confusion_figures(result, folder)
     console.print(result.markdown(), highlight=False, markup=False)
-    console.print(f"table: {table}; {len(figures)} confusion figures in {folder}")
+    console.print(f"table: {table}; {len(figures)} confusion figures in {folder}", markup=False)
 
 
 def vector_map(
@@ -93,17 +93,21 @@ def vector_map(
 
     from rich.console import Console
 
+    from pneufdd.cli.outputs import check_outputs
     from pneufdd.cli.simulate import MAX_CYCLES
     from pneufdd.errors import InputError, describe
     from pneufdd.evaluation.vector_sum import check_lines, vector_sum_check
     from pneufdd.features import TABLE_4_5
     from pneufdd.files import write_text_atomic
     from pneufdd.report.classifier_figures import sign_table_figure, vector_map_figure
+    from pneufdd.report.figures import save_figure
 
     if out.exists() and not out.is_dir():
         raise InputError(describe("--out", str(out), "a folder (this is a file)"))
     if (out / "vector_sum.txt").exists():
         raise InputError(describe(f"output folder {str(out)!r}", "holds a result", "a new folder"))
+    names = ("vector_map.png", "sign_table.png", "vector_sum.txt")
+    check_outputs({f"--out {n}": out / n for n in names}, {"--machine": machine}, overwrite=True)
     if not math.isfinite(plant_scale):
         raise InputError(describe("--plant-scale", plant_scale, "a number from 0 to 5"))
     if cycles > MAX_CYCLES:
@@ -116,18 +120,16 @@ def vector_map(
     singles = [c for c in result.vmap.classes_ if c != "none"]
     vectors = {str(c): result.vmap.vector(c).tolist() for c in singles}
     title = f"{machine}, {actuator}, plant scale {plant_scale:g}, seed {seed}"
-    vector_map_figure(result.normalised, vectors, result.axes, title).savefig(
-        out / "vector_map.png", dpi=110
+    save_figure(
+        vector_map_figure(result.normalised, vectors, result.axes, title), out / "vector_map.png"
     )
-    sign_table_figure(result.learned_table, TABLE_4_5, title).savefig(
-        out / "sign_table.png", dpi=110
-    )
+    save_figure(sign_table_figure(result.learned_table, TABLE_4_5, title), out / "sign_table.png")
     lines = check_lines(result, TABLE_4_5)
     write_text_atomic(out / "vector_sum.txt", "\n".join(lines) + "\n")
     console = Console()
     for line in lines:
         console.print(line, highlight=False, markup=False)
-    console.print(f"figures: {out / 'vector_map.png'}, {out / 'sign_table.png'}")
+    console.print(f"figures: {out / 'vector_map.png'}, {out / 'sign_table.png'}", markup=False)
 
 
 def register(app: typer.Typer) -> None:

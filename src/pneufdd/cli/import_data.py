@@ -44,6 +44,7 @@ def import_data(
         f"{recording.duration:.3f} s at {', '.join(f'{r:g}' for r in rates)} Hz, "
         f"starting {recording.start_time.isoformat()}",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
 

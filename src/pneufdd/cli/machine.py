@@ -139,6 +139,7 @@ def draft(
         f"wrote {out}: {len(machine.actuators)} actuators, {len(machine.steps)} steps, "
         f"{len(machine.sensors)} sensors; {assumed} lines assumed (marked '# assumed')",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
 
@@ -184,7 +185,13 @@ def calibrate(
     recs = _checked(recordings, tag_map)
     console = Console(stderr=True)
     with progress_bars(console) as progress:
-        result = calibrate_machine(start, recs, max_evaluations=max_evaluations, progress=progress)
+        result = calibrate_machine(
+            start,
+            recs,
+            max_evaluations=max_evaluations,
+            progress=progress,
+            names=[str(p) for p in recordings],
+        )
     sources = ", ".join(p.name for p in recordings)
     calibrated = result.calibrated_description(sources)
     lines = [f"calibrated from {start.source} to {sources} by pneufdd {__version__}"]
@@ -200,10 +207,14 @@ def calibrate(
         f"wrote {out}: {result.fit_line()}; not informed (left at prior): "
         f"{', '.join(result.not_informed) or 'none'}",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
     for line in result.identification_lines():
-        console.print(line, highlight=False, soft_wrap=True)
+        console.print(line, highlight=False, markup=False, soft_wrap=True)
+    gaps = result.measured.gap_line([str(p) for p in recordings])
+    if gaps is not None:
+        console.print(gaps, highlight=False, markup=False, soft_wrap=True)
 
 
 def register(app: typer.Typer) -> None:

@@ -43,7 +43,7 @@ def monitor_command(
         Path, typer.Option(help="JSON-lines file every alarm is appended to.")
     ] = Path("pneufdd-alarms.jsonl"),
     webhook: Annotated[
-        str | None, typer.Option(help="URL every alarm is POSTed to as JSON.")
+        str | None, typer.Option(help="http(s) URL every alarm is POSTed to as JSON.")
     ] = None,
     arl0: Annotated[
         float,
@@ -60,13 +60,17 @@ def monitor_command(
     from rich.console import Console
 
     from pneufdd.diagnosis.reference.file import load_reference
-    from pneufdd.monitor.alarms import AlarmSinks
+    from pneufdd.monitor.alarms import AlarmSinks, check_webhook
     from pneufdd.monitor.cycles import needed_channels
     from pneufdd.monitor.database import open_history
     from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
     from pneufdd.monitor.sources import open_source
 
-    err = Console(stderr=True, highlight=False)
+    _check_outputs(reference, source, tags, history, alarm_log)
+    if webhook is not None:
+        check_webhook(webhook)  # before any work: a bad URL never waits for the first alarm
+    # names and values in messages are plain text (a machine named "cell[/]" is no markup)
+    err = Console(stderr=True, highlight=False, markup=False)
     model = load_reference(reference)
     analog, digital = needed_channels(model)
     src = open_source(source, analog, digital, tags, log=lambda m: err.print(m))
@@ -84,6 +88,7 @@ def monitor_command(
     )
 
     def show(outcome: CycleOutcome) -> None:
+        sinks.retry()  # alarms held by a failing output, when their retry is due
         if verbose and outcome.recorded:
             err.print(
                 f"cycle {outcome.start:.3f}: score {outcome.score:.3f} CUSUM {outcome.cusum:.2f}"
@@ -108,6 +113,9 @@ def monitor_command(
         err.print("stopped")
     finally:
         db.close()
+        held = sinks.retry(force=True)
+    if held:
+        err.print(f"warning: {held} alarm(s) not delivered (their outputs still fail; see above)")
     for note in stats.notes:
         err.print(f"note: {note}")
     summary = {
@@ -121,6 +129,29 @@ def monitor_command(
     }
     err.print(json.dumps(summary))
     raise typer.Exit(ExitCode.LEAK_FOUND if mon.state.in_alarm else ExitCode.OK)
+
+
+def _check_outputs(
+    reference: Path, source: str, tags: Path | None, history: str, alarm_log: Path
+) -> None:
+    """Refuse at start an alarm log or history database that would harm an input or fail.
+
+    The alarm log and a SQLite history (with its journal files) are outputs: never the
+    reference, the replayed recording or the tag map (resolved through links), never
+    each other, never a folder, and in a place this user may write.
+    """
+    from pneufdd.cli.outputs import check_outputs, check_writable, database_files
+
+    replay = source[len("replay:") :].partition("?")[0] if source.startswith("replay:") else None
+    inputs = {"--reference": reference, "--source": replay, "--tags": tags}
+    database = database_files(history)
+    outputs: dict[str, str | Path | None] = {"--alarm-log": alarm_log}
+    outputs.update({f"--history ({path.name})": path for path in database[1:]})
+    outputs["--history"] = database[0] if database else None
+    check_outputs(outputs, inputs, overwrite=True)  # both are appended to, never replaced
+    check_writable("--alarm-log", alarm_log)
+    if database:
+        check_writable("--history", database[0])
 
 
 def register(app: typer.Typer) -> None:

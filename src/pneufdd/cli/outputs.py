@@ -34,12 +34,16 @@ Examples
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 from pneufdd.errors import FileExistsInputError, InputError, describe
 
-__all__ = ["check_outputs", "same_file"]
+__all__ = ["check_outputs", "check_writable", "database_files", "same_file"]
+
+SQLITE_COMPANIONS = ("-wal", "-shm", "-journal")
+"""Files SQLite writes beside a database (write-ahead log, shared memory, rollback)."""
 
 
 def _key(path: Path) -> Path:
@@ -117,3 +121,64 @@ def check_outputs(
             raise FileExistsInputError(
                 describe(name, str(path), "a new file (or pass --overwrite to replace it)")
             )
+
+
+def database_files(url: str) -> list[Path]:
+    """The files a SQLAlchemy URL makes a command write: a SQLite database and its companions.
+
+    None for a database server (``postgresql://``), an in-memory database or a URL
+    that does not parse (the database's own check names it).
+
+    >>> [p.name for p in database_files("sqlite:///data/h.db")]
+    ['h.db', 'h.db-wal', 'h.db-shm', 'h.db-journal']
+    >>> database_files("postgresql://plant@db/pneufdd"), database_files("sqlite://")
+    ([], [])
+    """
+    import sqlalchemy as sa
+
+    try:
+        parsed = sa.engine.make_url(url)
+        backend = parsed.get_backend_name()
+    except (sa.exc.ArgumentError, ValueError, TypeError):
+        return []
+    name = parsed.database or ""
+    if backend != "sqlite" or name in ("", ":memory:") or name.startswith("file:"):
+        return []
+    db = Path(name)
+    return [db, *(db.with_name(db.name + suffix) for suffix in SQLITE_COMPANIONS)]
+
+
+def check_writable(name: str, path: str | Path) -> None:
+    """Refuse at start a file this process could not write (created, appended or replaced).
+
+    Parameters
+    ----------
+    name : str
+        The option that names the file (``"--alarm-log"``).
+    path : str or Path
+        The file; it need not exist, its nearest existing folder must be writable.
+
+    Raises
+    ------
+    InputError
+        Naming the option, the path and why it cannot be written.
+    """
+    target = Path(path)
+    folder = next((p for p in target.absolute().parents if p.exists()), Path("/"))
+    try:
+        if target.exists():
+            with open(target, "ab"):  # opened for appending, nothing written
+                pass
+        else:  # a probe file in the nearest existing folder, removed at once
+            fd, probe = tempfile.mkstemp(prefix=".pneufdd-probe-", dir=folder)
+            os.close(fd)
+            os.unlink(probe)
+    except OSError as exc:
+        where = f"{str(target)!r}" if target.exists() else f"folder {str(folder)!r}"
+        raise InputError(
+            describe(
+                name,
+                str(target),
+                f"a file this user may write ({where}: {exc.strerror or type(exc).__name__})",
+            )
+        ) from None

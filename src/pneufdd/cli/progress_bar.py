@@ -19,6 +19,7 @@ __all__ = ["progress_bars"]
 def progress_bars(console: Console | None = None) -> Iterator[ProgressCallback]:
     """A rich display with one bar per task; yields the callback to pass to the library."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     with Progress(
@@ -33,7 +34,8 @@ def progress_bars(console: Console | None = None) -> Iterator[ProgressCallback]:
 
         def update(task: str, done: int, total: int) -> None:
             if task not in tasks:
-                tasks[task] = bars.add_task(task, total=total)
+                # plain text: a task may name a machine (``cell[/]`` is no markup)
+                tasks[task] = bars.add_task(escape(task), total=total)
             bars.update(tasks[task], completed=done, total=total)
 
         yield update

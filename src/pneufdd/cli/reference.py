@@ -174,17 +174,23 @@ def _calibrated(
         start = load_machine(machine)
         origin = start.source
     with progress_bars(console) as progress:
-        result = calibrate_machine(start, recs, progress=progress)
+        result = calibrate_machine(
+            start, recs, progress=progress, names=[str(p) for p in recordings]
+        )
     sources = ", ".join(p.name for p in recordings)
     calibrated = result.calibrated_description(sources)
     console.print(
         f"calibrated {origin}: {result.fit_line()}; not informed: "
         f"{', '.join(result.not_informed) or 'none'}",
         highlight=False,
+        markup=False,
         soft_wrap=True,
     )
     for line in result.identification_lines():
-        console.print(line, highlight=False, soft_wrap=True)
+        console.print(line, highlight=False, markup=False, soft_wrap=True)
+    gaps = result.measured.gap_line([str(p) for p in recordings])
+    if gaps is not None:
+        console.print(gaps, highlight=False, markup=False, soft_wrap=True)
     return calibrated
 
 

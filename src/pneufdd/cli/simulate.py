@@ -80,6 +80,7 @@ def simulate_command(
 ) -> None:
     """Simulate a machine with optional leaks and write the recording to OUT."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import (
         BarColumn,
         Progress,
@@ -123,7 +124,7 @@ def simulate_command(
         TimeRemainingColumn(),
         console=err,
     ) as bar:
-        task = bar.add_task(desc.name, total=cycles)
+        task = bar.add_task(escape(desc.name), total=cycles)  # a name is plain text
         recording = simulate(
             desc,
             cycles=cycles,

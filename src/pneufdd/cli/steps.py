@@ -45,12 +45,12 @@ def render_steps(
         return seg
     out = console or Console()
     good = seg.complete
-    seq = Table(title=f"Sequence: {len(seg.sequence)} steps ({seg.source})")
+    seq = Table(title=f"Sequence: {len(seg.sequence)} steps ({escape(str(seg.source))})")
     for col in ("step", "actuators", "median duration [s]", "min [s]", "max [s]"):
         seq.add_column(escape(col))
     durations = np.array([[s.duration_s for s in c.steps] for c in good]) if good else None
     for j, spec in enumerate(seg.sequence):
-        acts = ", ".join(sorted({actuator_of(v) for v in spec.valves}))
+        acts = escape(", ".join(sorted({actuator_of(v) for v in spec.valves})))
         if durations is not None:
             d = durations[:, j]
             seq.add_row(str(j + 1), acts, f"{np.median(d):.3f}", f"{d.min():.3f}", f"{d.max():.3f}")
@@ -67,7 +67,7 @@ def render_steps(
             f"{c.end_s - c.start_s:.3f}",
             str(len(c.steps)),
             "yes" if c.complete else "[red]no[/]",
-            c.reason or "",
+            escape(c.reason or ""),
         )
     out.print(cyc)
     if all_steps:
@@ -77,7 +77,10 @@ def render_steps(
                 t.add_column(escape(col))
             for s in c.steps:
                 t.add_row(
-                    str(s.index), f"{s.start_s:.3f}", f"{s.duration_s:.3f}", ", ".join(s.actuators)
+                    str(s.index),
+                    f"{s.start_s:.3f}",
+                    f"{s.duration_s:.3f}",
+                    escape(", ".join(s.actuators)),
                 )
             out.print(t)
     return seg

@@ -47,6 +47,7 @@ from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.features.step_summaries import machine_sequence
 from pneufdd.features.step_table import feature_names
+from pneufdd.files import safe_name, write_text_atomic
 from pneufdd.location import locations_of
 from pneufdd.parallel import available_cores, executor, map_unordered, resolve_workers
 from pneufdd.physics.leaks import leak_mass_flow
@@ -68,6 +69,7 @@ __all__ = [
     "TARGETS",
     "CampaignDesign",
     "CampaignResult",
+    "campaign_files",
     "rescore",
     "run_campaign",
 ]
@@ -336,8 +338,8 @@ def _calibrated_twin(
     t0 = time.perf_counter()
     result = calibrate_machine(machine, recordings, seed=seed)
     twin = result.calibrated_description(f"{len(recordings)} leak-free recordings of the plant")
-    path = plant_file.with_name(f"{plant_file.stem}-calibrated.toml")
-    path.write_text(machine_to_toml(twin, str(twin.raw["machine"]["title"])), "utf-8")
+    path = _calibrated_file(plant_file)
+    write_text_atomic(path, machine_to_toml(twin, str(twin.raw["machine"]["title"])))
     fit = result.fit_summary()
     seconds = time.perf_counter() - t0
     say(f"{machine.name}: {plant_file.stem} calibrated in {seconds:.0f} s; {result.fit_line()}")
@@ -490,6 +492,57 @@ def _plan_runs(
     return runs
 
 
+def _plant_file(folder: Path, machine_name: str, scale: float, k: int) -> Path:
+    """Where plant ``k`` (0-based) of a machine at a scale is saved; always in ``folder``.
+
+    The machine's name comes from its file: it is made a safe file-name component
+    (:func:`pneufdd.files.safe_name`), so ``name = "../../x"`` cannot leave ``folder``.
+    """
+    return folder / "plants" / f"{safe_name(machine_name)}-s{scale:g}-p{k + 1}.toml"
+
+
+def _calibrated_file(plant_file: Path) -> Path:
+    return plant_file.with_name(f"{plant_file.stem}-calibrated.toml")
+
+
+def _reference_file(plant_file: Path, sensors: str) -> Path:
+    return plant_file.parent.parent / "references" / f"{plant_file.stem}-{safe_name(sensors)}.pnref"
+
+
+def campaign_files(design: CampaignDesign, out: str | Path) -> dict[str, Path]:
+    """Every file :func:`run_campaign` writes under ``out``, by a label naming it.
+
+    For checking before any work that no output is one of the campaign's inputs (a
+    machine file inside ``out``) and that no two share a path (two machines of one
+    name); every path lies inside ``out``.
+
+    Parameters
+    ----------
+    design : CampaignDesign
+        The campaign (its machines are loaded to read their names).
+    out : str or Path
+        The campaign folder.
+
+    Returns
+    -------
+    dict of str to Path
+    """
+    folder = Path(out).absolute()
+    files = {f"--out {n}": folder / n for n in ("manifest.json", "runs.jsonl", "summary.json")}
+    for m, name in enumerate(design.machines):
+        machine = load_machine(name)
+        sets = channel_sets(machine, design.sensor_sets)
+        for scale in design.plant_scales:
+            for k in range(design.plants):
+                plant = _plant_file(folder, machine.name, scale, k)
+                paths = [plant, *(_reference_file(plant, sensors) for sensors in sets)]
+                if design.calibrate:
+                    paths.append(_calibrated_file(plant))
+                for path in paths:
+                    files[f"--out file {path.relative_to(folder)} (machine {m + 1})"] = path
+    return files
+
+
 def run_campaign(
     design: CampaignDesign,
     out: str | Path,
@@ -584,13 +637,13 @@ def _run_campaign(
             for k in range(design.plants):
                 plant_seed = _seed(design, m, s, k, 0)
                 plant = machine if scale == 0 else vary_machine(machine, scale, plant_seed)
-                plant_file = folder / "plants" / f"{machine.name}-s{scale:g}-p{k + 1}.toml"
-                plant_file.write_text(
+                plant_file = _plant_file(folder, machine.name, scale, k)
+                write_text_atomic(
+                    plant_file,
                     machine_to_toml(
                         plant,
                         f"plant {k + 1} of {machine.name} at scale {scale:g}, seed {plant_seed}",
                     ),
-                    "utf-8",
                 )
                 ref_seeds = [
                     _seed(design, m, s, k, 1 + r) for r in range(design.reference_recordings)
@@ -615,7 +668,7 @@ def _run_campaign(
                         recordings,
                         plant_signatures.select(feature_names(channels, len(machine.steps))),
                     )
-                    path = folder / "references" / f"{plant_file.stem}-{sensors}.pnref"
+                    path = _reference_file(plant_file, sensors)
                     save_reference(model, path, overwrite=True)
                     references[sensors] = str(path)
                 runs = _plan_runs(design, machine, m, s, k)
@@ -655,7 +708,7 @@ def _run_campaign(
                     f"references of {model.n_cycles} cycles, {len(runs)} runs planned"
                 )
         manifest["machines"].append(entry)
-    (folder / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n", "utf-8")
+    write_text_atomic(folder / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     say(f"{len(jobs)} runs on {where}")
     result = CampaignResult(out=folder)
     finished: dict[int, list[dict[str, Any]]] = {}
@@ -677,7 +730,7 @@ def _run_campaign(
         }
         for (machine, scale, sensors), t in result.tallies.items()
     }
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1) + "\n", "utf-8")
+    write_text_atomic(folder / "summary.json", json.dumps(summary, indent=1) + "\n")
     return result
 
 

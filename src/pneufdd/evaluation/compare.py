@@ -62,6 +62,7 @@ from pneufdd.diagnosis.detection.residuals import ResidualDetector
 from pneufdd.errors import InputError, describe
 from pneufdd.evaluation.campaign import channel_sets
 from pneufdd.evaluation.labelled import LABEL_COLUMNS, feature_channels, read_manifest
+from pneufdd.files import safe_name
 from pneufdd.sim import load_machine
 
 __all__ = ["METHODS", "Comparison", "compare", "confusion_figures"]
@@ -518,10 +519,19 @@ def compare(
 
 
 def confusion_figures(comparison: Comparison, out: Path) -> list[Path]:
-    """Location confusion matrices: the engine beside the best classifier, per case."""
+    """Location confusion matrices: the engine beside the best classifier, per case.
+
+    Names (machine, locations) are drawn as plain text, never as mathtext or LaTeX,
+    and file names are made of safe components (:func:`pneufdd.files.safe_name`).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
+    with matplotlib.rc_context({"text.parse_math": False, "text.usetex": False}):
+        return _confusion_figures(comparison, out)
+
+
+def _confusion_figures(comparison: Comparison, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     paths = []
@@ -546,7 +556,7 @@ def confusion_figures(comparison: Comparison, out: Path) -> list[Path]:
             ax.set_title(method, fontsize=9)
         fig.suptitle(f"{machine}, plant scale {scale:g}, sensors {sensors}: runs by location")
         fig.tight_layout()
-        path = out / f"confusion-{machine}-s{scale:g}-{sensors}.png"
+        path = out / f"confusion-{safe_name(str(machine))}-s{scale:g}-{safe_name(str(sensors))}.png"
         fig.savefig(path, dpi=90)
         plt.close(fig)
         paths.append(path)

@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 from pneufdd import __version__
 from pneufdd.calibration.calibrate import CalibrationResult, Evidence
 from pneufdd.report.figures import to_png
+from pneufdd.report.plain_text import plain_text
 
 __all__ = ["calibration_figure", "render_calibration_report"]
 
@@ -32,6 +33,7 @@ def _f(x: float, digits: int = 2) -> str:
     return "n/a" if not math.isfinite(x) else f"{x:,.{digits}f}"
 
 
+@plain_text
 def calibration_figure(result: CalibrationResult) -> Figure:
     """Per-step supply air, duration and supply pressure: recordings, before, after."""
     fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True)

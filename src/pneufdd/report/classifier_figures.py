@@ -22,9 +22,12 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from pneufdd.report.plain_text import plain_text
+
 __all__ = ["sign_table_figure", "vector_map_figure"]
 
 
+@plain_text
 def vector_map_figure(
     normalised: pd.DataFrame,
     vectors: Mapping[str, Sequence[float]],
@@ -75,6 +78,7 @@ def vector_map_figure(
     return fig
 
 
+@plain_text
 def sign_table_figure(
     learned: Mapping[str, str], published: Mapping[str, str], title: str = "Sign table"
 ) -> Figure:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 from collections.abc import Sequence
+from pathlib import Path
 
 import matplotlib
 
@@ -24,11 +25,14 @@ import numpy.typing as npt
 from matplotlib.figure import Figure
 
 from pneufdd.array_types import FloatArray
+from pneufdd.files import atomic_target
 from pneufdd.physics.units import kg_s_to_slpm, pa_to_psig
+from pneufdd.report.plain_text import plain_text
 
 __all__ = [
     "band_figure",
     "display_values",
+    "save_figure",
     "statistic_figure",
     "step_flow_figure",
     "step_trace_figure",
@@ -63,6 +67,21 @@ def display_delta(values: npt.ArrayLike, unit: str) -> tuple[FloatArray, str]:
     return display_values(arr, unit)
 
 
+@plain_text
+def save_figure(fig: Figure, path: Path, dpi: float = 110.0) -> Path:
+    """Save ``fig`` to ``path`` atomically (a link there is replaced, never written through).
+
+    The format follows the file's extension (PNG without one); the figure is closed.
+    """
+    try:
+        with atomic_target(path) as tmp:
+            fig.savefig(tmp, format=path.suffix[1:].lower() or "png", dpi=dpi)
+    finally:
+        plt.close(fig)
+    return path
+
+
+@plain_text
 def to_png(fig: Figure) -> bytes:
     """Render ``fig`` to PNG bytes and close it."""
     buffer = io.BytesIO()
@@ -71,6 +90,7 @@ def to_png(fig: Figure) -> bytes:
     return buffer.getvalue()
 
 
+@plain_text
 def step_flow_figure(channel: str, unit: str, reference: FloatArray, run: FloatArray) -> Figure:
     """Per-step mean of ``channel``: reference, run and run minus reference.
 
@@ -100,6 +120,7 @@ def step_flow_figure(channel: str, unit: str, reference: FloatArray, run: FloatA
     return fig
 
 
+@plain_text
 def step_trace_figure(
     channel: str,
     unit: str,
@@ -138,6 +159,7 @@ def step_trace_figure(
     return fig
 
 
+@plain_text
 def band_figure(
     channel: str,
     unit: str,
@@ -180,6 +202,7 @@ def band_figure(
     return fig
 
 
+@plain_text
 def statistic_figure(
     scores: FloatArray, threshold: float, run_score: float, run_threshold: float
 ) -> Figure:

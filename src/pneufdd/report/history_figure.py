@@ -7,9 +7,12 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from pneufdd.report.plain_text import plain_text
+
 __all__ = ["history_figure"]
 
 
+@plain_text
 def history_figure(report: Sequence[dict[str, Any]], path: Path) -> Path:
     """Draw leak flow [SLPM] and annual cost [$/yr] over time for every machine's leaks.
 
@@ -43,7 +46,7 @@ def history_figure(report: Sequence[dict[str, Any]], path: Path) -> Path:
         ax_flow.text(0.5, 0.5, "no leaks recorded", transform=ax_flow.transAxes, ha="center")
     fig.autofmt_xdate()
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
+    from pneufdd.report.figures import save_figure
+
+    save_figure(fig, path, dpi=fig.dpi)  # atomically: a link is replaced, not written through
     return path
