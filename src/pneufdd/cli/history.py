@@ -59,12 +59,12 @@ def history_command(
     from rich.console import Console
     from rich.table import Table
 
-    from pneufdd.monitor.database import HistoryDatabase
+    from pneufdd.monitor.database import HistoryDatabase, masked_url
 
     start = parse_since(since)
     url = history
     if url.startswith("sqlite:///") and not Path(url[len("sqlite:///") :]).exists():
-        raise InputError(describe("--history", url, "an existing history database"))
+        raise InputError(describe("--history", masked_url(url), "an existing history database"))
     db = HistoryDatabase(url)
     try:
         if repaired is not None:

@@ -62,7 +62,7 @@ def monitor_command(
     from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.alarms import AlarmSinks
     from pneufdd.monitor.cycles import needed_channels
-    from pneufdd.monitor.database import open_history
+    from pneufdd.monitor.database import masked_url, open_history
     from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
     from pneufdd.monitor.sources import open_source
 
@@ -80,7 +80,7 @@ def monitor_command(
     mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks)
     err.print(
         f"monitoring {mon.machine}: CUSUM threshold {mon.cusum.decision_threshold:.2f} "
-        f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {history}"
+        f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {masked_url(history)}"
     )
 
     def show(outcome: CycleOutcome) -> None:

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -49,11 +50,32 @@ __all__ = [
     "SCHEMA_VERSION",
     "HistoryDatabase",
     "LeakRow",
+    "masked_url",
     "open_history",
 ]
 
 DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
 SCHEMA_VERSION = 1
+SCHEMA_LOCK = 0x706E_6575_6664_6431
+"""PostgreSQL advisory lock key held while the schema is created or migrated."""
+SCHEMA_ATTEMPTS = 5
+"""Tries of a schema step that another process raced (SQLite has no advisory lock)."""
+
+
+def masked_url(url: str) -> str:
+    """``url`` as it may be shown: its password replaced by ``***``.
+
+    Examples
+    --------
+    >>> masked_url("postgresql://ann:s3cret@db/history")
+    'postgresql://ann:***@db/history'
+    """
+    try:
+        return sa.engine.make_url(url).render_as_string(hide_password=True)
+    except (sa.exc.ArgumentError, ValueError):
+        # not a URL SQLAlchemy reads: hide whatever sits between ':' and '@'
+        return re.sub(r":[^:@/]*@", ":***@", url)
+
 
 metadata = sa.MetaData()
 
@@ -191,36 +213,59 @@ class HistoryDatabase:
             # a folder, a file that is no database, an unreachable server
             self.engine.dispose()
             reason = str(getattr(exc, "orig", exc)).splitlines()[0]
+            password = sa.engine.make_url(url).password
+            if password:
+                reason = reason.replace(str(password), "***")
             raise InputError(
-                describe("--history", url, "a database that can be opened") + f" ({reason})"
+                describe("--history", masked_url(url), "a database that can be opened")
+                + f" ({reason})"
             ) from exc
 
     # ----------------------------------------------------------- schema
     def schema_version(self) -> int:
         """Version of the stored schema (0: empty database)."""
         with self.engine.connect() as conn:
-            if not sa.inspect(conn).has_table("schema_info"):
-                return 0
-            value = conn.execute(sa.select(schema_info.c.version)).scalar()
-            return int(value or 0)
+            return _stored_version(conn)
 
     def migrate(self) -> None:
-        """Bring the schema to :data:`SCHEMA_VERSION` (each step one transaction)."""
-        version = self.schema_version()
-        if version > SCHEMA_VERSION:
-            raise InputError(
-                describe(
-                    f"schema version of history {self.url!r}",
-                    version,
-                    f"<= {SCHEMA_VERSION} (a newer pneufdd wrote it)",
+        """Bring the schema to :data:`SCHEMA_VERSION` (each step one transaction).
+
+        Safe when several monitors open an empty database at once: on PostgreSQL each
+        step runs under an advisory lock (:data:`SCHEMA_LOCK`) and reads the version
+        again inside it, so one process creates the schema and the others find it; on
+        SQLite, whose DDL takes the database lock, a step that lost such a race (the
+        table already exists) is retried from the version then stored.
+        """
+        for attempt in range(SCHEMA_ATTEMPTS):
+            try:
+                while self._migrate_step():
+                    pass
+                return
+            except sa.exc.DatabaseError as exc:
+                raced = isinstance(exc, sa.exc.IntegrityError) or "already exists" in str(exc)
+                if not raced or attempt == SCHEMA_ATTEMPTS - 1:
+                    raise
+
+    def _migrate_step(self) -> bool:
+        """One migration step in one transaction; False when the schema is current."""
+        with self.engine.begin() as conn:
+            if conn.dialect.name == "postgresql":
+                conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": SCHEMA_LOCK})
+            version = _stored_version(conn)
+            if version > SCHEMA_VERSION:
+                raise InputError(
+                    describe(
+                        f"schema version of history {masked_url(self.url)!r}",
+                        version,
+                        f"<= {SCHEMA_VERSION} (a newer pneufdd wrote it)",
+                    )
                 )
-            )
-        while version < SCHEMA_VERSION:
-            with self.engine.begin() as conn:
-                MIGRATIONS[version](conn)
-                conn.execute(sa.delete(schema_info))
-                conn.execute(sa.insert(schema_info).values(version=version + 1))
-            version += 1
+            if version == SCHEMA_VERSION:
+                return False
+            MIGRATIONS[version](conn)
+            conn.execute(sa.delete(schema_info))
+            conn.execute(sa.insert(schema_info).values(version=version + 1))
+            return True
 
     def begin(self) -> Any:
         """A transaction (context manager yielding a connection)."""
@@ -236,11 +281,11 @@ class HistoryDatabase:
         if name in self._machines:
             return self._machines[name]
         with self.engine.begin() as conn:
-            found = conn.execute(sa.select(machines.c.id).where(machines.c.name == name)).scalar()
-            if found is None:
-                found = conn.execute(
-                    sa.insert(machines).values(name=name).returning(machines.c.id)
-                ).scalar_one()
+            # monitors of one machine may start at once: insert unless present, then read
+            conn.execute(_insert(conn, machines).values(name=name).on_conflict_do_nothing())
+            found = conn.execute(
+                sa.select(machines.c.id).where(machines.c.name == name)
+            ).scalar_one()
         self._machines[name] = int(found)
         return int(found)
 
@@ -516,6 +561,13 @@ class HistoryDatabase:
             return str(conn.exec_driver_sql("PRAGMA integrity_check").scalar()) == "ok"
 
 
+def _stored_version(conn: Connection) -> int:
+    if not sa.inspect(conn).has_table("schema_info"):
+        return 0
+    value = conn.execute(sa.select(schema_info.c.version)).scalar()
+    return int(value or 0)
+
+
 def _insert(conn: Connection, table: sa.Table) -> Any:
     name = conn.dialect.name
     if name == "sqlite":
@@ -532,10 +584,10 @@ def _insert(conn: Connection, table: sa.Table) -> Any:
 def _engine(url: str) -> Engine:
     try:
         parsed = sa.engine.make_url(url)
-    except sa.exc.ArgumentError as exc:
+    except sa.exc.ArgumentError:
         raise InputError(
-            describe("--history", url, "a SQLAlchemy URL such as sqlite:///history.db")
-        ) from exc
+            describe("--history", masked_url(url), "a SQLAlchemy URL such as sqlite:///history.db")
+        ) from None
     backend = parsed.get_backend_name()
     if backend not in ("sqlite", "postgresql"):
         raise InputError(describe("--history database", backend, ["sqlite", "postgresql"]))
