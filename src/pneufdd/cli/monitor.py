@@ -37,11 +37,16 @@ def monitor_command(
         str | None, typer.Option(help="Machine name in the history (default: the reference's).")
     ] = None,
     once: Annotated[
-        bool, typer.Option(help="Process the source to its end and exit (replays, tests).")
+        bool,
+        typer.Option("--once", help="Process the source to its end and exit (replays, tests)."),
     ] = False,
     alarm_log: Annotated[
-        Path, typer.Option(help="JSON-lines file every alarm is appended to.")
-    ] = Path("pneufdd-alarms.jsonl"),
+        Path | None,
+        typer.Option(
+            help="JSON-lines file every alarm is appended to (default: beside a SQLite"
+            " history, <history>-alarms.jsonl; none for other databases)."
+        ),
+    ] = None,
     webhook: Annotated[
         str | None, typer.Option(help="URL every alarm is POSTed to as JSON.")
     ] = None,
@@ -54,7 +59,7 @@ def monitor_command(
     max_cycles: Annotated[
         int | None, typer.Option(min=1, help="Stop after this many cycles.")
     ] = None,
-    verbose: Annotated[bool, typer.Option(help="Print every cycle's score.")] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", help="Print every cycle's score.")] = False,
 ) -> None:
     """Watch a machine: score every cycle, declare leaks sequentially, record the history."""
     from rich.console import Console
@@ -62,7 +67,7 @@ def monitor_command(
     from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.alarms import AlarmSinks
     from pneufdd.monitor.cycles import needed_channels
-    from pneufdd.monitor.database import masked_url, open_history
+    from pneufdd.monitor.database import masked_url, open_history, sqlite_path
     from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
     from pneufdd.monitor.sources import open_source
 
@@ -71,6 +76,10 @@ def monitor_command(
     analog, digital = needed_channels(model)
     src = open_source(source, analog, digital, tags, log=lambda m: err.print(m))
     db = open_history(history)
+    if alarm_log is None:  # beside the history, never silently into the working folder
+        database = sqlite_path(history)
+        if database is not None:
+            alarm_log = database.with_name(f"{database.stem}-alarms.jsonl")
     sinks = AlarmSinks(
         echo=lambda m: typer.echo(m),
         log_path=alarm_log,
@@ -80,7 +89,8 @@ def monitor_command(
     mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks)
     err.print(
         f"monitoring {mon.machine}: CUSUM threshold {mon.cusum.decision_threshold:.2f} "
-        f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {masked_url(history)}"
+        f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {masked_url(history)}; "
+        f"alarm log {alarm_log if alarm_log is not None else 'none (--alarm-log PATH)'}"
     )
 
     def show(outcome: CycleOutcome) -> None:

@@ -37,6 +37,7 @@ import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import sqlalchemy as sa
@@ -52,6 +53,7 @@ __all__ = [
     "LeakRow",
     "masked_url",
     "open_history",
+    "sqlite_path",
 ]
 
 DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
@@ -611,6 +613,25 @@ def _engine(url: str) -> Engine:
         raise InputError(
             describe("PostgreSQL driver", "missing", "pip install 'pneufdd[postgresql]'")
         ) from exc
+
+
+def sqlite_path(url: str) -> Path | None:
+    """The file of a ``sqlite:///`` history URL; None for other databases and memory.
+
+    Examples
+    --------
+    >>> sqlite_path("sqlite:///data/h.db")
+    PosixPath('data/h.db')
+    >>> sqlite_path("postgresql://ann@db/history") is None
+    True
+    """
+    try:
+        parsed = sa.engine.make_url(url)
+    except (sa.exc.ArgumentError, ValueError):
+        return None
+    if parsed.get_backend_name() != "sqlite" or parsed.database in (None, "", ":memory:"):
+        return None
+    return Path(parsed.database)
 
 
 def open_history(url: str | None = None) -> HistoryDatabase:
