@@ -120,3 +120,24 @@ def test_a_password_in_the_history_url_is_never_printed(empty_database, tmp_path
     assert "monitoring festo-dsd" in shown
     assert "postgres:***@" in shown
     assert secret not in shown
+
+
+def test_a_version_1_history_gains_the_gaps_table_and_keeps_its_rows(tmp_path):
+    url = f"sqlite:///{tmp_path / 'v1.db'}"
+    engine = sa.create_engine(url)
+    with engine.begin() as conn:  # what pneufdd wrote before schema version 2
+        database.MIGRATIONS[0](conn)
+        conn.execute(sa.insert(database.schema_info).values(version=1))
+        conn.execute(sa.insert(database.machines).values(id=1, name="festo-dsd"))
+    engine.dispose()
+    history = HistoryDatabase(url)
+    try:
+        assert history.schema_version() == SCHEMA_VERSION == 2
+        assert history.machines() == [(1, "festo-dsd")]
+        with history.begin() as conn:
+            history.add_gap(conn, 1, 100.0, 130.0, "mqtt://b/x", 2)
+        assert history.gap_rows(1) == [
+            {"start": 100.0, "end": 130.0, "source": "mqtt://b/x", "cycles_lost": 2}
+        ]
+    finally:
+        history.close()

@@ -255,3 +255,30 @@ def test_twenty_kills_at_random_points_of_the_leak_life(stream, uninterrupted, t
     assert len({k for _, k in points}) >= 10  # spread over the life
     got = _killed_and_restarted(f"sqlite:///{tmp_path / 'h.db'}", stream, points)
     _same(got, uninterrupted, points)
+
+
+def test_cycles_missing_between_two_recorded_ones_are_stored_as_a_gap(stream, tmp_path, capsys):
+    """A live source that lost cycles 4 and 5 (an outage, or a monitor killed and restarted
+    on a live source): the gap, its source and the cycles lost are in the history."""
+    from pneufdd.cli.app import main
+
+    url = f"sqlite:///{tmp_path / 'h.db'}"
+    monitor = MachineMonitor(reference(), HistoryDatabase(url), source="mqtt://broker:1883/x")
+    outcomes = [monitor.process(c) for c in stream[:4]]
+    monitor.history.close()
+    assert [o.cycles_lost for o in outcomes] == [0, 0, 0, 0]
+    restarted = MachineMonitor(reference(), HistoryDatabase(url), source="mqtt://broker:1883/x")
+    cusum = restarted.state.up
+    after = [restarted.process(c) for c in stream[6:8]]
+    restarted.history.close()
+    assert [o.cycles_lost for o in after] == [2, 0]
+    assert after[0].gap_s == pytest.approx(stream[6].start - stream[4].start)
+    assert after[0].cusum == cusum  # a start-up cycle: the data before it is lost
+    assert main(["history", "--history", url, "--json"]) == 0
+    (entry,) = json.loads(capsys.readouterr().out)["machines"]
+    (gap,) = entry["gaps"]
+    assert gap["source"] == "mqtt://broker:1883/x"
+    assert gap["cycles_lost"] == 2
+    assert entry["cycles"]["count"] == 6
+    assert main(["history", "--history", url]) == 0
+    assert "1 gaps (2 cycles lost)" in capsys.readouterr().out

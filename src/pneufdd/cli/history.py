@@ -117,6 +117,10 @@ def history_command(
                     },
                     "alarms": db.alarm_rows(machine_id, start),
                     "leaks": leaks,
+                    "gaps": [
+                        {**g, "start": _iso(g["start"]), "end": _iso(g["end"])}
+                        for g in db.gap_rows(machine_id, start)
+                    ],
                 }
             )
     finally:
@@ -127,10 +131,18 @@ def history_command(
         out = Console(highlight=False)
         for entry in report:
             cyc = entry["cycles"]
+            gaps = entry["gaps"]
             out.print(
                 f"[bold]{entry['machine']}[/]: {cyc['count']} cycles "
-                f"({cyc['first']} .. {cyc['last']}), {len(entry['alarms'])} alarms"
+                f"({cyc['first']} .. {cyc['last']}), {len(entry['alarms'])} alarms, "
+                f"{len(gaps)} gaps ({sum(g['cycles_lost'] for g in gaps)} cycles lost)"
             )
+            for gap in gaps:
+                out.print(
+                    f"  gap {gap['start']} .. {gap['end']}: {gap['cycles_lost']} cycle(s) "
+                    f"lost, source {gap['source']}",
+                    markup=False,
+                )
             table = Table()
             for col in ("location", "state", "first seen", "size trend [SLPM]", "cost to date [$]"):
                 table.add_column(col)

@@ -86,7 +86,7 @@ def monitor_command(
         webhook=webhook,
         warn=lambda m: err.print(f"warning: {m}"),
     )
-    mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks)
+    mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks, source=masked_url(source))
     err.print(
         f"monitoring {mon.machine}: CUSUM threshold {mon.cusum.decision_threshold:.2f} "
         f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {masked_url(history)}; "
@@ -94,6 +94,11 @@ def monitor_command(
     )
 
     def show(outcome: CycleOutcome) -> None:
+        if outcome.cycles_lost:
+            err.print(
+                f"gap: {outcome.gap_s:.1f} s without a cycle before the cycle at "
+                f"{outcome.start:.3f}, about {outcome.cycles_lost} cycle(s) lost (recorded)"
+            )
         if verbose and outcome.recorded:
             err.print(
                 f"cycle {outcome.start:.3f}: score {outcome.score:.3f} CUSUM {outcome.cusum:.2f}"
@@ -126,6 +131,8 @@ def monitor_command(
         "already_recorded": stats.skipped,
         "alarms": stats.alarms,
         "diagnoses": stats.diagnoses,
+        "gaps": stats.gaps,
+        "cycles_lost": stats.cycles_lost,
         "seconds": round(stats.seconds, 3),
         "leak_active": mon.state.in_alarm,
     }

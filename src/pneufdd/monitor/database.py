@@ -22,6 +22,10 @@ Tables (schema version :data:`SCHEMA_VERSION`, migrations in :data:`MIGRATIONS`)
     tracked leaks with a life: ``new``, ``growing``, ``stable``, ``repaired``.
 ``leak_sizes``
     every size estimate of a tracked leak over time.
+``gaps`` (version 2)
+    spans without a recorded cycle between two cycles (an outage of the source, a
+    monitor that was away, data that held no complete cycle): start, end, source and
+    the cycles lost; recorded with the cycle that ends the gap.
 
 A cycle, the detector state, the cost accrued by the active leaks and any alarm or
 diagnosis the cycle triggered are one transaction: a crash (even SIGKILL) loses at most
@@ -57,7 +61,7 @@ __all__ = [
 ]
 
 DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 SCHEMA_LOCK = 0x706E_6575_6664_6431
 """PostgreSQL advisory lock key held while the schema is created or migrated."""
 SCHEMA_ATTEMPTS = 5
@@ -152,13 +156,29 @@ leak_sizes = sa.Table(
 sa.Index("ix_alarms_machine_time", alarms.c.machine_id, alarms.c.time)
 sa.Index("ix_leaks_machine", leaks.c.machine_id, leaks.c.state)
 sa.Index("ix_leak_sizes_leak", leak_sizes.c.leak_id, leak_sizes.c.time)
+_V1_TABLES = (schema_info, machines, cycles, monitor_state, alarms, diagnoses, leaks, leak_sizes)
+gaps = sa.Table(
+    "gaps",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
+    sa.Column("start", sa.Float, nullable=False),
+    sa.Column("end", sa.Float, nullable=False),
+    sa.Column("source", sa.String(500), nullable=False),
+    sa.Column("cycles_lost", sa.Integer, nullable=False),
+)
+sa.Index("ix_gaps_machine_start", gaps.c.machine_id, gaps.c.start)
 
 
 def _create_v1(conn: Connection) -> None:
-    metadata.create_all(conn)
+    metadata.create_all(conn, tables=list(_V1_TABLES))
 
 
-MIGRATIONS: tuple[Callable[[Connection], None], ...] = (_create_v1,)
+def _add_gaps_v2(conn: Connection) -> None:
+    metadata.create_all(conn, tables=[gaps])
+
+
+MIGRATIONS: tuple[Callable[[Connection], None], ...] = (_create_v1, _add_gaps_v2)
 """``MIGRATIONS[k]`` takes a database from version ``k`` to ``k + 1``."""
 
 
@@ -201,7 +221,7 @@ class HistoryDatabase:
     ...         again = db.add_cycle(conn, m, 100.0, 14.8, 0.5, 0.0, 0.01, 6e5)
     ...     (first, again, db.cycle_count(m), db.schema_version())
     ...     db.close()
-    (True, False, 1, 1)
+    (True, False, 1, 2)
     """
 
     def __init__(self, url: str) -> None:
@@ -438,6 +458,36 @@ class HistoryDatabase:
                 .where(leaks.c.id == leak_id)
                 .values(cost_to_date=leaks.c.cost_to_date + amount, last_seen=time)
             )
+
+    def add_gap(
+        self,
+        conn: Connection,
+        machine_id: int,
+        start: float,
+        end: float,
+        source: str,
+        cycles_lost: int,
+    ) -> None:
+        """Record a span without cycles (``start`` to ``end`` [s since 1970-01-01 UTC])."""
+        conn.execute(
+            sa.insert(gaps).values(
+                machine_id=machine_id,
+                start=start,
+                end=end,
+                source=source[:500],
+                cycles_lost=int(cycles_lost),
+            )
+        )
+
+    def gap_rows(self, machine_id: int, since: float | None = None) -> list[dict[str, Any]]:
+        """Gaps of a machine, oldest first: start, end, source, cycles_lost."""
+        query = sa.select(gaps.c.start, gaps.c.end, gaps.c.source, gaps.c.cycles_lost).where(
+            gaps.c.machine_id == machine_id
+        )
+        if since is not None:
+            query = query.where(gaps.c.end >= since)
+        with self.engine.connect() as conn:
+            return [dict(r._mapping) for r in conn.execute(query.order_by(gaps.c.start))]
 
     def mark_repaired(self, machine: str, location: str, time: float) -> int:
         """The operator marks the active leak(s) at ``location`` repaired; how many."""

@@ -62,6 +62,10 @@ class CycleOutcome:
     cusum: float
     recorded: bool
     alarms: tuple[Alarm, ...] = ()
+    gap_s: float = 0.0
+    """Time without a cycle before this one (0: it follows the previous cycle) [s]."""
+    cycles_lost: int = 0
+    """Cycles estimated lost in that gap [-]."""
 
 
 @dataclass
@@ -82,6 +86,8 @@ class MonitorStats:
     skipped: int = 0
     alarms: int = 0
     diagnoses: int = 0
+    gaps: int = 0
+    cycles_lost: int = 0
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
 
@@ -103,6 +109,8 @@ class MachineMonitor:
         Economic inputs of eq. 1.1.
     alarm : callable, optional
         Called with every :class:`Alarm` after it is committed.
+    source : str
+        What the cycles come from (a gap's ``source`` in the history; no password).
     """
 
     def __init__(
@@ -113,8 +121,10 @@ class MachineMonitor:
         arl0: float = 1.0e6,
         cost: CostSettings | None = None,
         alarm: Callable[[Alarm], None] | None = None,
+        source: str = "",
     ) -> None:
         self.model = model
+        self.source = source
         self.history = history
         self.machine = machine or model.machine
         self.detector = model.detector
@@ -187,6 +197,13 @@ class MachineMonitor:
             return CycleOutcome(cycle.start, math.nan, self.state.up, False)
         table = cycle.table
         score = float(self.detector.score_samples(table.features())[0])
+        gap_s, lost, gap_from = 0.0, 0, self.last_end
+        if gap_from is not None and cycle.start - gap_from > CONTIGUOUS_S:
+            # cycles missing between the newest recorded one and this one (an outage,
+            # a monitor that was away, data that held no complete cycle)
+            gap_s = cycle.start - gap_from
+            typical = sorted(c.duration_s for c in self.window) or [cycle.duration_s]
+            lost = max(1, round(gap_s / typical[len(typical) // 2]))
         if startup:
             decision = CusumDecision(None, 0.0, self.state)
         else:
@@ -209,6 +226,10 @@ class MachineMonitor:
                 supply_p,
             )
             if recorded:
+                if lost and gap_from is not None:
+                    self.history.add_gap(
+                        conn, self.machine_id, gap_from, cycle.start, self.source, lost
+                    )
                 pending += self._decide(conn, cycle, decision)
                 state = {
                     "cusum": self.state.to_dict(),
@@ -222,13 +243,19 @@ class MachineMonitor:
         self.last_end = cycle.start + cycle.duration_s
         if recorded:
             self.stats.recorded += 1
+            if lost:
+                self.stats.gaps += 1
+                self.stats.cycles_lost += lost
         else:
             self.stats.skipped += 1
+            gap_s, lost = 0.0, 0
         for item in pending:
             self.stats.alarms += 1
             if self.alarm is not None:
                 self.alarm(item)
-        return CycleOutcome(cycle.start, score, self.state.up, recorded, tuple(pending))
+        return CycleOutcome(
+            cycle.start, score, self.state.up, recorded, tuple(pending), gap_s, lost
+        )
 
     def _decide(self, conn: Any, cycle: CompletedCycle, decision: CusumDecision) -> list[Alarm]:
         """Alarms, estimates and cost of a recorded cycle (inside its transaction)."""
