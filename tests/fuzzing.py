@@ -1612,7 +1612,7 @@ def build_history(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
             Case(
                 f"history/{label}",
                 "history",
-                ["history", *extra, "--no-figure"],
+                ["history", *extra],
                 folder,
                 inputs,
                 [],

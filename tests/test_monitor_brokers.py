@@ -10,10 +10,13 @@ import asyncio
 import contextlib
 import gc
 import json
+import shutil
 import socket
+import subprocess
 import threading
 import time
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -177,7 +180,9 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
     tags = ChannelTags.read(tmp_path / "plc-tags.toml", analog, digital)
     assert tags.aliases["DB10.P.In"] == "P_In"
     assert tags.units == {"P_In": "bar(g)", "Q_In": "l/min (ANR)"}
-    source = MqttSource("127.0.0.1", port, "plant/festo-dsd/samples", tags, log=log.append)
+    source = MqttSource(
+        "127.0.0.1", port, "plant/festo-dsd/samples", tags, log=log.append, protocol="3.1.1"
+    )  # amqtt speaks MQTT 3.1.1
     result: dict[str, object] = {}
 
     def consume() -> None:
@@ -215,6 +220,105 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
         db.close()
         loop.run(broker.shutdown())
         loop.close()
+
+
+@pytest.fixture
+def mosquitto(tmp_path):
+    """A mosquitto broker (MQTT 5) on a free port; skipped when it is not installed.
+
+    amqtt (the in-process broker above) does not keep sessions (its CONNACK says
+    session_present=False after a clean-session-off reconnect), so the persistent session
+    is tested against mosquitto (``apt-get install mosquitto``, best effort like PostgreSQL).
+    """
+    binary = shutil.which("mosquitto") or next(
+        (str(p) for p in (Path("/usr/sbin/mosquitto"),) if p.exists()), None
+    )
+    if binary is None:
+        pytest.skip("mosquitto is not installed")
+    port = _free_port()
+    config = tmp_path / "mosquitto.conf"
+    config.write_text(f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
+    proc = subprocess.Popen(
+        [binary, "-c", str(config)],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        end = time.monotonic() + 20
+        while True:
+            with socket.socket() as s, contextlib.suppress(OSError):
+                s.connect(("127.0.0.1", port))
+                break
+            assert proc.poll() is None, "mosquitto exited"
+            assert time.monotonic() < end, "mosquitto did not start"
+            time.sleep(0.1)
+        yield port
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+
+def _receive(source: MqttSource, want: int, log: list[str], timeout: float = 60.0) -> list[float]:
+    """Iterate ``source`` until ``want`` batches came (their first value each), then stop."""
+    got: list[float] = []
+    end = time.monotonic() + timeout
+    stream = iter(source)
+    try:
+        for item in stream:
+            if item is not None:
+                got.append(float(item.values[0]))
+            if len(got) >= want or time.monotonic() > end:
+                break
+    finally:
+        stream.close()  # the client disconnects; its session stays on the broker
+    return got
+
+
+def test_mqtt_keeps_a_persistent_session_so_messages_sent_while_away_arrive(mosquitto):
+    """pneufdd away (stopped), the broker up: QoS 1 messages published meanwhile are
+    delivered when it comes back under the same client id (MQTT 5, clean start off,
+    session expiry 3600 s)."""
+    from paho.mqtt import publish
+
+    port = mosquitto
+    tags = ChannelTags({"P_In": "ns=2;s=P_In"}, {"P_In": 10.0}, lateness_s=0.0)
+    topic = "plant/line1/samples"
+
+    def payload(value: float) -> dict[str, object]:
+        body = {"channels": {"P_In": {"t0": 1.77e9 + value, "rate_hz": 10, "values": [value]}}}
+        return {"topic": topic, "payload": json.dumps(body), "qos": 1}
+
+    log: list[str] = []
+    first = MqttSource("127.0.0.1", port, topic, tags, log=log.append)
+    assert first.client_id.startswith("pneufdd-")
+    thread_result: dict[str, list[float]] = {}
+    thread = threading.Thread(target=lambda: thread_result.update(got=_receive(first, 1, log)))
+    thread.start()
+    _wait_for(log, "subscribed to MQTT topic")
+    publish.multiple([payload(1.0)], hostname="127.0.0.1", port=port)
+    thread.join(60)
+    assert thread_result["got"] == [1.0]
+    time.sleep(0.5)
+    publish.multiple([payload(2.0), payload(3.0)], hostname="127.0.0.1", port=port)  # away
+    again = MqttSource("127.0.0.1", port, topic, tags, log=log.append)
+    assert again.client_id == first.client_id  # the same session
+    assert _receive(again, 2, log) == [2.0, 3.0]
+
+
+def test_mqtt_source_options_from_the_url():
+    from pneufdd.monitor.sources import open_source
+
+    source = open_source("mqtt://b:1884/t?client_id=line1&session_expiry=600", ["P_In"], [])
+    assert isinstance(source, MqttSource)
+    assert (source.client_id, source.session_expiry_s, source.protocol) == ("line1", 600, "5")
+    default = open_source("mqtt://b/t", ["P_In"], [])
+    assert isinstance(default, MqttSource)
+    assert default.session_expiry_s == 3600
+    assert default.client_id == open_source("mqtt://b/t", ["P_In"], []).client_id  # stable
+    for bad in ("mqtt://b/t?protocol=4", "mqtt://b/t?session_expiry=soon", "mqtt://b/t?qos=0"):
+        with pytest.raises(InputError):
+            open_source(bad, ["P_In"], [])
 
 
 # ---------------------------------------------------------------------------- OPC UA

@@ -133,7 +133,7 @@ def test_history_command_prints_json_and_draws_a_figure(files, capsys, tmp_path)
     assert figure.stat().st_size > 10_000
     # never overwrite a figure; --since filters; unknown machine is bad input
     assert main(["history", "--history", f"sqlite:///{db}", "--figure", str(figure)]) == 2
-    code = main(["history", "--history", f"sqlite:///{db}", "--no-figure", "--since", "2027-01-01"])
+    code = main(["history", "--history", f"sqlite:///{db}", "--since", "2027-01-01"])
     assert code == 0
     assert "0 cycles" in capsys.readouterr().out
     assert main(["history", "--history", f"sqlite:///{db}", "--machine", "nope"]) == 2
@@ -147,7 +147,6 @@ def test_history_command_prints_json_and_draws_a_figure(files, capsys, tmp_path)
             "festo-dsd",
             "--repaired",
             "supply",
-            "--no-figure",
             "--json",
         ]
     )
@@ -155,6 +154,24 @@ def test_history_command_prints_json_and_draws_a_figure(files, capsys, tmp_path)
     text = capsys.readouterr().out
     report = json.loads(text[text.index("{") :])
     assert report["machines"][0]["leaks"][0]["state"] == "repaired"
+
+
+def test_the_alarm_log_goes_beside_a_sqlite_history_never_into_the_working_folder(
+    files, tmp_path, monkeypatch, capsys
+):
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    db = tmp_path / "plant" / "line1.db"
+    db.parent.mkdir()
+    args = ["--reference", str(files["ref"]), "--source", f"replay:{files['run']}?speed=max"]
+    assert main(["monitor", *args, "--history", f"sqlite:///{db}", "--once"]) == 1
+    (logged,) = [json.loads(x) for x in (db.parent / "line1-alarms.jsonl").read_text().splitlines()]
+    assert logged["kind"] == "leak"
+    assert "line1-alarms.jsonl" in capsys.readouterr().err.replace("\n", "")  # said at start
+    assert main(["history", "--history", f"sqlite:///{db}", "--json"]) == 0
+    assert main(["history", "--history", f"sqlite:///{db}", "--json"]) == 0  # again: no clash
+    assert list(work.iterdir()) == []  # nothing written where the commands ran
 
 
 def test_bad_sources_and_urls_are_input_errors(files, tmp_path):

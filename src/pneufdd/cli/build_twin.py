@@ -20,7 +20,9 @@ def build_twin(
             "~/.cache/pneufdd/prebuilt).",
         ),
     ] = None,
-    force: Annotated[bool, typer.Option(help="Compile even if it is up to date.")] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Compile even if it is up to date.")
+    ] = False,
 ) -> None:
     """Compile the twin's kernels ahead of time (about 15 s; needs gcc and Python.h).
 

@@ -125,7 +125,10 @@ def diagnose(
     ] = None,
     tag_map: MapOption = None,
     overwrite: Annotated[
-        bool, typer.Option(help="Replace existing --json/--report files (never an input).")
+        bool,
+        typer.Option(
+            "--overwrite", help="Replace existing --json/--report files (never an input)."
+        ),
     ] = False,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""

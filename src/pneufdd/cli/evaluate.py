@@ -21,7 +21,7 @@ def evaluate(
         int, typer.Option(min=1, help="Plants labelled in parallel (simulation).")
     ] = 1,
     overwrite: Annotated[
-        bool, typer.Option(help="Replace an existing table in the output folder.")
+        bool, typer.Option("--overwrite", help="Replace an existing table in the output folder.")
     ] = False,
 ) -> None:
     """Cross-validate the dissertation's classifiers, the residual detector and the engine.

@@ -71,7 +71,9 @@ def features(
         list[Path], typer.Argument(help="Recordings (.parquet); the first is the reference.")
     ],
     out: Annotated[Path, typer.Option("--out", help="CSV file to write.")],
-    overwrite: Annotated[bool, typer.Option(help="Replace OUT if it exists.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace OUT if it exists.")
+    ] = False,
     actuator: Annotated[
         list[str] | None, typer.Option(help="Actuator(s) for per-actuator features.")
     ] = None,

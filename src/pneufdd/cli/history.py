@@ -46,25 +46,31 @@ def history_command(
     since: Annotated[str | None, typer.Option(help="Only from this ISO date/time on.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
     figure: Annotated[
-        Path | None, typer.Option(help="Figure of leak size and cost over time (PNG/SVG/PDF).")
-    ] = Path("pneufdd-history.png"),
-    no_figure: Annotated[bool, typer.Option(help="Write no figure.")] = False,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing figure.")] = False,
+        Path | None,
+        typer.Option(help="Draw leak size and cost over time into this file (PNG/SVG/PDF)."),
+    ] = None,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing figure.")
+    ] = False,
     repaired: Annotated[
         str | None,
         typer.Option(help="Mark the active leak at this location repaired (needs --machine)."),
     ] = None,
 ) -> None:
-    """Print the leaks with first-seen time, size trend and cost to date; draw them."""
+    """Print the leaks with first-seen time, size trend and cost to date; draw them (--figure)."""
     from rich.console import Console
     from rich.table import Table
 
-    from pneufdd.monitor.database import HistoryDatabase
+    from pneufdd.cli.outputs import check_outputs
+    from pneufdd.monitor.database import HistoryDatabase, masked_url, sqlite_path
 
     start = parse_since(since)
     url = history
-    if url.startswith("sqlite:///") and not Path(url[len("sqlite:///") :]).exists():
-        raise InputError(describe("--history", url, "an existing history database"))
+    database = sqlite_path(url)
+    if database is not None and not database.exists():
+        raise InputError(describe("--history", masked_url(url), "an existing history database"))
+    # before anything is read: the figure never lands on the database (links included)
+    check_outputs({"--figure": figure}, {"--history": database}, overwrite=overwrite)
     db = HistoryDatabase(url)
     try:
         if repaired is not None:
@@ -111,6 +117,10 @@ def history_command(
                     },
                     "alarms": db.alarm_rows(machine_id, start),
                     "leaks": leaks,
+                    "gaps": [
+                        {**g, "start": _iso(g["start"]), "end": _iso(g["end"])}
+                        for g in db.gap_rows(machine_id, start)
+                    ],
                 }
             )
     finally:
@@ -121,10 +131,18 @@ def history_command(
         out = Console(highlight=False)
         for entry in report:
             cyc = entry["cycles"]
+            gaps = entry["gaps"]
             out.print(
                 f"[bold]{entry['machine']}[/]: {cyc['count']} cycles "
-                f"({cyc['first']} .. {cyc['last']}), {len(entry['alarms'])} alarms"
+                f"({cyc['first']} .. {cyc['last']}), {len(entry['alarms'])} alarms, "
+                f"{len(gaps)} gaps ({sum(g['cycles_lost'] for g in gaps)} cycles lost)"
             )
+            for gap in gaps:
+                out.print(
+                    f"  gap {gap['start']} .. {gap['end']}: {gap['cycles_lost']} cycle(s) "
+                    f"lost, source {gap['source']}",
+                    markup=False,
+                )
             table = Table()
             for col in ("location", "state", "first seen", "size trend [SLPM]", "cost to date [$]"):
                 table.add_column(col)
@@ -140,11 +158,9 @@ def history_command(
                     f"{leak['cost_to_date']:.2f}",
                 )
             out.print(table)
-    if not no_figure and figure is not None:
+    if figure is not None:
         from pneufdd.report.history_figure import history_figure
 
-        if figure.exists() and not overwrite:
-            raise InputError(describe("--figure", str(figure), "a new file (or pass --overwrite)"))
         history_figure(report, figure)
         if not as_json:
             typer.echo(f"wrote {figure}")

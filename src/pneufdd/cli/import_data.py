@@ -17,7 +17,9 @@ def import_data(
         typer.Option("--map", help="Tag map (.toml): each column's role, unit and flow basis."),
     ],
     out: Annotated[Path, typer.Option("--out", help="Recording to write (.parquet).")],
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing OUT.")
+    ] = False,
     export_format: Annotated[
         str | None,
         typer.Option(

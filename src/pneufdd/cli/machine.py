@@ -38,7 +38,9 @@ def vary(
         ),
     ] = 1.0,
     seed: Annotated[int, typer.Option(min=0, help="Random seed (same seed, same plant).")] = 0,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing OUT.")
+    ] = False,
 ) -> None:
     """Draw a plant from DESCRIPTION (every physical parameter around its value) to OUT.
 
@@ -104,7 +106,9 @@ def draft(
     out: Annotated[Path, typer.Option("--out", help="Draft description to write (.toml).")],
     name: Annotated[str, typer.Option(help="Machine name.")] = "drafted",
     tag_map: MapOption = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing OUT.")
+    ] = False,
 ) -> None:
     """Draft a machine description from RECORDINGS (what the signals cannot tell: assumed).
 
@@ -161,7 +165,9 @@ def calibrate(
     max_evaluations: Annotated[
         int, typer.Option(min=2, max=100_000, help="Most least-squares iterations per fit.")
     ] = 40,
-    overwrite: Annotated[bool, typer.Option(help="Replace existing outputs.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace existing outputs.")
+    ] = False,
 ) -> None:
     """Fit DESCRIPTION to leak-free RECORDINGS with the digital twin in the loop.
 

@@ -37,11 +37,16 @@ def monitor_command(
         str | None, typer.Option(help="Machine name in the history (default: the reference's).")
     ] = None,
     once: Annotated[
-        bool, typer.Option(help="Process the source to its end and exit (replays, tests).")
+        bool,
+        typer.Option("--once", help="Process the source to its end and exit (replays, tests)."),
     ] = False,
     alarm_log: Annotated[
-        Path, typer.Option(help="JSON-lines file every alarm is appended to.")
-    ] = Path("pneufdd-alarms.jsonl"),
+        Path | None,
+        typer.Option(
+            help="JSON-lines file every alarm is appended to (default: beside a SQLite"
+            " history, <history>-alarms.jsonl; none for other databases)."
+        ),
+    ] = None,
     webhook: Annotated[
         str | None, typer.Option(help="http(s) URL every alarm is POSTed to as JSON.")
     ] = None,
@@ -54,7 +59,7 @@ def monitor_command(
     max_cycles: Annotated[
         int | None, typer.Option(min=1, help="Stop after this many cycles.")
     ] = None,
-    verbose: Annotated[bool, typer.Option(help="Print every cycle's score.")] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", help="Print every cycle's score.")] = False,
 ) -> None:
     """Watch a machine: score every cycle, declare leaks sequentially, record the history."""
     from rich.console import Console
@@ -62,10 +67,14 @@ def monitor_command(
     from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.alarms import AlarmSinks, check_webhook
     from pneufdd.monitor.cycles import needed_channels
-    from pneufdd.monitor.database import open_history
+    from pneufdd.monitor.database import masked_url, open_history, sqlite_path
     from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
     from pneufdd.monitor.sources import open_source
 
+    if alarm_log is None:  # beside the history, never silently into the working folder
+        database = sqlite_path(history)
+        if database is not None:
+            alarm_log = database.with_name(f"{database.stem}-alarms.jsonl")
     _check_outputs(reference, source, tags, history, alarm_log)
     if webhook is not None:
         check_webhook(webhook)  # before any work: a bad URL never waits for the first alarm
@@ -81,14 +90,20 @@ def monitor_command(
         webhook=webhook,
         warn=lambda m: err.print(f"warning: {m}"),
     )
-    mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks)
+    mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks, source=masked_url(source))
     err.print(
         f"monitoring {mon.machine}: CUSUM threshold {mon.cusum.decision_threshold:.2f} "
-        f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {history}"
+        f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {masked_url(history)}; "
+        f"alarm log {alarm_log if alarm_log is not None else 'none (--alarm-log PATH)'}"
     )
 
     def show(outcome: CycleOutcome) -> None:
         sinks.retry()  # alarms held by a failing output, when their retry is due
+        if outcome.cycles_lost:
+            err.print(
+                f"gap: {outcome.gap_s:.1f} s without a cycle before the cycle at "
+                f"{outcome.start:.3f}, about {outcome.cycles_lost} cycle(s) lost (recorded)"
+            )
         if verbose and outcome.recorded:
             err.print(
                 f"cycle {outcome.start:.3f}: score {outcome.score:.3f} CUSUM {outcome.cusum:.2f}"
@@ -124,6 +139,8 @@ def monitor_command(
         "already_recorded": stats.skipped,
         "alarms": stats.alarms,
         "diagnoses": stats.diagnoses,
+        "gaps": stats.gaps,
+        "cycles_lost": stats.cycles_lost,
         "seconds": round(stats.seconds, 3),
         "leak_active": mon.state.in_alarm,
     }
@@ -132,7 +149,7 @@ def monitor_command(
 
 
 def _check_outputs(
-    reference: Path, source: str, tags: Path | None, history: str, alarm_log: Path
+    reference: Path, source: str, tags: Path | None, history: str, alarm_log: Path | None
 ) -> None:
     """Refuse at start an alarm log or history database that would harm an input or fail.
 
@@ -149,7 +166,8 @@ def _check_outputs(
     outputs.update({f"--history ({path.name})": path for path in database[1:]})
     outputs["--history"] = database[0] if database else None
     check_outputs(outputs, inputs, overwrite=True)  # both are appended to, never replaced
-    check_writable("--alarm-log", alarm_log)
+    if alarm_log is not None:
+        check_writable("--alarm-log", alarm_log)
     if database:
         check_writable("--history", database[0])
 

@@ -73,7 +73,9 @@ def build(
             "default 4).",
         ),
     ] = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing OUT.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing OUT.")
+    ] = False,
     tag_map: MapOption = None,
     calibrate: Annotated[
         bool,

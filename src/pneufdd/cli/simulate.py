@@ -53,7 +53,9 @@ def simulate_command(
     ] = None,
     seed: Annotated[int, typer.Option(min=0, help="Random seed (same seed, same bytes).")] = 0,
     out: Annotated[Path, typer.Option(help="Output Parquet file.")] = Path("run.parquet"),
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing output file.")
+    ] = False,
     export_format: Annotated[
         str | None,
         typer.Option(

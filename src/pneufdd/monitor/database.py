@@ -22,6 +22,10 @@ Tables (schema version :data:`SCHEMA_VERSION`, migrations in :data:`MIGRATIONS`)
     tracked leaks with a life: ``new``, ``growing``, ``stable``, ``repaired``.
 ``leak_sizes``
     every size estimate of a tracked leak over time.
+``gaps`` (version 2)
+    spans without a recorded cycle between two cycles (an outage of the source, a
+    monitor that was away, data that held no complete cycle): start, end, source and
+    the cycles lost; recorded with the cycle that ends the gap.
 
 A cycle, the detector state, the cost accrued by the active leaks and any alarm or
 diagnosis the cycle triggered are one transaction: a crash (even SIGKILL) loses at most
@@ -34,8 +38,10 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import sqlalchemy as sa
@@ -49,11 +55,33 @@ __all__ = [
     "SCHEMA_VERSION",
     "HistoryDatabase",
     "LeakRow",
+    "masked_url",
     "open_history",
+    "sqlite_path",
 ]
 
 DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+SCHEMA_LOCK = 0x706E_6575_6664_6431
+"""PostgreSQL advisory lock key held while the schema is created or migrated."""
+SCHEMA_ATTEMPTS = 5
+"""Tries of a schema step that another process raced (SQLite has no advisory lock)."""
+
+
+def masked_url(url: str) -> str:
+    """``url`` as it may be shown: its password replaced by ``***``.
+
+    Examples
+    --------
+    >>> masked_url("postgresql://ann:s3cret@db/history")
+    'postgresql://ann:***@db/history'
+    """
+    try:
+        return sa.engine.make_url(url).render_as_string(hide_password=True)
+    except (sa.exc.ArgumentError, ValueError):
+        # not a URL SQLAlchemy reads: hide whatever sits between ':' and '@'
+        return re.sub(r":[^:@/]*@", ":***@", url)
+
 
 metadata = sa.MetaData()
 
@@ -128,13 +156,29 @@ leak_sizes = sa.Table(
 sa.Index("ix_alarms_machine_time", alarms.c.machine_id, alarms.c.time)
 sa.Index("ix_leaks_machine", leaks.c.machine_id, leaks.c.state)
 sa.Index("ix_leak_sizes_leak", leak_sizes.c.leak_id, leak_sizes.c.time)
+_V1_TABLES = (schema_info, machines, cycles, monitor_state, alarms, diagnoses, leaks, leak_sizes)
+gaps = sa.Table(
+    "gaps",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
+    sa.Column("start", sa.Float, nullable=False),
+    sa.Column("end", sa.Float, nullable=False),
+    sa.Column("source", sa.String(500), nullable=False),
+    sa.Column("cycles_lost", sa.Integer, nullable=False),
+)
+sa.Index("ix_gaps_machine_start", gaps.c.machine_id, gaps.c.start)
 
 
 def _create_v1(conn: Connection) -> None:
-    metadata.create_all(conn)
+    metadata.create_all(conn, tables=list(_V1_TABLES))
 
 
-MIGRATIONS: tuple[Callable[[Connection], None], ...] = (_create_v1,)
+def _add_gaps_v2(conn: Connection) -> None:
+    metadata.create_all(conn, tables=[gaps])
+
+
+MIGRATIONS: tuple[Callable[[Connection], None], ...] = (_create_v1, _add_gaps_v2)
 """``MIGRATIONS[k]`` takes a database from version ``k`` to ``k + 1``."""
 
 
@@ -177,7 +221,7 @@ class HistoryDatabase:
     ...         again = db.add_cycle(conn, m, 100.0, 14.8, 0.5, 0.0, 0.01, 6e5)
     ...     (first, again, db.cycle_count(m), db.schema_version())
     ...     db.close()
-    (True, False, 1, 1)
+    (True, False, 1, 2)
     """
 
     def __init__(self, url: str) -> None:
@@ -191,36 +235,59 @@ class HistoryDatabase:
             # a folder, a file that is no database, an unreachable server
             self.engine.dispose()
             reason = str(getattr(exc, "orig", exc)).splitlines()[0]
+            password = sa.engine.make_url(url).password
+            if password:
+                reason = reason.replace(str(password), "***")
             raise InputError(
-                describe("--history", url, "a database that can be opened") + f" ({reason})"
+                describe("--history", masked_url(url), "a database that can be opened")
+                + f" ({reason})"
             ) from exc
 
     # ----------------------------------------------------------- schema
     def schema_version(self) -> int:
         """Version of the stored schema (0: empty database)."""
         with self.engine.connect() as conn:
-            if not sa.inspect(conn).has_table("schema_info"):
-                return 0
-            value = conn.execute(sa.select(schema_info.c.version)).scalar()
-            return int(value or 0)
+            return _stored_version(conn)
 
     def migrate(self) -> None:
-        """Bring the schema to :data:`SCHEMA_VERSION` (each step one transaction)."""
-        version = self.schema_version()
-        if version > SCHEMA_VERSION:
-            raise InputError(
-                describe(
-                    f"schema version of history {self.url!r}",
-                    version,
-                    f"<= {SCHEMA_VERSION} (a newer pneufdd wrote it)",
+        """Bring the schema to :data:`SCHEMA_VERSION` (each step one transaction).
+
+        Safe when several monitors open an empty database at once: on PostgreSQL each
+        step runs under an advisory lock (:data:`SCHEMA_LOCK`) and reads the version
+        again inside it, so one process creates the schema and the others find it; on
+        SQLite, whose DDL takes the database lock, a step that lost such a race (the
+        table already exists) is retried from the version then stored.
+        """
+        for attempt in range(SCHEMA_ATTEMPTS):
+            try:
+                while self._migrate_step():
+                    pass
+                return
+            except sa.exc.DatabaseError as exc:
+                raced = isinstance(exc, sa.exc.IntegrityError) or "already exists" in str(exc)
+                if not raced or attempt == SCHEMA_ATTEMPTS - 1:
+                    raise
+
+    def _migrate_step(self) -> bool:
+        """One migration step in one transaction; False when the schema is current."""
+        with self.engine.begin() as conn:
+            if conn.dialect.name == "postgresql":
+                conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": SCHEMA_LOCK})
+            version = _stored_version(conn)
+            if version > SCHEMA_VERSION:
+                raise InputError(
+                    describe(
+                        f"schema version of history {masked_url(self.url)!r}",
+                        version,
+                        f"<= {SCHEMA_VERSION} (a newer pneufdd wrote it)",
+                    )
                 )
-            )
-        while version < SCHEMA_VERSION:
-            with self.engine.begin() as conn:
-                MIGRATIONS[version](conn)
-                conn.execute(sa.delete(schema_info))
-                conn.execute(sa.insert(schema_info).values(version=version + 1))
-            version += 1
+            if version == SCHEMA_VERSION:
+                return False
+            MIGRATIONS[version](conn)
+            conn.execute(sa.delete(schema_info))
+            conn.execute(sa.insert(schema_info).values(version=version + 1))
+            return True
 
     def begin(self) -> Any:
         """A transaction (context manager yielding a connection)."""
@@ -236,11 +303,11 @@ class HistoryDatabase:
         if name in self._machines:
             return self._machines[name]
         with self.engine.begin() as conn:
-            found = conn.execute(sa.select(machines.c.id).where(machines.c.name == name)).scalar()
-            if found is None:
-                found = conn.execute(
-                    sa.insert(machines).values(name=name).returning(machines.c.id)
-                ).scalar_one()
+            # monitors of one machine may start at once: insert unless present, then read
+            conn.execute(_insert(conn, machines).values(name=name).on_conflict_do_nothing())
+            found = conn.execute(
+                sa.select(machines.c.id).where(machines.c.name == name)
+            ).scalar_one()
         self._machines[name] = int(found)
         return int(found)
 
@@ -392,6 +459,36 @@ class HistoryDatabase:
                 .values(cost_to_date=leaks.c.cost_to_date + amount, last_seen=time)
             )
 
+    def add_gap(
+        self,
+        conn: Connection,
+        machine_id: int,
+        start: float,
+        end: float,
+        source: str,
+        cycles_lost: int,
+    ) -> None:
+        """Record a span without cycles (``start`` to ``end`` [s since 1970-01-01 UTC])."""
+        conn.execute(
+            sa.insert(gaps).values(
+                machine_id=machine_id,
+                start=start,
+                end=end,
+                source=source[:500],
+                cycles_lost=int(cycles_lost),
+            )
+        )
+
+    def gap_rows(self, machine_id: int, since: float | None = None) -> list[dict[str, Any]]:
+        """Gaps of a machine, oldest first: start, end, source, cycles_lost."""
+        query = sa.select(gaps.c.start, gaps.c.end, gaps.c.source, gaps.c.cycles_lost).where(
+            gaps.c.machine_id == machine_id
+        )
+        if since is not None:
+            query = query.where(gaps.c.end >= since)
+        with self.engine.connect() as conn:
+            return [dict(r._mapping) for r in conn.execute(query.order_by(gaps.c.start))]
+
     def mark_repaired(self, machine: str, location: str, time: float) -> int:
         """The operator marks the active leak(s) at ``location`` repaired; how many."""
         machine_id = self.machine_id(machine)
@@ -516,6 +613,13 @@ class HistoryDatabase:
             return str(conn.exec_driver_sql("PRAGMA integrity_check").scalar()) == "ok"
 
 
+def _stored_version(conn: Connection) -> int:
+    if not sa.inspect(conn).has_table("schema_info"):
+        return 0
+    value = conn.execute(sa.select(schema_info.c.version)).scalar()
+    return int(value or 0)
+
+
 def _insert(conn: Connection, table: sa.Table) -> Any:
     name = conn.dialect.name
     if name == "sqlite":
@@ -532,10 +636,10 @@ def _insert(conn: Connection, table: sa.Table) -> Any:
 def _engine(url: str) -> Engine:
     try:
         parsed = sa.engine.make_url(url)
-    except sa.exc.ArgumentError as exc:
+    except sa.exc.ArgumentError:
         raise InputError(
-            describe("--history", url, "a SQLAlchemy URL such as sqlite:///history.db")
-        ) from exc
+            describe("--history", masked_url(url), "a SQLAlchemy URL such as sqlite:///history.db")
+        ) from None
     backend = parsed.get_backend_name()
     if backend not in ("sqlite", "postgresql"):
         raise InputError(describe("--history database", backend, ["sqlite", "postgresql"]))
@@ -559,6 +663,25 @@ def _engine(url: str) -> Engine:
         raise InputError(
             describe("PostgreSQL driver", "missing", "pip install 'pneufdd[postgresql]'")
         ) from exc
+
+
+def sqlite_path(url: str) -> Path | None:
+    """The file of a ``sqlite:///`` history URL; None for other databases and memory.
+
+    Examples
+    --------
+    >>> sqlite_path("sqlite:///data/h.db")
+    PosixPath('data/h.db')
+    >>> sqlite_path("postgresql://ann@db/history") is None
+    True
+    """
+    try:
+        parsed = sa.engine.make_url(url)
+    except (sa.exc.ArgumentError, ValueError):
+        return None
+    if parsed.get_backend_name() != "sqlite" or parsed.database in (None, "", ":memory:"):
+        return None
+    return Path(parsed.database)
 
 
 def open_history(url: str | None = None) -> HistoryDatabase:

@@ -13,8 +13,10 @@ newest :data:`WINDOW` cycles. Leaks are tracked by location through their life
 Only a bounded window of per-cycle summaries is kept in memory (:data:`WINDOW`
 cycles); everything else is in the database. After a restart the detector resumes
 from the state stored with the newest recorded cycle, and cycles already recorded
-are skipped, so a replay fed twice, or resumed after a crash, records each cycle
-once.
+are skipped (their summaries refill the window), so a replay fed twice, or resumed
+after a crash, records each cycle once and continues as if never stopped; a
+re-estimate that falls due while the window holds too few cycles (a restart on a
+live source) waits for them.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import math
 import time as wallclock
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pneufdd.diagnosis.cost import CostSettings
@@ -43,6 +45,10 @@ WINDOW = 20
 """Cycles of summaries kept in memory for locating and sizing [-]."""
 REESTIMATE_AT = (5, 10, 20)
 """Cycles after the change point at which a declared leak is re-estimated; then every 20."""
+REESTIMATE_MIN_CYCLES = 2
+"""Cycles a re-estimate needs in the window; a due re-estimate waits for them [-]."""
+CONTIGUOUS_S = 0.05
+"""A cycle starting within this of the stored newest cycle's end continues it [s]."""
 GROWTH_RATIO = 1.2
 """A leak whose estimate rises by this factor over its previous one is growing [-]."""
 
@@ -56,6 +62,10 @@ class CycleOutcome:
     cusum: float
     recorded: bool
     alarms: tuple[Alarm, ...] = ()
+    gap_s: float = 0.0
+    """Time without a cycle before this one (0: it follows the previous cycle) [s]."""
+    cycles_lost: int = 0
+    """Cycles estimated lost in that gap [-]."""
 
 
 @dataclass
@@ -76,6 +86,8 @@ class MonitorStats:
     skipped: int = 0
     alarms: int = 0
     diagnoses: int = 0
+    gaps: int = 0
+    cycles_lost: int = 0
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
 
@@ -97,6 +109,8 @@ class MachineMonitor:
         Economic inputs of eq. 1.1.
     alarm : callable, optional
         Called with every :class:`Alarm` after it is committed.
+    source : str
+        What the cycles come from (a gap's ``source`` in the history; no password).
     """
 
     def __init__(
@@ -107,8 +121,10 @@ class MachineMonitor:
         arl0: float = 1.0e6,
         cost: CostSettings | None = None,
         alarm: Callable[[Alarm], None] | None = None,
+        source: str = "",
     ) -> None:
         self.model = model
+        self.source = source
         self.history = history
         self.machine = machine or model.machine
         self.detector = model.detector
@@ -124,14 +140,21 @@ class MachineMonitor:
         self.stats = MonitorStats()
         self.state = CusumState()
         self.last_start = -math.inf
+        # end of the newest recorded cycle (None: unknown); a first new cycle that starts
+        # there continues the history (the machine ran on): it is no start-up cycle
+        self.last_end: float | None = None
         self.alarm_cycles = 0
         self.episode_start: float | None = None
+        # a re-estimate fell due while the window held too few cycles (after a restart)
+        self.estimate_pending = False
         stored = history.load_state(self.machine_id)
         if stored is not None:
             self.last_start = stored[0]
             self.state = CusumState.from_dict(stored[1]["cusum"])
             self.alarm_cycles = int(stored[1].get("alarm_cycles", 0))
             self.episode_start = stored[1].get("episode_start")
+            self.last_end = stored[1].get("last_end")
+            self.estimate_pending = bool(stored[1].get("estimate_pending", False))
         self.tracked: dict[str, _Tracked] = {
             row.location: _Tracked(
                 row.id,
@@ -149,15 +172,39 @@ class MachineMonitor:
 
     # ------------------------------------------------------------ per cycle
     def process(self, cycle: CompletedCycle) -> CycleOutcome:
-        """Score, decide, record (one transaction), then raise the alarms."""
+        """Score, decide, record (one transaction), then raise the alarms.
+
+        The monitor's memory changes only with a committed transaction: an exception
+        inside it (a database error, an interruption) leaves the monitor as it was
+        before the cycle, which is also what a restart finds in the history.
+        """
         self.stats.cycles += 1
+        memory = self._memory()
+        try:
+            return self._process(cycle)
+        except BaseException:
+            self._recall(memory)
+            raise
+
+    def _process(self, cycle: CompletedCycle) -> CycleOutcome:
+        startup = self._is_startup(cycle)
         if cycle.start <= self.last_start + 5e-4:
+            # already recorded (a replay fed again, a restart): its summaries rebuild
+            # the window the sizes are estimated from, as when it was first judged
+            if not startup:
+                self.window.append(cycle)
             self.stats.skipped += 1
             return CycleOutcome(cycle.start, math.nan, self.state.up, False)
         table = cycle.table
         score = float(self.detector.score_samples(table.features())[0])
-        if self._startup_left > 0:
-            self._startup_left -= 1
+        gap_s, lost, gap_from = 0.0, 0, self.last_end
+        if gap_from is not None and cycle.start - gap_from > CONTIGUOUS_S:
+            # cycles missing between the newest recorded one and this one (an outage,
+            # a monitor that was away, data that held no complete cycle)
+            gap_s = cycle.start - gap_from
+            typical = sorted(c.duration_s for c in self.window) or [cycle.duration_s]
+            lost = max(1, round(gap_s / typical[len(typical) // 2]))
+        if startup:
             decision = CusumDecision(None, 0.0, self.state)
         else:
             decision = self.cusum.update(self.state, score, cycle.start)
@@ -179,35 +226,108 @@ class MachineMonitor:
                 supply_p,
             )
             if recorded:
-                if decision.event == "leak":
-                    self.alarm_cycles = 1
-                    pending += self._estimate(conn, cycle, declared=True)
-                elif decision.event == "repaired":
-                    pending.append(self._repaired(conn, cycle))
-                    self.alarm_cycles, self.episode_start = 0, None
-                elif self.state.in_alarm and _due(self.alarm_cycles):
-                    pending += self._estimate(conn, cycle, declared=False)
-                if self.tracked:
-                    rate = cycle.duration_s / (self.cost.hours * 3600.0)
-                    ids = [t.id for t in self.tracked.values()]
-                    amounts = [t.annual_cost * rate for t in self.tracked.values()]
-                    self.history.accrue_cost(conn, ids, amounts, cycle.start)
+                if lost and gap_from is not None:
+                    self.history.add_gap(
+                        conn, self.machine_id, gap_from, cycle.start, self.source, lost
+                    )
+                pending += self._decide(conn, cycle, decision)
                 state = {
                     "cusum": self.state.to_dict(),
                     "alarm_cycles": self.alarm_cycles,
                     "episode_start": self.episode_start,
+                    "last_end": cycle.start + cycle.duration_s,
+                    "estimate_pending": self.estimate_pending,
                 }
                 self.history.save_state(conn, self.machine_id, cycle.start, state)
         self.last_start = cycle.start
+        self.last_end = cycle.start + cycle.duration_s
         if recorded:
             self.stats.recorded += 1
+            if lost:
+                self.stats.gaps += 1
+                self.stats.cycles_lost += lost
         else:
             self.stats.skipped += 1
+            gap_s, lost = 0.0, 0
         for item in pending:
             self.stats.alarms += 1
             if self.alarm is not None:
                 self.alarm(item)
-        return CycleOutcome(cycle.start, score, self.state.up, recorded, tuple(pending))
+        return CycleOutcome(
+            cycle.start, score, self.state.up, recorded, tuple(pending), gap_s, lost
+        )
+
+    def _decide(self, conn: Any, cycle: CompletedCycle, decision: CusumDecision) -> list[Alarm]:
+        """Alarms, estimates and cost of a recorded cycle (inside its transaction)."""
+        pending: list[Alarm] = []
+        if decision.event == "leak":
+            self.alarm_cycles, self.estimate_pending = 1, False
+            pending += self._estimate(conn, cycle, declared=True)
+        elif decision.event == "repaired":
+            pending.append(self._repaired(conn, cycle))
+            self.alarm_cycles, self.episode_start = 0, None
+            self.estimate_pending = False
+        elif self.state.in_alarm and (_due(self.alarm_cycles) or self.estimate_pending):
+            # after a restart on a live source the window starts empty (the first
+            # cycle may be a start-up cycle, kept out of it): a due re-estimate waits
+            # until the window holds enough cycles, instead of failing on none
+            if len(self.window) >= REESTIMATE_MIN_CYCLES:
+                self.estimate_pending = False
+                pending += self._estimate(conn, cycle, declared=False)
+            else:
+                self.estimate_pending = True
+        if self.tracked:
+            rate = cycle.duration_s / (self.cost.hours * 3600.0)
+            ids = [t.id for t in self.tracked.values()]
+            amounts = [t.annual_cost * rate for t in self.tracked.values()]
+            self.history.accrue_cost(conn, ids, amounts, cycle.start)
+        return pending
+
+    def _is_startup(self, cycle: CompletedCycle) -> bool:
+        """Whether ``cycle`` is one of the stream's start-up cycles (counted down).
+
+        The first complete cycles a monitor sees are start-up cycles, whether already
+        recorded or not (a replay fed again skips its first cycle as it judged it the
+        first time). A new cycle that starts where the newest recorded cycle ended
+        continues the history: the machine ran on while the monitor was away, and
+        neither it nor any later cycle is a start-up cycle.
+        """
+        if self._startup_left <= 0:
+            return False
+        if (
+            self.last_end is not None
+            and cycle.start > self.last_start + 5e-4
+            and abs(cycle.start - self.last_end) <= CONTIGUOUS_S
+        ):
+            self._startup_left = 0
+            return False
+        self._startup_left -= 1
+        return True
+
+    def _memory(self) -> tuple[Any, ...]:
+        tracked = {k: replace(v) for k, v in self.tracked.items()}
+        return (
+            replace(self.state),
+            self.alarm_cycles,
+            self.episode_start,
+            self.estimate_pending,
+            self._startup_left,
+            tracked,
+            list(self.window),
+        )
+
+    def _recall(self, memory: tuple[Any, ...]) -> None:
+        (
+            self.state,
+            self.alarm_cycles,
+            self.episode_start,
+            self.estimate_pending,
+            self._startup_left,
+            self.tracked,
+            window,
+        ) = memory
+        self.window.clear()
+        self.window.extend(window)
 
     def _since_change(self) -> list[CompletedCycle]:
         """Cycles since the change point of the current episode, at most the newest 10.

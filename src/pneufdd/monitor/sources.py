@@ -16,7 +16,12 @@ alive), with ``rates_hz`` (grid rate of each channel) and ``lateness_s``.
 
     times in seconds since 1970-01-01 UTC, values in SI units (digital 0/1).
     ``{"end": true}`` ends the stream (for ``--once``). The client (paho-mqtt)
-    reconnects by itself and says so.
+    reconnects by itself and says so. It keeps a persistent session so that a broker
+    that stays up keeps the QoS 1 messages while pneufdd is away: MQTT 5 with clean
+    start off and a session expiry (``?session_expiry=3600`` [s], the default), under
+    a stable client id (``?client_id=``; default ``pneufdd-`` and a hash of host, port
+    and topic); ``?protocol=3.1.1`` for a broker without MQTT 5 (clean session off;
+    the broker sets the expiry).
 ``opcua://host:port/path``
     An OPC UA client (asyncua) subscribing to the tags of the tag map; the time of a
     sample is the server's source timestamp. After a lost connection it reconnects
@@ -55,6 +60,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import hashlib
 import json
 import math
 import queue
@@ -266,7 +272,20 @@ class MqttSource:
         tags: ChannelTags,
         log: Log = _quiet,
         idle_s: float = 0.5,
+        client_id: str | None = None,
+        session_expiry_s: int = 3600,
+        protocol: str = "5",
+        answer_s: float = 10.0,
     ) -> None:
+        if protocol not in ("5", "3.1.1"):
+            raise InputError(describe("MQTT protocol", protocol, ["5", "3.1.1"]))
+        if not 0 <= session_expiry_s <= 0xFFFFFFFF:
+            raise InputError(describe("MQTT session_expiry [s]", session_expiry_s, "0 .. 2^32-1"))
+        key = hashlib.sha1(f"{host}:{port}/{topic}".encode()).hexdigest()[:12]
+        self.client_id = client_id or f"pneufdd-{key}"
+        self.session_expiry_s = int(session_expiry_s)
+        self.protocol = protocol
+        self.answer_s = answer_s
         self.host, self.port, self.topic = host, port, topic
         self.tags = tags
         self.rates_hz = dict(tags.rates_hz)
@@ -279,8 +298,18 @@ class MqttSource:
     def __iter__(self) -> Iterator[SampleBatch | None]:
         import paho.mqtt.client as mqtt
         from paho.mqtt.enums import CallbackAPIVersion
+        from paho.mqtt.packettypes import PacketTypes
+        from paho.mqtt.properties import Properties
 
-        client = mqtt.Client(CallbackAPIVersion.VERSION2)
+        # a persistent session: the broker keeps the subscription and queues QoS 1
+        # messages while pneufdd is away (killed, restarted), for the session expiry
+        v5 = self.protocol == "5"
+        client = mqtt.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=self.client_id,
+            protocol=mqtt.MQTTv5 if v5 else mqtt.MQTTv311,
+            clean_session=None if v5 else False,
+        )
         client.reconnect_delay_set(min_delay=1, max_delay=5)
         ever = threading.Event()
 
@@ -313,13 +342,30 @@ class MqttSource:
         client.on_disconnect = on_disconnect
         client.on_subscribe = on_subscribe
         client.on_message = on_message
-        client.connect_async(self.host, self.port, keepalive=10)
+        if v5:
+            properties = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
+            properties.SessionExpiryInterval = self.session_expiry_s
+            client.connect_async(
+                self.host, self.port, keepalive=10, clean_start=False, properties=properties
+            )
+        else:
+            client.connect_async(self.host, self.port, keepalive=10)
         client.loop_start()
+        began, warned = wallclock.monotonic(), False
         try:
             while True:
                 try:
                     batches, end = self._queue.get(timeout=self.idle_s)
                 except queue.Empty:
+                    waited = wallclock.monotonic() - began
+                    if not ever.is_set() and not warned and waited > self.answer_s:
+                        warned = True
+                        self.log(
+                            f"no answer from MQTT {self.host}:{self.port} after "
+                            f"{self.answer_s:g} s (MQTT {self.protocol}; a broker that "
+                            "speaks only MQTT 3.1.1 does not answer MQTT 5: add "
+                            "?protocol=3.1.1 to the source)"
+                        )
                     yield None
                     continue
                 yield from batches
@@ -497,7 +543,28 @@ def open_source(
         topic = parsed.path.lstrip("/")
         if not parsed.hostname or not topic:
             raise InputError(describe("--source", text, "mqtt://host:port/topic"))
-        return MqttSource(parsed.hostname, parsed.port or 1883, topic, tag_map, log)
+        options = dict(urllib.parse.parse_qsl(parsed.query))
+        unknown = sorted(set(options) - {"client_id", "session_expiry", "protocol"})
+        if unknown:
+            raise InputError(
+                describe("--source MQTT options", unknown, "client_id, session_expiry, protocol")
+            )
+        try:
+            expiry = int(options.get("session_expiry", "3600"))
+        except ValueError:
+            raise InputError(
+                describe("--source session_expiry", options["session_expiry"], "seconds (integer)")
+            ) from None
+        return MqttSource(
+            parsed.hostname,
+            parsed.port or 1883,
+            topic,
+            tag_map,
+            log,
+            client_id=options.get("client_id"),
+            session_expiry_s=expiry,
+            protocol=options.get("protocol", "5"),
+        )
     if parsed.scheme == "opcua":
         url = "opc.tcp://" + text[len("opcua://") :]
         return OpcUaSource(url, tag_map, [*analog, *digital], log)
