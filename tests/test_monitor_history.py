@@ -275,3 +275,14 @@ def test_postgresql_history_when_a_server_runs(postgres_url):
                 conn.execute(sa.delete(table).where(table.c.machine_id == machine))
             conn.execute(sa.delete(database.machines).where(database.machines.c.id == machine))
         history.close()
+
+
+def test_history_prints_a_markup_machine_name_as_text(files, capsys, tmp_path):
+    # a machine named like rich markup is printed as it is, not parsed (issue 39)
+    db = tmp_path / "h.db"
+    assert _monitor(files, db, "--machine", "cell[/]") == 1
+    capsys.readouterr()
+    assert main(["history", "--history", f"sqlite:///{db}"]) == 0
+    out = capsys.readouterr().out
+    assert "cell[/]: " in out
+    assert "supply" in out

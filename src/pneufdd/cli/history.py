@@ -128,12 +128,14 @@ def history_command(
     if as_json:
         typer.echo(json.dumps({"machines": report}, indent=2, allow_nan=False))
     else:
+        from rich.markup import escape
+
         out = Console(highlight=False)
         for entry in report:
             cyc = entry["cycles"]
             gaps = entry["gaps"]
             out.print(
-                f"[bold]{entry['machine']}[/]: {cyc['count']} cycles "
+                f"[bold]{escape(entry['machine'])}[/]: {cyc['count']} cycles "
                 f"({cyc['first']} .. {cyc['last']}), {len(entry['alarms'])} alarms, "
                 f"{len(gaps)} gaps ({sum(g['cycles_lost'] for g in gaps)} cycles lost)"
             )
@@ -151,8 +153,8 @@ def history_command(
                     f"{s['flow_slpm']:.1f}" for s in leak["sizes"] if s["flow_slpm"] is not None
                 )
                 table.add_row(
-                    leak["location"],
-                    leak["state"],
+                    escape(leak["location"]),
+                    escape(leak["state"]),
                     str(leak["first_seen"]),
                     trend or "-",
                     f"{leak['cost_to_date']:.2f}",
