@@ -61,6 +61,45 @@ def simulate_command(
             help="Longest a step may wait for its switch before the machine counts as stalled [s].",
         ),
     ] = 120.0,
+    capture: Annotated[
+        str,
+        typer.Option(
+            help="'continuous' (one file) or 'triggered': OUT is a folder with one file per "
+            "capture, each starting at a cycle's first valve firing (its trigger)."
+        ),
+    ] = "continuous",
+    files: Annotated[int, typer.Option(min=1, max=10_000, help="Triggered captures.")] = 1,
+    cycles_per_file: Annotated[
+        int, typer.Option(min=1, max=1000, help="Cycles from each capture's trigger.")
+    ] = 1,
+    pre_trigger_s: Annotated[
+        float,
+        typer.Option(
+            "--pre-trigger-s",
+            help="Span recorded before each trigger [s]: the capture starts with the previous "
+            "cycle's last solenoid still on.",
+        ),
+    ] = 0.0,
+    capture_s: Annotated[
+        float | None,
+        typer.Option(
+            "--capture-s",
+            help="Fixed capture length [s] (default: up to the next trigger); longer holds "
+            "the start of the next cycle, cut mid-step.",
+        ),
+    ] = None,
+    start_in_step: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            help="Start each file halfway through this step (a start in mid-sequence, "
+            "the step's solenoids on).",
+        ),
+    ] = None,
+    quantize: Annotated[
+        list[str] | None,
+        typer.Option(help="CHANNEL=STEP: quantise a channel, e.g. P_In=0.19bar; repeatable."),
+    ] = None,
 ) -> None:
     """Simulate a machine with optional leaks and write the recording to OUT."""
     from rich.console import Console
@@ -72,11 +111,16 @@ def simulate_command(
         TimeRemainingColumn,
     )
 
-    from pneufdd.sim import load_machine, simulate
+    from pneufdd.cli.captures import CaptureOptions, continuous_recording, write_field_recordings
+    from pneufdd.sim import load_machine, run_simulation, simulate
     from pneufdd.sim.leaks import resolve_leaks
     from pneufdd.sim.schedule import schedule_from_options
 
-    check_outputs({"--out": out}, {"--machine": machine}, overwrite)
+    field = CaptureOptions(
+        capture, files, cycles_per_file, pre_trigger_s, capture_s, start_in_step, quantize or []
+    )
+    if not field.triggered:
+        check_outputs({"--out": out}, {"--machine": machine}, overwrite)
     if cycles > MAX_CYCLES:
         raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
     if not 0.0 < max_cycle_s <= 3600.0:  # also refuses nan
@@ -106,15 +150,42 @@ def simulate_command(
         console=err,
     ) as bar:
         task = bar.add_task(desc.name, total=cycles)
-        recording = simulate(
-            desc,
-            cycles=cycles,
-            leaks=leaks,
-            seed=seed,
-            max_cycle_s=max_cycle_s,
-            progress=lambda done, total: bar.update(task, completed=done),
-            schedule=schedule,
-        )
+        if field.triggered:
+            paths = write_field_recordings(
+                field,
+                desc,
+                leaks,
+                seed,
+                max_cycle_s,
+                schedule,
+                out,
+                overwrite,
+                lambda done, total: bar.update(task, completed=done, total=total),
+            )
+            err.print(f"wrote {len(paths)} captures to {out}", markup=False)
+            return
+        if field.start_in_step is not None or field.quanta:
+            result = run_simulation(
+                desc,
+                cycles,
+                leaks,
+                seed,
+                lambda done, total: bar.update(task, completed=done),
+                keep_outputs=False,
+                max_cycle_s=max_cycle_s,
+                schedule=schedule,
+            )
+            recording = continuous_recording(field, result)
+        else:
+            recording = simulate(
+                desc,
+                cycles=cycles,
+                leaks=leaks,
+                seed=seed,
+                max_cycle_s=max_cycle_s,
+                progress=lambda done, total: bar.update(task, completed=done),
+                schedule=schedule,
+            )
     path = recording.write(out, overwrite=overwrite)
     err.print(
         f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)",
