@@ -14,7 +14,13 @@ from typing import Any
 from pneufdd.errors import InputError, describe
 from pneufdd.recording.model import Recording
 
-__all__ = ["CAPTURE_KINDS", "CaptureOptions", "parse_quantum", "write_field_recordings"]
+__all__ = [
+    "CAPTURE_KINDS",
+    "CaptureOptions",
+    "parse_quantum",
+    "simulate_continuous",
+    "write_field_recordings",
+]
 
 CAPTURE_KINDS = ("continuous", "triggered")
 """``--capture`` values: one continuous file (today's), or one file per triggered capture."""
@@ -153,11 +159,41 @@ def write_field_recordings(
     return written
 
 
-def continuous_recording(options: CaptureOptions, result: Any) -> Recording:
-    """The continuous run of ``result``, started in mid-sequence and quantised as asked."""
+def simulate_continuous(
+    options: CaptureOptions,
+    machine: Any,
+    cycles: int,
+    leaks: Any,
+    seed: int,
+    progress: Callable[[int, int], None] | None,
+    max_cycle_s: float,
+    schedule: Any,
+) -> Recording:
+    """One continuous run, started in mid-sequence and quantised as ``options`` ask."""
+    from pneufdd.sim import run_simulation, simulate
     from pneufdd.sim.captures import quantize, start_mid_sequence
 
-    recording: Recording = result.recording
+    if options.start_in_step is None and not options.quanta:
+        return simulate(
+            machine,
+            cycles=cycles,
+            leaks=leaks,
+            seed=seed,
+            max_cycle_s=max_cycle_s,
+            progress=progress,
+            schedule=schedule,
+        )
+    result = run_simulation(
+        machine,
+        cycles,
+        leaks,
+        seed,
+        progress,
+        keep_outputs=False,
+        max_cycle_s=max_cycle_s,
+        schedule=schedule,
+    )
+    recording = result.recording
     if options.start_in_step is not None:
         recording = start_mid_sequence(recording, result.step_start, options.start_in_step)
     if options.quanta:

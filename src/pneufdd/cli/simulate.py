@@ -111,8 +111,8 @@ def simulate_command(
         TimeRemainingColumn,
     )
 
-    from pneufdd.cli.captures import CaptureOptions, continuous_recording, write_field_recordings
-    from pneufdd.sim import load_machine, run_simulation, simulate
+    from pneufdd.cli.captures import CaptureOptions, simulate_continuous, write_field_recordings
+    from pneufdd.sim import load_machine
     from pneufdd.sim.leaks import resolve_leaks
     from pneufdd.sim.schedule import schedule_from_options
 
@@ -164,28 +164,16 @@ def simulate_command(
             )
             err.print(f"wrote {len(paths)} captures to {out}", markup=False)
             return
-        if field.start_in_step is not None or field.quanta:
-            result = run_simulation(
-                desc,
-                cycles,
-                leaks,
-                seed,
-                lambda done, total: bar.update(task, completed=done),
-                keep_outputs=False,
-                max_cycle_s=max_cycle_s,
-                schedule=schedule,
-            )
-            recording = continuous_recording(field, result)
-        else:
-            recording = simulate(
-                desc,
-                cycles=cycles,
-                leaks=leaks,
-                seed=seed,
-                max_cycle_s=max_cycle_s,
-                progress=lambda done, total: bar.update(task, completed=done),
-                schedule=schedule,
-            )
+        recording = simulate_continuous(
+            field,
+            desc,
+            cycles,
+            leaks,
+            seed,
+            lambda done, total: bar.update(task, completed=done),
+            max_cycle_s,
+            schedule,
+        )
     path = recording.write(out, overwrite=overwrite)
     err.print(
         f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)",
