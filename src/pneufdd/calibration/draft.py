@@ -39,6 +39,7 @@ from pneufdd.physics.constants import P_ATM, PSI
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.recording.model import Recording
 from pneufdd.signals.digital import debounced_edges
+from pneufdd.signals.quantisation import QUANTISATION_NOISE, quantum
 from pneufdd.signals.segmentation import (
     RELEASE,
     StepSpec,
@@ -458,12 +459,19 @@ def _draft_sensors(
         shown, rng = _shown_range(kind, values)
         diffs = np.diff(shown[np.isfinite(shown)])
         noise = float(np.median(np.abs(diffs)) / 0.6745 / np.sqrt(2.0)) if diffs.size else 0.0
+        # a quantised channel's scatter is mostly zero: its noise is at least the
+        # rounding error's (signals/quantisation.py), in the shown unit
+        step = quantum(shown)
         sensor: dict[str, Any] = {"channel": channel, "kind": kind, "location": location}
         sensor["range"] = rng
-        sensor["noise"] = round(noise, 4)
+        sensor["noise"] = round(max(noise, step * QUANTISATION_NOISE), 4)
         k = len(sensors)
         notes[f"sensor[{k}].range"] = ASSUMED + " (a standard range above the data)"
-        notes[f"sensor[{k}].noise"] = "from the sample-to-sample scatter"
+        notes[f"sensor[{k}].noise"] = (
+            f"quantised in steps of {step:.4g}: the rounding error's, step / sqrt(12)"
+            if noise < step * QUANTISATION_NOISE
+            else "from the sample-to-sample scatter"
+        )
         if kind == "flow":
             sensor["direction"] = "forward" if np.nanmin(shown) > -0.5 else "bidirectional"
             sensor["time_constant_s"] = 0.015
