@@ -11,7 +11,8 @@ plant's files take is tested end to end (issue 33, item 6):
   starts ``pre_trigger_s`` before the first valve firing of its first cycle (or, with
   ``start_in_step``, halfway through that step of the cycle: a start in mid-sequence
   with the solenoids of the step on) and lasts ``capture_s`` (default: up to the
-  next cycle's trigger after its ``cycles_per_file`` cycles). Captures never overlap:
+  next cycle's trigger after its ``cycles_per_file`` cycles, plus the pre-trigger span
+  or at least :data:`POST_TRIGGER_S`, so the file ends just inside the next cycle). Captures never overlap:
   the machine keeps cycling while the DAQ writes a file and re-arms, so the cycles
   between two captures are not recorded.
 * :func:`simulate_captures` simulates enough cycles (one before the first capture, so
@@ -37,6 +38,10 @@ import numpy as np
 from pneufdd.errors import InputError, describe
 from pneufdd.physics.constants import P_ATM
 from pneufdd.recording.model import Channel, Recording
+
+POST_TRIGGER_S = 0.05
+"""Least span a default capture records after the next cycle's trigger [s]: the last
+step's awaited switch may close at the very sample the next step fires."""
 
 __all__ = ["crop", "cut_captures", "quantize", "simulate_captures", "start_mid_sequence"]
 
@@ -136,7 +141,8 @@ def _windows(
         if begin < earliest - 1e-9 or begin < 0.0:
             c += 1
             continue
-        end = begin + capture_s if capture_s is not None else starts[c + span]
+        tail = starts[c + span] + max(pre_trigger_s, POST_TRIGGER_S)
+        end = begin + capture_s if capture_s is not None else tail
         if end > duration + 1e-9:
             break
         out.append((begin, min(end, duration), c))
@@ -186,8 +192,8 @@ def cut_captures(
     >>> from pneufdd.sim import simulate
     >>> run = simulate("press-fit-cell", cycles=3, seed=1)
     >>> caps = cut_captures(run, files=2, pre_trigger_s=0.2)
-    >>> len(caps), caps[0].metadata["cycle_start_s"]
-    (1, [0.2])
+    >>> len(caps), caps[0].metadata["cycle_start_s"]  # its cycle, then the next one's trigger
+    (1, [0.2, 3.344])
     """
     meta = recording.metadata
     cycle_starts = [float(t) for t in meta.get("cycle_start_s", [])]
@@ -265,11 +271,11 @@ def simulate_captures(
     --------
     >>> caps = simulate_captures("press-fit-cell", files=2, pre_trigger_s=0.1, seed=1)
     >>> [c.metadata["cycle_start_s"] for c in caps]
-    [[0.1], [0.1]]
+    [[0.1, 3.244], [0.1, 3.244]]
     """
     from pneufdd.sim.simulate import run_simulation
 
-    stride = cycles_per_file + (1 if pre_trigger_s > 0.0 or start_in_step else 0)
+    stride = cycles_per_file + 1 + (1 if start_in_step else 0)
     cycles = 1 + files * stride
     while True:
         result = run_simulation(
