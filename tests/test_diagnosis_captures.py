@@ -84,6 +84,16 @@ def test_reference_from_a_folder_of_one_cycle_captures(
     assert "--pool" in " ".join(capsys.readouterr().err.split())
 
 
+def test_machine_draft_from_one_cycle_captures(
+    rig: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    files = [str(p) for p in sorted((rig / "ref").glob("*.parquet"))[:3]]
+    out = rig / "draft.toml"
+    assert main(["machine", "draft", *files, "--out", str(out)]) == 0, capsys.readouterr().err
+    text = out.read_text()
+    assert 'do = [{ set = "U_CYL_A" }, { reset = "U_CYL_B" }]' in text
+
+
 def test_duplicated_captures_are_refused(rig: Path, capsys: pytest.CaptureFixture[str]) -> None:
     dup = rig / "dup"
     shutil.copytree(rig / "ref", dup)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pneufdd.calibration.draft import draft_machine
+from pneufdd.errors import InputError
 from pneufdd.recording.model import Channel, Recording
 from pneufdd.signals.events import StepSpec
 from pneufdd.signals.quantisation import QUANTISATION_NOISE, channel_quanta, quantum
@@ -59,6 +60,16 @@ def test_joined_captures_learn_and_draft_the_right_steps(captures: list[Recordin
     assert "dwell_s = 0.5" in step1  # the twin's 0.5 s (was 'set U_CYL_B, dwell 5.0 s')
     noise = float(toml.split('channel = "P_In"')[1].split("noise = ")[1].split()[0])
     assert noise >= 0.19 * QUANTISATION_NOISE - 1e-4  # bar: never below the quantum's
+
+
+def test_draft_from_separate_one_cycle_captures(captures: list[Recording]) -> None:
+    exported = [as_exported(c) for c in captures]
+    toml = draft_machine(exported).to_toml()
+    step1 = toml[toml.index("[[step]]  # 1") : toml.index("[[step]]  # 2")]
+    assert 'set = "U_CYL_A"' in step1
+    assert 'wait = ["S_CYL_B"]' in step1
+    with pytest.raises(InputError, match="repeating pattern"):
+        draft_machine(exported[:1])
 
 
 def test_changeover_over_two_plc_scans_is_one_step() -> None:
