@@ -23,9 +23,10 @@ def test_captures_start_at_their_trigger_with_the_previous_solenoid_on() -> None
     run_starts = res.step_start[:, 0]
     for cap in caps:
         begin = cap.metadata["capture"]["start_in_run_s"]
-        assert cap.metadata["cycle_start_s"][0] == pytest.approx(0.2)
+        # the capture starts on the 10 ms digital grid at or before trigger - 0.2 s
+        assert 0.2 <= cap.metadata["cycle_start_s"][0] < 0.21
         assert len(cap.metadata["cycle_start_s"]) == 2  # ends just inside the next cycle
-        assert any(abs(begin + 0.2 - t) < 1e-9 for t in run_starts)
+        assert any(0.2 <= t - begin < 0.21 for t in run_starts)
         _, u_b = cap.channel("U_CYL_B")
         _, u_a = cap.channel("U_CYL_A")
         assert u_b[0] == 1

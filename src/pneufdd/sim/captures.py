@@ -12,9 +12,10 @@ plant's files take is tested end to end (issue 33, item 6):
   ``start_in_step``, halfway through that step of the cycle: a start in mid-sequence
   with the solenoids of the step on) and lasts ``capture_s`` (default: up to the
   next cycle's trigger after its ``cycles_per_file`` cycles, plus the pre-trigger span
-  or at least :data:`POST_TRIGGER_S`, so the file ends just inside the next cycle). Captures never overlap:
-  the machine keeps cycling while the DAQ writes a file and re-arms, so the cycles
-  between two captures are not recorded.
+  or at least :data:`POST_TRIGGER_S`, so the file ends just inside the next cycle).
+  Both ends lie on the slowest channel's sample grid, so every channel spans the same
+  time. Captures never overlap: the machine keeps cycling while the DAQ writes a file
+  and re-arms, so the cycles between two captures are not recorded.
 * :func:`simulate_captures` simulates enough cycles (one before the first capture, so
   its pre-trigger shows the previous cycle's end) and cuts them.
 * :func:`quantize` rounds analog channels to a converter's quantum (pressures in
@@ -193,7 +194,7 @@ def cut_captures(
     >>> run = simulate("press-fit-cell", cycles=3, seed=1)
     >>> caps = cut_captures(run, files=2, pre_trigger_s=0.2)
     >>> len(caps), caps[0].metadata["cycle_start_s"]  # its cycle, then the next one's trigger
-    (1, [0.2, 3.344])
+    (1, [0.206, 3.35])
     """
     meta = recording.metadata
     cycle_starts = [float(t) for t in meta.get("cycle_start_s", [])]
@@ -219,8 +220,12 @@ def cut_captures(
         pre_trigger_s,
         capture_s,
     )
+    # on the slowest channel's sample grid, so every channel spans the same time
+    grid = 1.0 / min(recording.info(n).rate_hz for n in recording.channels)
     out = []
-    for k, (begin, end, _) in enumerate(windows):
+    for k, (begin_s, end_s, _) in enumerate(windows):
+        begin = math.floor(begin_s / grid + 1e-6) * grid
+        end = min(math.floor(end_s / grid + 1e-6) * grid, recording.duration)
         part = crop(recording, begin, end)
         inside = [round(t - begin, 9) for t in cycle_starts if begin <= t < end]
         new = dict(meta)
@@ -271,7 +276,7 @@ def simulate_captures(
     --------
     >>> caps = simulate_captures("press-fit-cell", files=2, pre_trigger_s=0.1, seed=1)
     >>> [c.metadata["cycle_start_s"] for c in caps]
-    [[0.1, 3.244], [0.1, 3.244]]
+    [[0.106, 3.25], [0.1, 3.244]]
     """
     from pneufdd.sim.simulate import run_simulation
 
