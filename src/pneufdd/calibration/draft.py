@@ -38,8 +38,9 @@ from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.identification.supply import fit_supply_path
 from pneufdd.physics.constants import P_ATM, PSI
 from pneufdd.physics.units import kg_s_to_slpm
-from pneufdd.recording.model import Recording
+from pneufdd.recording.model import Channel, Recording
 from pneufdd.signals.digital import debounced_edges
+from pneufdd.signals.quantisation import QUANTISATION_NOISE, quantum
 from pneufdd.signals.segmentation import (
     RELEASE,
     StepSpec,
@@ -459,12 +460,19 @@ def _draft_sensors(
         shown, rng = _shown_range(kind, values)
         diffs = np.diff(shown[np.isfinite(shown)])
         noise = float(np.median(np.abs(diffs)) / 0.6745 / np.sqrt(2.0)) if diffs.size else 0.0
+        # a quantised channel's scatter is mostly zero: its noise is at least the
+        # rounding error's (signals/quantisation.py), in the shown unit
+        step = quantum(shown)
         sensor: dict[str, Any] = {"channel": channel, "kind": kind, "location": location}
         sensor["range"] = rng
-        sensor["noise"] = round(noise, 4)
+        sensor["noise"] = round(max(noise, step * QUANTISATION_NOISE), 4)
         k = len(sensors)
         notes[f"sensor[{k}].range"] = ASSUMED + " (a standard range above the data)"
-        notes[f"sensor[{k}].noise"] = "from the sample-to-sample scatter"
+        notes[f"sensor[{k}].noise"] = (
+            f"quantised in steps of {step:.4g}: the rounding error's, step / sqrt(12)"
+            if noise < step * QUANTISATION_NOISE
+            else "from the sample-to-sample scatter"
+        )
         if kind == "flow":
             sensor["direction"] = "forward" if np.nanmin(shown) > -0.5 else "bidirectional"
             sensor["time_constant_s"] = 0.015
@@ -535,6 +543,34 @@ def _draft_step(
     return step
 
 
+def _joined(recordings: Sequence[Recording]) -> Recording:
+    """The recordings end to end (triggered captures of one cycle each), time from 0.
+
+    Raises
+    ------
+    InputError
+        If they do not have the same channels at the same rates.
+    """
+    first = recordings[0]
+    layout = [(n, first.info(n).rate_hz, first.info(n).unit) for n in first.channels]
+    channels = []
+    for k, rec in enumerate(recordings[1:], start=2):
+        mine = [(n, rec.info(n).rate_hz, rec.info(n).unit) for n in rec.channels]
+        if mine != layout:
+            raise InputError(
+                describe(
+                    f"channels of recording {k} (to join short captures)",
+                    [m[0] for m in mine],
+                    f"those of the first: {[m[0] for m in layout]} at the same rates",
+                )
+            )
+    for name, rate, unit in layout:
+        info = first.info(name)
+        values = np.concatenate([rec.info(name).values for rec in recordings])
+        channels.append(Channel(name, values, rate, unit, info.kind, info.t0))
+    return Recording(channels, start_time=first.start_time, metadata=first.metadata)
+
+
 def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> DraftedMachine:
     """Draft a machine description from leak-free recordings of a plant.
 
@@ -542,7 +578,8 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
     ----------
     recordings : sequence of Recording
         Leak-free recordings (the first, of at least two full cycles starting at the
-        sequence's first step, teaches the sequence).
+        sequence's first step, teaches the sequence; when it holds fewer, as a
+        triggered capture of one cycle does, all of them joined end to end do).
     name : str
         Machine name.
 
@@ -562,7 +599,14 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
         raise InputError(describe("recordings", 0, "at least one"))
     rec = gaps_repaired(recordings[0])  # the gap rule: no inf or 1e308 reaches a statistic
     ids, vacuum = _actuators(rec)
-    sequence: tuple[StepSpec, ...] = learn_sequence(rec, release=_releases(rec, ids))
+    try:
+        sequence: tuple[StepSpec, ...] = learn_sequence(rec, release=_releases(rec, ids))
+    except InputError:
+        if len(recordings) < 2:
+            raise
+        # short captures (one cycle each): learned from all of them joined end to end
+        rec = _joined(recordings)
+        sequence = learn_sequence(rec, release=_releases(rec, ids))
     starts, ends = _step_times(rec, sequence)
     notes: dict[str, str] = {}
     data: dict[str, Any] = {}

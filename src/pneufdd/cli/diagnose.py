@@ -24,7 +24,11 @@ if TYPE_CHECKING:
     from rich.table import Table
 
 if TYPE_CHECKING:
+    from pneufdd.diagnosis.cost import CostSettings
     from pneufdd.diagnosis.findings import Diagnosis
+    from pneufdd.diagnosis.localisation.search import LocalisationSettings
+    from pneufdd.diagnosis.reference.model import ReferenceModel
+    from pneufdd.features.step_table import StepTable
 
 __all__ = ["leak_table", "register"]
 
@@ -130,6 +134,23 @@ def diagnose(
             "--overwrite", help="Replace existing --json/--report files (never an input)."
         ),
     ] = False,
+    pool: Annotated[
+        bool,
+        typer.Option(
+            "--pool",
+            help="The RUNs (files, a folder or a glob) are short captures of one run: pool "
+            "their cycles and judge them together (one result), instead of a batch.",
+        ),
+    ] = False,
+    startup_cycles: Annotated[
+        int | None,
+        typer.Option(
+            min=0,
+            max=10,
+            help="Complete cycles left out at the start of each recording (default: the "
+            "reference's; 0 for a capture detected as starting at a cycle start).",
+        ),
+    ] = None,
 ) -> None:
     """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
     from dataclasses import replace
@@ -137,9 +158,7 @@ def diagnose(
     from rich.console import Console
     from rich.markup import escape
 
-    from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.diagnosis.cost import CostSettings
-    from pneufdd.diagnosis.recordings import diagnose_recording
     from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.physics.units import kg_s_to_slpm
 
@@ -152,23 +171,20 @@ def diagnose(
     settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
     from pneufdd.cli.diagnose_batch import is_batch, run_batch
 
-    if is_batch(runs):
-        if tag_map is not None:
-            raise InputError(
-                describe("--map with several runs", str(tag_map), "one run (import them first)")
-            )
+    runs = _pooled_runs(runs, pool, tag_map, startup_cycles)
+    if not pool and is_batch(runs):
         args = (json_out, report, settings, max_leaks, simulate, workers, scheduler, threads)
         raise typer.Exit(run_batch(runs, reference, *args))
-    run = runs[0]
+    run = runs[0] if len(runs) == 1 else Path(f"{len(runs)} pooled captures from {runs[0].parent}")
     model = load_reference(reference)
     localisation = model.localisation
     if max_leaks is not None:
         localisation = replace(localisation, max_leaks=max_leaks)
     if simulate is not None:
         localisation = replace(localisation, simulate_explanations=simulate)
-    with progress_bars() as progress:
-        source = run if tag_map is None else read_recording(run, tag_map)
-        table, result = diagnose_recording(model, source, settings, progress, localisation, threads)
+    table, result = _diagnosed(
+        model, runs, pool, tag_map, settings, localisation, threads, startup_cycles
+    )
     # render everything first, write afterwards: no partial output on error
     outputs: list[tuple[Path, str]] = []
     if json_out is not None:
@@ -214,6 +230,55 @@ def diagnose(
         console.print(f"note: {note}", highlight=False, markup=False)
     if result.detected:
         raise typer.Exit(ExitCode.LEAK_FOUND)
+
+
+def _diagnosed(
+    model: ReferenceModel,
+    runs: list[Path],
+    pool: bool,
+    tag_map: Path | None,
+    settings: CostSettings,
+    localisation: LocalisationSettings,
+    threads: int | None,
+    startup_cycles: int | None,
+) -> tuple[StepTable, Diagnosis]:
+    """One run, or ``--pool``'s captures pooled, diagnosed with progress bars."""
+    from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.diagnosis.recordings import diagnose_pooled, diagnose_recording
+
+    with progress_bars() as progress:
+        if pool:
+            return diagnose_pooled(
+                model, list(runs), settings, progress, localisation, threads, startup_cycles
+            )
+        source = runs[0] if tag_map is None else read_recording(runs[0], tag_map)
+        return diagnose_recording(
+            model, source, settings, progress, localisation, threads, startup_cycles
+        )
+
+
+def _pooled_runs(
+    runs: list[Path], pool: bool, tag_map: Path | None, startup_cycles: int | None
+) -> list[Path]:
+    """The runs of ``--pool`` expanded (files, folders, globs); a batch's checks."""
+    from pneufdd.cli.diagnose_batch import is_batch
+
+    if pool:
+        from pneufdd.diagnosis.batch import expand_runs
+
+        if tag_map is not None:
+            raise InputError(describe("--map with --pool", str(tag_map), "import the files first"))
+        return expand_runs(runs)
+    if is_batch(runs):
+        if startup_cycles is not None:
+            raise InputError(
+                describe("--startup-cycles with a batch", startup_cycles, "one run or --pool")
+            )
+        if tag_map is not None:
+            raise InputError(
+                describe("--map with several runs", str(tag_map), "one run (import them first)")
+            )
+    return runs
 
 
 def register(app: typer.Typer) -> None:

@@ -29,7 +29,11 @@ reference_app = typer.Typer(
 @reference_app.command("build")
 def build(
     recordings: Annotated[
-        list[Path], typer.Argument(help="Leak-free recordings (.parquet) of one machine.")
+        list[Path],
+        typer.Argument(
+            help="Leak-free recordings (.parquet) of one machine: files, folders or glob "
+            "patterns (many short triggered captures are pooled)."
+        ),
     ],
     out: Annotated[Path, typer.Option("--out", help="Reference file to write (.pnref).")],
     machine: Annotated[
@@ -85,17 +89,28 @@ def build(
             "to these leak-free recordings with the twin first (pneufdd machine calibrate).",
         ),
     ] = False,
+    startup_cycles: Annotated[
+        int | None,
+        typer.Option(
+            min=0,
+            max=10,
+            help="Complete cycles left out at the start of each recording (default 1 for a "
+            "continuous run; 0 for a capture detected as starting at a cycle start).",
+        ),
+    ] = None,
 ) -> None:
     """Build a reference from leak-free RECORDINGS and write it to OUT."""
     from rich.console import Console
 
     from pneufdd.cli.progress_bar import progress_bars
+    from pneufdd.diagnosis.batch import expand_runs
     from pneufdd.diagnosis.recordings import build_reference, parse_channels
     from pneufdd.diagnosis.reference.file import save_reference
-    from pneufdd.diagnosis.reference.model import RECOMMENDED_REFERENCE_CYCLES
+    from pneufdd.diagnosis.reference.honesty import reference_honesty
     from pneufdd.physics.units import slpm_to_kg_s
 
     console = Console(stderr=True)
+    recordings = expand_runs(recordings)
     inputs: dict[str, str | Path | None] = {f"RECORDINGS[{i}]": r for i, r in enumerate(recordings)}
     inputs["--machine"] = machine
     inputs["--map"] = tag_map
@@ -119,6 +134,7 @@ def build(
     description: MachineLike | None = machine
     if calibrate:
         description = _calibrated(recordings, machine, tag_map, console)
+    log: list[str] = []
     with progress_bars(console) as progress:
         model = build_reference(
             recordings,
@@ -129,6 +145,8 @@ def build(
             signature_cycles=signature_cycles,
             signature_mass_flows=None if ladder is None else [slpm_to_kg_s(x) for x in ladder],
             progress=progress,
+            startup_cycles=startup_cycles,
+            log=log,
             **({} if uncertainty_plants is None else {"uncertainty_plants": uncertainty_plants}),
         )
     save_reference(model, out, overwrite=overwrite)
@@ -141,19 +159,15 @@ def build(
     console.print(
         f"reference: {model.n_cycles} leak-free cycles of {model.machine!r}, "
         f"{model.n_steps} steps, channels {list(model.channels) or 'digital only'}, "
-        f"signatures: {sig}; cross-validated false-alarm rate per cycle "
-        f"{100 * model.detector.reference_false_alarm_rate_:.2f} % -> {out}",
+        f"signatures: {sig} -> {out}",
         highlight=False,
         markup=False,
     )
-    if model.n_cycles < RECOMMENDED_REFERENCE_CYCLES:
-        console.print(
-            f"note: {model.n_cycles} reference cycles; at least "
-            f"{RECOMMENDED_REFERENCE_CYCLES} in several recordings are recommended, or rare "
-            "leak-free cycles may be flagged as leaks (docs/reference.md, 'Reference length')",
-            highlight=False,
-            markup=False,
-        )
+    honesty = reference_honesty(model)
+    for line in [*log, *honesty.lines()]:
+        console.print(line, highlight=False, markup=False)
+    for warning in honesty.warnings:
+        console.print(f"warning: {warning}", highlight=False, markup=False)
 
 
 def _calibrated(

@@ -79,6 +79,45 @@ def simulate_command(
             help="Longest a step may wait for its switch before the machine counts as stalled [s].",
         ),
     ] = 120.0,
+    capture: Annotated[
+        str,
+        typer.Option(
+            help="'continuous' (one file) or 'triggered': OUT is a folder with one file per "
+            "capture, each starting at a cycle's first valve firing (its trigger)."
+        ),
+    ] = "continuous",
+    files: Annotated[int, typer.Option(min=1, max=10_000, help="Triggered captures.")] = 1,
+    cycles_per_file: Annotated[
+        int, typer.Option(min=1, max=1000, help="Cycles from each capture's trigger.")
+    ] = 1,
+    pre_trigger_s: Annotated[
+        float,
+        typer.Option(
+            "--pre-trigger-s",
+            help="Span recorded before each trigger [s]: the capture starts with the previous "
+            "cycle's last solenoid still on.",
+        ),
+    ] = 0.0,
+    capture_s: Annotated[
+        float | None,
+        typer.Option(
+            "--capture-s",
+            help="Fixed capture length [s] (default: up to the next trigger); longer holds "
+            "the start of the next cycle, cut mid-step.",
+        ),
+    ] = None,
+    start_in_step: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            help="Start each file halfway through this step (a start in mid-sequence, "
+            "the step's solenoids on).",
+        ),
+    ] = None,
+    quantize: Annotated[
+        list[str] | None,
+        typer.Option(help="CHANNEL=STEP: quantise a channel, e.g. P_In=0.19bar; repeatable."),
+    ] = None,
 ) -> None:
     """Simulate a machine with optional leaks and write the recording to OUT."""
     from rich.console import Console
@@ -91,13 +130,22 @@ def simulate_command(
         TimeRemainingColumn,
     )
 
+    from pneufdd.cli.captures import CaptureOptions, simulate_continuous, write_field_recordings
     from pneufdd.cli.simulate_export import check_export, write_export
-    from pneufdd.sim import load_machine, simulate
+    from pneufdd.sim import load_machine
     from pneufdd.sim.leaks import resolve_leaks
     from pneufdd.sim.schedule import schedule_from_options
 
-    check_outputs({"--out": out}, {"--machine": machine}, overwrite)
-    check_export(export_format, out, export_map, overwrite)
+    field = CaptureOptions(
+        capture, files, cycles_per_file, pre_trigger_s, capture_s, start_in_step, quantize or []
+    )
+    if field.triggered and export_format is not None:
+        raise InputError(
+            describe("--export-format with --capture triggered", export_format, "Parquet captures")
+        )
+    if not field.triggered:
+        check_outputs({"--out": out}, {"--machine": machine}, overwrite)
+        check_export(export_format, out, export_map, overwrite)
     if cycles > MAX_CYCLES:
         raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
     if not 0.0 < max_cycle_s <= 3600.0:  # also refuses nan
@@ -127,14 +175,29 @@ def simulate_command(
         console=err,
     ) as bar:
         task = bar.add_task(escape(desc.name), total=cycles)  # a name is plain text
-        recording = simulate(
+        if field.triggered:
+            paths = write_field_recordings(
+                field,
+                desc,
+                leaks,
+                seed,
+                max_cycle_s,
+                schedule,
+                out,
+                overwrite,
+                lambda done, total: bar.update(task, completed=done, total=total),
+            )
+            err.print(f"wrote {len(paths)} captures to {out}", markup=False)
+            return
+        recording = simulate_continuous(
+            field,
             desc,
-            cycles=cycles,
-            leaks=leaks,
-            seed=seed,
-            max_cycle_s=max_cycle_s,
-            progress=lambda done, total: bar.update(task, completed=done),
-            schedule=schedule,
+            cycles,
+            leaks,
+            seed,
+            lambda done, total: bar.update(task, completed=done),
+            max_cycle_s,
+            schedule,
         )
     if export_format is not None:
         written = write_export(recording, export_format, out, export_map, overwrite)

@@ -14,8 +14,10 @@ if TYPE_CHECKING:
     from rich.console import Console
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from pneufdd.recording.model import Recording
-    from pneufdd.signals.segmentation import Segmentation
+    from pneufdd.signals.segmentation import Segmentation, StepSpec
 
 __all__ = ["register", "render_steps", "steps"]
 
@@ -25,12 +27,14 @@ def render_steps(
     as_json: bool = False,
     all_steps: bool = False,
     console: Console | None = None,
+    sequence: Sequence[StepSpec] | None = None,
 ) -> Segmentation:
     """Segment ``recording`` and print the result (rich tables, or JSON when ``as_json``).
 
     JSON: ``{"cycles": [{"index", "complete", "steps": [{"index", "start_s",
     "duration_s", "actuators"}]}], "rejected": [{"index", "start_s", "steps_found",
-    "reason"}]}``.
+    "reason"}]}``. ``sequence``: the machine's (else the recording's own, see
+    :func:`pneufdd.signals.segmentation.plc_sequence`).
     """
     import numpy as np
     from rich.console import Console
@@ -39,7 +43,7 @@ def render_steps(
 
     from pneufdd.signals.segmentation import actuator_of, segment
 
-    seg = segment(recording)
+    seg = segment(recording, sequence)
     if as_json:
         typer.echo(json.dumps(seg.to_dict()))
         return seg
@@ -93,16 +97,34 @@ def steps(
         bool, typer.Option("--all-steps", help="List every step of every cycle.")
     ] = False,
     tag_map: MapOption = None,
+    machine: Annotated[
+        str | None,
+        typer.Option(
+            help="The machine's description (a TOML file or a built-in name): its PLC "
+            "sequence segments RUN, so a capture of one cycle can be inspected (without it "
+            "the sequence is the one RUN carries, else learned from RUN: two cycles needed)."
+        ),
+    ] = None,
 ) -> None:
     """Show the cycles and steps found in RUN, and the cycles rejected with their reason."""
     from pneufdd.errors import InputError, naming
     from pneufdd.signals.quality import check_carried_description, check_channels
 
     recording = read_recording(run, tag_map)
+    sequence = None
+    if machine is not None:
+        from pneufdd.diagnosis.machine import check_plc_channels
+        from pneufdd.signals.segmentation import sequence_from_machine
+        from pneufdd.sim import load_machine
+
+        description = load_machine(machine)
+        check_plc_channels(recording, description, str(run))
+        sequence = sequence_from_machine(description)
     try:
         check_channels(recording, (), str(run))
-        check_carried_description(recording, str(run))
-        render_steps(recording, as_json=as_json, all_steps=all_steps)
+        if sequence is None:
+            check_carried_description(recording, str(run))
+        render_steps(recording, as_json=as_json, all_steps=all_steps, sequence=sequence)
     except InputError as exc:
         raise naming(exc, str(run)) from exc
 

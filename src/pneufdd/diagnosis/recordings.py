@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from pneufdd.diagnosis.captures import check_duplicates, startup_of
 from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.diagnosis.effects.twin import (
     SIGNATURE_SIZES_SLPM,
@@ -55,12 +56,14 @@ from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.progress import Progress, counter
 from pneufdd.recording.model import Recording
 from pneufdd.signals.quality import check_channels
+from pneufdd.signals.quantisation import channel_quanta
 from pneufdd.signals.segmentation import Cycle
 
 __all__ = [
     "SIGNATURE_MASS_FLOWS",
     "build_reference",
     "build_reference_from_recordings",
+    "diagnose_pooled",
     "diagnose_recording",
     "parse_channels",
     "run_table",
@@ -137,6 +140,8 @@ def build_reference_from_recordings(
     localisation: LocalisationSettings | None = None,
     progress: Progress | None = None,
     workers: int | None = None,
+    startup_cycles: int | None = None,
+    log: list[str] | None = None,
 ) -> ReferenceModel:
     """Build a reference model from leak-free recordings already in memory.
 
@@ -173,10 +178,21 @@ def build_reference_from_recordings(
         ``progress(task, done, total)`` (:mod:`pneufdd.progress`).
     workers : int, optional
         Processes simulating signatures in parallel (default: one per CPU).
+    startup_cycles : int, optional
+        Start-up cycles left out of every recording; default: the settings' for a
+        continuous run, 0 for a recording detected as a capture starting at a cycle
+        start of a running machine (:mod:`pneufdd.diagnosis.captures`).
+    log : list of str, optional
+        Receives what the build decided (start-up cycles detected, quantised channels).
 
     Returns
     -------
     ReferenceModel
+
+    Raises
+    ------
+    InputError
+        Among others, for duplicated recordings or cycles (identical samples).
     """
     if not recordings:
         raise InputError(describe("leak-free recordings", 0, "at least one"))
@@ -197,12 +213,12 @@ def build_reference_from_recordings(
     advance = counter(progress, "segmenting reference", len(recordings))
     # from the machine description when there is one, else learned from the first
     sequence = machine_sequence(description)
-    all_cycles: list[list[Cycle]] = []
-    startup = (settings or DetectionSettings()).startup_cycles
-    for rec, where in zip(recordings, labels, strict=True):
-        cycles, sequence, _ = segment_cycles(rec, sequence, where)
-        all_cycles.append(running_cycles(cycles, startup))
-        advance()
+    settings = settings or DetectionSettings()
+    if startup_cycles is not None:
+        settings = replace(settings, startup_cycles=startup_cycles)
+    all_cycles, sequence, settings = _reference_cycles(
+        recordings, labels, analog, sequence, settings, startup_cycles, advance, log
+    )
     if sequence is None:  # pragma: no cover - segment_cycles always returns one
         raise InputError(describe("PLC sequence", None, "a sequence"))
     # each step's template length: the median over recordings of its median length
@@ -214,6 +230,7 @@ def build_reference_from_recordings(
         )
         for rec, cycles, where in zip(recordings, all_cycles, labels, strict=True)
     ]
+    check_duplicates(tables, labels, recordings)
     table = StepTable.concatenate(tables)
     cycle_recording = np.repeat(np.arange(len(tables)), [t.n_cycles for t in tables])
     signatures = None
@@ -256,6 +273,43 @@ def build_reference_from_recordings(
         )
     except InputError as exc:
         raise naming(exc, ", ".join(labels)) from exc
+
+
+def _reference_cycles(
+    recordings: Sequence[Recording],
+    labels: Sequence[str],
+    analog: Sequence[str],
+    sequence: Any,
+    settings: DetectionSettings,
+    startup_cycles: int | None,
+    advance: Any,
+    log: list[str] | None,
+) -> tuple[list[list[Cycle]], Any, DetectionSettings]:
+    """Each recording's running cycles, the sequence, and the settings with the quanta."""
+    all_cycles: list[list[Cycle]] = []
+    detected = 0
+    for rec, where in zip(recordings, labels, strict=True):
+        cycles, sequence, _ = segment_cycles(rec, sequence, where)
+        startup, found = startup_of(rec, cycles[0], settings.startup_cycles, startup_cycles)
+        detected += found
+        all_cycles.append(running_cycles(cycles, startup))
+        advance()
+    quanta = channel_quanta([rec.select(list(analog)) for rec in recordings] if analog else [])
+    if quanta:
+        settings = replace(settings, channel_quanta=tuple(sorted(quanta.items())))
+    if log is not None:
+        if detected:
+            log.append(
+                f"{detected} of {len(recordings)} recording(s) start at a cycle start of a "
+                "running machine (a solenoid held over from the previous cycle): "
+                "no start-up cycle left out of them"
+            )
+        for name, q in sorted(quanta.items()):
+            log.append(
+                f"{name} is quantised in steps of {q:.4g} {recordings[0].unit(name)}: its "
+                "spreads are at least one step"
+            )
+    return all_cycles, sequence, settings
 
 
 def _build_model(
@@ -337,8 +391,8 @@ def run_table(model: ReferenceModel, recording: Recording, where: str = "run") -
     return _run_table(model, recording, where)[0]
 
 
-def _run_table(model: ReferenceModel, recording: Recording, where: str) -> tuple[StepTable, int]:
-    """:func:`run_table` and the number of start-up cycles it left out.
+def _run_cycles(model: ReferenceModel, recording: Recording, where: str) -> list[Cycle]:
+    """The complete cycles of a run, segmented as the reference was (all checks first).
 
     Raises
     ------
@@ -370,27 +424,78 @@ def _run_table(model: ReferenceModel, recording: Recording, where: str) -> tuple
         )
     check_channels(recording, model.channels, where)
     cycles, _, _ = segment_cycles(recording, sequence, where)
-    startup = model.settings.startup_cycles
-    if startup and len(cycles) <= startup:
-        # a start-up cycle alone is not a running machine: judging it would be a guess
-        raise NoCompleteCycleError(
-            describe(
-                f"complete cycles of {where}",
-                len(cycles),
-                f"more than its {startup} start-up cycle(s) (docs/assumptions.md)",
-            )
-        )
-    running = running_cycles(cycles, startup)
-    table = build_step_table(
+    return cycles
+
+
+def _table(
+    model: ReferenceModel, recording: Recording, cycles: list[Cycle], where: str
+) -> StepTable:
+    return build_step_table(
         recording,
-        running,
+        cycles,
         model.machine,
         model.channels,
         model.trace_offsets,
         model.trace_rate_hz,
         where,
     )
-    return table, len(cycles) - len(running)
+
+
+def _run_table(
+    model: ReferenceModel, recording: Recording, where: str, startup_cycles: int | None = None
+) -> tuple[StepTable, int]:
+    """:func:`run_table` and the number of start-up cycles it left out."""
+    cycles = _run_cycles(model, recording, where)
+    startup, _ = startup_of(recording, cycles[0], model.settings.startup_cycles, startup_cycles)
+    if startup and len(cycles) <= startup:
+        # a start-up cycle alone is not a running machine: judging it would be a guess
+        raise NoCompleteCycleError(
+            describe(
+                f"complete cycles of {where}",
+                len(cycles),
+                f"more than its {startup} start-up cycle(s) (docs/assumptions.md; "
+                "--startup-cycles 0 for a capture that starts at a cycle start, "
+                "--pool to judge several captures together)",
+            )
+        )
+    running = running_cycles(cycles, startup)
+    return _table(model, recording, running, where), len(cycles) - len(running)
+
+
+def diagnose_pooled(
+    model: ReferenceModel,
+    sources: Sequence[Path | Recording],
+    settings: CostSettings | None = None,
+    progress: Progress | None = None,
+    localisation: LocalisationSettings | None = None,
+    threads: int | None = None,
+    startup_cycles: int | None = None,
+) -> tuple[StepTable, Diagnosis]:
+    """Diagnose many short recordings (triggered captures) of one run as one: cycles pooled.
+
+    Each recording leaves out its start-up cycles (``startup_cycles``, else the
+    reference's, 0 for a capture detected as starting at a cycle start of a running
+    machine, :mod:`pneufdd.diagnosis.captures`); a recording with no more complete
+    cycles than that keeps them (as in the reference build). The run is judged on all
+    the cycles together.
+    """
+    advance = counter(progress, "reading and segmenting", len(sources))
+    tables: list[StepTable] = []
+    left_out = 0
+    for source in sources:
+        recording = source if isinstance(source, Recording) else Recording.read(Path(source))
+        where = "run" if isinstance(source, Recording) else str(source)
+        cycles = _run_cycles(model, recording, where)
+        startup, _ = startup_of(recording, cycles[0], model.settings.startup_cycles, startup_cycles)
+        running = running_cycles(cycles, startup)
+        left_out += len(cycles) - len(running)
+        tables.append(_table(model, recording, running, where))
+        advance()
+    if not tables:
+        raise InputError(describe("recordings to pool", 0, "at least one"))
+    table = StepTable.concatenate(tables)
+    result = diagnose(model, table, settings, localisation, threads)
+    return table, replace(result, startup_cycles=left_out)
 
 
 def diagnose_recording(
@@ -400,17 +505,19 @@ def diagnose_recording(
     progress: Progress | None = None,
     localisation: LocalisationSettings | None = None,
     threads: int | None = None,
+    startup_cycles: int | None = None,
 ) -> tuple[StepTable, Diagnosis]:
     """Read (if a path), segment and diagnose one run against ``model``.
 
     ``localisation`` overrides the reference's localisation settings; ``threads``
-    is :func:`~pneufdd.diagnosis.engine.diagnose`'s (None: every core).
+    is :func:`~pneufdd.diagnosis.engine.diagnose`'s (None: every core);
+    ``startup_cycles`` overrides the reference's start-up cycles.
     """
     advance = counter(progress, "diagnosing", 3)
     recording = path if isinstance(path, Recording) else Recording.read(Path(path))
     where = "run" if isinstance(path, Recording) else str(path)
     advance()
-    table, startup = _run_table(model, recording, where)
+    table, startup = _run_table(model, recording, where, startup_cycles)
     advance()
     result = diagnose(model, table, settings, localisation, threads)
     advance()

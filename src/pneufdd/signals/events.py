@@ -30,6 +30,7 @@ __all__ = [
     "actuator_of",
     "direction_of",
     "held_valves",
+    "target_switch",
 ]
 
 VALVE_PREFIX = "U_"
@@ -37,6 +38,10 @@ SWITCH_PREFIX = "S_"
 RELEASE = ":off"
 DEFAULT_VALVE_DWELL_S = 0.015
 DEFAULT_SWITCH_DWELL_S = 0.025
+CHANGEOVER_S = 0.012
+"""A held solenoid released this close to the firing of the other solenoid of its valve
+(a double-solenoid valve switched over, the two outputs written in one or two PLC
+scans) is released *by* that firing: one step event, never one of its own [s]."""
 
 
 def actuator_of(valve: str) -> str:
@@ -65,6 +70,26 @@ def direction_of(valve: str) -> str:
     if valve.endswith("_B"):
         return "retract"
     return "other"
+
+
+def target_switch(valve: str) -> str:
+    """The switch that shows a solenoid's stroke done, by the naming convention.
+
+    ``U_X_A`` (extend) drives to ``S_X_B``, ``U_X_B`` (retract) to ``S_X_A``, a lone
+    ``U_X`` (vacuum ejector) to ``S_X``.
+
+    Examples
+    --------
+    >>> target_switch("U_CYL_B"), target_switch("U_VAC")
+    ('S_CYL_A', 'S_VAC')
+    """
+    act = actuator_of(valve)
+    name = valve.removesuffix(RELEASE)
+    if name.endswith("_A"):
+        return f"{SWITCH_PREFIX}{act}_B"
+    if name.endswith("_B"):
+        return f"{SWITCH_PREFIX}{act}_A"
+    return f"{SWITCH_PREFIX}{act}"
 
 
 @dataclass(frozen=True)
@@ -122,8 +147,40 @@ def _debounced(
     return out
 
 
+def _fired_at_start(
+    recording: Recording,
+    on_at_start: frozenset[str],
+    first_firing: frozenset[str] | None,
+    switch_min_dwell_s: float,
+) -> frozenset[str]:
+    """Which solenoids energised at the first sample fired there (rule in ``docs/signals.md``).
+
+    With the sequence known (``first_firing``: the solenoids step 1 energises), they
+    fired at t = 0 only when they are exactly step 1's; otherwise none did: they were
+    on before the recording started (a triggered capture's pre-trigger, a start in
+    mid-sequence). Without a sequence, a solenoid fired at t = 0 unless its actuator
+    already stands where the solenoid drives it (:func:`target_switch` on at the first
+    sample): then it has been holding the actuator there (a double-solenoid valve
+    held by the PLC).
+    """
+    if not on_at_start:
+        return on_at_start
+    if first_firing is not None:
+        return on_at_start if on_at_start == first_firing else frozenset()
+    switches = sorted({target_switch(v) for v in on_at_start} & set(recording.digital_channels))
+    there = {
+        n
+        for n, (clean, _) in _debounced(recording, switches, switch_min_dwell_s).items()
+        if clean.size and clean[0] == 1
+    }
+    return frozenset(v for v in on_at_start if target_switch(v) not in there)
+
+
 def _valve_edges(
-    recording: Recording, valve_min_dwell_s: float
+    recording: Recording,
+    valve_min_dwell_s: float,
+    first_firing: frozenset[str] | None = None,
+    switch_min_dwell_s: float = DEFAULT_SWITCH_DWELL_S,
 ) -> tuple[list[str], dict[str, tuple[FloatArray, FloatArray]], float, float]:
     valves = _digital(recording, VALVE_PREFIX)
     if not valves:
@@ -134,12 +191,14 @@ def _valve_edges(
     out: dict[str, tuple[FloatArray, FloatArray]] = {}
     period, end_s = 0.0, 0.0
     debounced = _debounced(recording, valves, valve_min_dwell_s)
+    on_at_start = frozenset(v for v in valves if debounced[v][0].size and debounced[v][0][0] == 1)
+    fired = _fired_at_start(recording, on_at_start, first_firing, switch_min_dwell_s)
     for name in valves:
         ch = recording.info(name)
-        clean, e = debounced[name]
-        # A solenoid already energised at the first sample fired there (a run that
-        # starts with its first step, like a simulation started at t = 0).
-        rising = np.r_[0, e.rising] if clean.size and clean[0] == 1 else e.rising
+        _, e = debounced[name]
+        # A solenoid already energised at the first sample fired there only as the
+        # run's first step (a simulation started at t = 0, a capture at its trigger).
+        rising = np.r_[0, e.rising] if name in fired else e.rising
         out[name] = (ch.t0 + rising / ch.rate_hz, ch.t0 + e.falling / ch.rate_hz)
         period = max(period, 1.0 / ch.rate_hz)
         end_s = max(end_s, ch.t0 + ch.duration)
@@ -147,7 +206,9 @@ def _valve_edges(
 
 
 def held_valves(
-    recording: Recording, valve_min_dwell_s: float = DEFAULT_VALVE_DWELL_S
+    recording: Recording,
+    valve_min_dwell_s: float = DEFAULT_VALVE_DWELL_S,
+    switch_min_dwell_s: float = DEFAULT_SWITCH_DWELL_S,
 ) -> frozenset[str]:
     """Solenoids held energised across steps, whose release starts a step.
 
@@ -157,7 +218,7 @@ def held_valves(
     generator). Solenoids released by their own switch or after a pulse are off
     before the next step starts.
     """
-    valves, e, period, _ = _valve_edges(recording, valve_min_dwell_s)
+    valves, e, period, _ = _valve_edges(recording, valve_min_dwell_s, None, switch_min_dwell_s)
     held = set()
     for name in valves:
         rise, fall = e[name]
@@ -175,13 +236,41 @@ def held_valves(
     return frozenset(held)
 
 
+def _partner(valve: str) -> str | None:
+    """The other solenoid of a double-solenoid valve (``U_X_A`` <-> ``U_X_B``)."""
+    if valve.endswith("_A"):
+        return valve[:-2] + "_B"
+    if valve.endswith("_B"):
+        return valve[:-2] + "_A"
+    return None
+
+
+def _changeover(
+    name: str, falls: FloatArray, e: dict[str, tuple[FloatArray, FloatArray]], period: float
+) -> FloatArray:
+    """Release times of ``name``, moved onto its partner's firing within :data:`CHANGEOVER_S`."""
+    partner = _partner(name)
+    if partner is None or partner not in e or falls.size == 0 or e[partner][0].size == 0:
+        return falls
+    rises = e[partner][0]
+    k = np.clip(np.searchsorted(rises, falls), 1, rises.size) - 1
+    k2 = np.minimum(k + 1, rises.size - 1)
+    nearest = np.where(np.abs(rises[k2] - falls) < np.abs(rises[k] - falls), rises[k2], rises[k])
+    gap = np.abs(nearest - falls)
+    # edges within one sample period are one step already (and keep their times)
+    return np.where((gap > period * 1.001) & (gap <= CHANGEOVER_S), nearest, falls)
+
+
 def _events(
     recording: Recording,
     valve_min_dwell_s: float,
     switch_min_dwell_s: float,
     release: frozenset[str] = frozenset(),
+    first_firing: frozenset[str] | None = None,
 ) -> _Events:
-    valves, e, period, end_s = _valve_edges(recording, valve_min_dwell_s)
+    valves, e, period, end_s = _valve_edges(
+        recording, valve_min_dwell_s, first_firing, switch_min_dwell_s
+    )
     names = [*valves, *(v + RELEASE for v in valves)]
     all_t: list[FloatArray] = []
     all_id: list[IntArray] = []
@@ -189,7 +278,7 @@ def _events(
         all_t.append(e[name][0])
         all_id.append(np.full(e[name][0].size, i, dtype=np.int64))
         if name in release:
-            all_t.append(e[name][1])
+            all_t.append(_changeover(name, e[name][1], e, period))
             all_id.append(np.full(e[name][1].size, len(valves) + i, dtype=np.int64))
     t = np.concatenate(all_t)
     ids = np.concatenate(all_id)

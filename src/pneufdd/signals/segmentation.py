@@ -293,7 +293,8 @@ def segment(
     used = set().union(*(s.valves for s in specs))
     recording.require(sorted({v.removesuffix(RELEASE) for v in used}), "the machine's sequence")
     release = frozenset(v.removesuffix(RELEASE) for v in used if v.endswith(RELEASE))
-    ev = _events(recording, valve_min_dwell_s, switch_min_dwell_s, release)
+    first = frozenset(v for v in specs[0].valves if not v.endswith(RELEASE))
+    ev = _events(recording, valve_min_dwell_s, switch_min_dwell_s, release, first)
     specs = tuple(
         s if s.switches else replace(s, switches=_convention_switches(s.valves, ev.switch_rise))
         for s in specs

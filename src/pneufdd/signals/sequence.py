@@ -312,7 +312,11 @@ def learn_sequence(
     -------
     tuple of StepSpec
     """
-    released = held_valves(reference, valve_min_dwell_s) if release is None else frozenset(release)
+    released = (
+        held_valves(reference, valve_min_dwell_s, switch_min_dwell_s)
+        if release is None
+        else frozenset(release)
+    )
     ev = _events(reference, valve_min_dwell_s, switch_min_dwell_s, released)
     table: dict[frozenset[str], int] = {}
     codes = np.array([table.setdefault(s, len(table)) for s in ev.signatures], dtype=np.int64)

@@ -93,6 +93,11 @@ class DetectionSettings:
         correlation of the reference's held-out statistics within a recording
         (:class:`~pneufdd.diagnosis.detection.statistic.CycleDistanceDetector`). References saved
         before this setting existed read ``False``.
+    channel_quanta : tuple of (str, float)
+        Converter step of each quantised channel of the reference's recordings
+        (:mod:`pneufdd.signals.quantisation`) [channel unit]: the spread of every
+        feature and template sample of the channel is never below it. Empty when no
+        channel is quantised (and for references saved before it existed).
     """
 
     n_nuisance: int = 2
@@ -102,6 +107,7 @@ class DetectionSettings:
     startup_cycles: int = 1
     run_statistic: str = "median"
     run_correlation: bool = True
+    channel_quanta: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         if self.run_statistic not in RUN_STATISTICS:
@@ -123,7 +129,7 @@ class DetectionSettings:
             "startup_cycles": self.startup_cycles,
             "run_statistic": self.run_statistic,
             "run_correlation": self.run_correlation,
-        }
+        } | ({"channel_quanta": dict(self.channel_quanta)} if self.channel_quanta else {})
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> DetectionSettings:
@@ -136,7 +142,14 @@ class DetectionSettings:
             startup_cycles=int(data.get("startup_cycles", 0)),
             run_statistic=str(data.get("run_statistic", "mean")),
             run_correlation=bool(data.get("run_correlation", False)),
+            channel_quanta=tuple(
+                (str(k), float(v)) for k, v in dict(data.get("channel_quanta", {})).items()
+            ),
         )
+
+    def quantum(self, channel: str) -> float:
+        """Converter step of ``channel``, 0.0 when it is not quantised [channel unit]."""
+        return dict(self.channel_quanta).get(channel, 0.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -382,7 +395,12 @@ class ReferenceModel:
     @cached_property
     def detector(self) -> CycleDistanceDetector:
         """The per-cycle statistic fitted on the reference cycles (deterministic)."""
-        floor = np.array([feature_floor(u) for u in self.feature_units])
+        floor = np.array(
+            [
+                max(feature_floor(u), self.settings.quantum(name.split(".")[0]))
+                for name, u in zip(self.feature_names, self.feature_units, strict=True)
+            ]
+        )
         return CycleDistanceDetector(
             n_nuisance=self.settings.n_nuisance,
             false_alarm_rate=self.settings.false_alarm_rate,
@@ -395,7 +413,12 @@ class ReferenceModel:
         """The band detector of eq. 5.21 over all channels, or over one channel."""
         if self.band_mean is None or self.band_std is None:
             return None
-        floor = np.array([feature_floor(u) for u in self.units])[:, None]
+        floor = np.array(
+            [
+                max(feature_floor(u), self.settings.quantum(c))
+                for c, u in zip(self.channels, self.units, strict=True)
+            ]
+        )[:, None]
         floored = np.maximum(self.band_std, floor)
         if channel is None:
             mean, std = self.band_mean.ravel(), floored.ravel()
