@@ -21,9 +21,9 @@ from pneufdd.errors import InputError, describe
 from pneufdd.files import write_text_atomic
 
 if TYPE_CHECKING:
+    from rich.console import Console
     from rich.table import Table
 
-if TYPE_CHECKING:
     from pneufdd.diagnosis.cost import CostSettings
     from pneufdd.diagnosis.findings import Diagnosis
     from pneufdd.diagnosis.localisation.search import LocalisationSettings
@@ -156,11 +156,9 @@ def diagnose(
     from dataclasses import replace
 
     from rich.console import Console
-    from rich.markup import escape
 
     from pneufdd.diagnosis.cost import CostSettings
     from pneufdd.diagnosis.reference.file import load_reference
-    from pneufdd.physics.units import kg_s_to_slpm
 
     inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}
     inputs.update({"RUN" if len(runs) == 1 else f"RUN {i + 1}": p for i, p in enumerate(runs)})
@@ -197,6 +195,17 @@ def diagnose(
         outputs.append((report, render_report(model, table, result, run_name=str(run))))
     for path, text in outputs:
         write_text_atomic(path, text)
+    _print_result(console, run, result)
+    if result.detected:
+        raise typer.Exit(ExitCode.LEAK_FOUND)
+
+
+def _print_result(console: Console, run: Path, result: Diagnosis) -> None:
+    """The verdict, data gaps, leak table, supply check and notes of one diagnosis."""
+    from rich.markup import escape
+
+    from pneufdd.physics.units import kg_s_to_slpm
+
     verdict = "[bold red]leak detected[/]" if result.detected else "[bold green]no leak[/]"
     console.print(
         f"{escape(str(run))}: {verdict} ({result.cycles_analyzed} cycles"
@@ -228,8 +237,6 @@ def diagnose(
         )
     for note in result.notes:
         console.print(f"note: {note}", highlight=False, markup=False)
-    if result.detected:
-        raise typer.Exit(ExitCode.LEAK_FOUND)
 
 
 def _diagnosed(

@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import InputError, describe
+
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from pneufdd.sim.description import MachineDescription
+    from pneufdd.sim.schedule import LeakSchedule
 
 __all__ = ["MAX_CYCLES", "parse_leak_option", "register"]
 
@@ -122,19 +129,10 @@ def simulate_command(
     """Simulate a machine with optional leaks and write the recording to OUT."""
     from rich.console import Console
     from rich.markup import escape
-    from rich.progress import (
-        BarColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
 
     from pneufdd.cli.captures import CaptureOptions, simulate_continuous, write_field_recordings
     from pneufdd.cli.simulate_export import check_export, write_export
     from pneufdd.sim import load_machine
-    from pneufdd.sim.leaks import resolve_leaks
-    from pneufdd.sim.schedule import schedule_from_options
 
     field = CaptureOptions(
         capture, files, cycles_per_file, pre_trigger_s, capture_s, start_in_step, quantize or []
@@ -146,34 +144,11 @@ def simulate_command(
     if not field.triggered:
         check_outputs({"--out": out}, {"--machine": machine}, overwrite)
         check_export(export_format, out, export_map, overwrite)
-    if cycles > MAX_CYCLES:
-        raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
-    if not 0.0 < max_cycle_s <= 3600.0:  # also refuses nan
-        raise InputError(describe("--max-cycle-s", max_cycle_s, "> 0 and <= 3600 [s]"))
+    _check_run_options(cycles, max_cycle_s)
     desc = load_machine(machine)
-    leaks: dict[str, str] = {}
-    timed = [item for item in leak or [] if "@" in item]
-    for item in leak or []:
-        if "@" in item:
-            continue
-        location, size = parse_leak_option(item)
-        if location in leaks:
-            raise InputError(describe("--leak location given twice", location, "once"))
-        leaks[location] = size
-    specs = resolve_leaks(desc, leaks)  # unknown locations and bad sizes fail before the run
-    schedule = schedule_from_options(timed, leak_growth or [], leak_repair or [])
-    if schedule is not None:
-        schedule.check(desc, specs)
+    leaks, schedule = _leak_options(desc, leak or [], leak_growth or [], leak_repair or [])
     err = Console(stderr=True)
-    with Progress(
-        TextColumn("simulating {task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total} cycles"),
-        TimeElapsedColumn(),
-        TextColumn("left"),
-        TimeRemainingColumn(),
-        console=err,
-    ) as bar:
+    with _cycle_bar(err) as bar:
         task = bar.add_task(escape(desc.name), total=cycles)  # a name is plain text
         if field.triggered:
             paths = write_field_recordings(
@@ -208,6 +183,61 @@ def simulate_command(
         f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)",
         markup=False,
     )
+
+
+def _check_run_options(cycles: int, max_cycle_s: float) -> None:
+    """Refuse a run length or a stall limit outside the documented bounds."""
+    if cycles > MAX_CYCLES:
+        raise InputError(describe("--cycles", cycles, f"1 to {MAX_CYCLES:,}"))
+    if not 0.0 < max_cycle_s <= 3600.0:  # also refuses nan
+        raise InputError(describe("--max-cycle-s", max_cycle_s, "> 0 and <= 3600 [s]"))
+
+
+def _cycle_bar(console: Console) -> Progress:
+    """The progress bar of a simulation: cycles done, time elapsed and left."""
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    return Progress(
+        TextColumn("simulating {task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} cycles"),
+        TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+        console=console,
+    )
+
+
+def _leak_options(
+    desc: MachineDescription, leak: list[str], growth: list[str], repair: list[str]
+) -> tuple[dict[str, str], LeakSchedule | None]:
+    """The constant leaks and the leak schedule of the ``--leak``/growth/repair options.
+
+    Unknown locations and bad sizes are refused before any simulation.
+    """
+    from pneufdd.sim.leaks import resolve_leaks
+    from pneufdd.sim.schedule import schedule_from_options
+
+    leaks: dict[str, str] = {}
+    timed = [item for item in leak if "@" in item]
+    for item in leak:
+        if "@" in item:
+            continue
+        location, size = parse_leak_option(item)
+        if location in leaks:
+            raise InputError(describe("--leak location given twice", location, "once"))
+        leaks[location] = size
+    specs = resolve_leaks(desc, leaks)
+    schedule = schedule_from_options(timed, growth, repair)
+    if schedule is not None:
+        schedule.check(desc, specs)
+    return leaks, schedule
 
 
 def machines_command() -> None:
