@@ -273,6 +273,11 @@ class HistoryDatabase:
         with self.engine.begin() as conn:
             if conn.dialect.name == "postgresql":
                 conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": SCHEMA_LOCK})
+            elif conn.dialect.name == "sqlite":
+                # take the write lock before reading the version: two deferred
+                # transactions that both read and then write deadlock, and SQLite answers
+                # one of them "database is locked" at once instead of waiting its timeout
+                conn.exec_driver_sql("BEGIN IMMEDIATE")
             version = _stored_version(conn)
             if version > SCHEMA_VERSION:
                 raise InputError(
@@ -646,12 +651,12 @@ def _engine(url: str) -> Engine:
     if backend == "postgresql" and parsed.drivername == "postgresql":
         parsed = parsed.set(drivername="postgresql+psycopg")
     if backend == "sqlite":
-        engine = sa.create_engine(parsed, connect_args={"timeout": 30})
+        engine = sa.create_engine(parsed, connect_args={"timeout": SQLITE_TIMEOUT_S})
 
         @sa.event.listens_for(engine, "connect")
         def _pragmas(dbapi_conn: Any, _record: Any) -> None:
             cursor = dbapi_conn.cursor()
-            cursor.execute("PRAGMA journal_mode=WAL")
+            _write_ahead_log(cursor)
             cursor.execute("PRAGMA synchronous=NORMAL")
             cursor.execute("PRAGMA foreign_keys=ON")
             cursor.close()
@@ -663,6 +668,31 @@ def _engine(url: str) -> Engine:
         raise InputError(
             describe("PostgreSQL driver", "missing", "pip install 'pneufdd[postgresql]'")
         ) from exc
+
+
+SQLITE_TIMEOUT_S = 30.0
+"""How long a SQLite connection waits for another writer's lock [s]."""
+
+
+def _write_ahead_log(cursor: Any) -> None:
+    """Put a SQLite database in WAL mode, waiting for another process doing the same.
+
+    Switching a new database's journal takes its exclusive lock, and SQLite answers a
+    second process switching at the same moment "database is locked" at once instead
+    of waiting its busy timeout; that process tries again until the timeout.
+    """
+    import sqlite3
+    import time
+
+    deadline = time.monotonic() + SQLITE_TIMEOUT_S
+    while True:
+        try:
+            cursor.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
 
 
 def sqlite_path(url: str) -> Path | None:
