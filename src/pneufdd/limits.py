@@ -124,7 +124,12 @@ def check_count(what: str, value: int, limit: int, low: int = 0) -> int:
     return value
 
 
-def check_memory(what: str, estimate_bytes: float, budget: int = MEMORY_BUDGET_BYTES) -> None:
+def check_memory(
+    what: str,
+    estimate_bytes: float,
+    budget: int = MEMORY_BUDGET_BYTES,
+    error: type[InputError] = InputError,
+) -> None:
     """Refuse work whose estimated memory exceeds ``budget``, before allocating it.
 
     >>> check_memory("--cycles 10", 1e6)
@@ -135,7 +140,7 @@ def check_memory(what: str, estimate_bytes: float, budget: int = MEMORY_BUDGET_B
     """
     if not math.isfinite(estimate_bytes) or estimate_bytes > budget:
         shown = f"{estimate_bytes / 1e9:.1f} GB" if math.isfinite(estimate_bytes) else "unbounded"
-        raise InputError(
+        raise error(
             f"{what}: needs about {shown} of memory; allowed: at most "
             f"{budget / 1e9:.1f} GB (docs/limits.md)"
         )
