@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from pneufdd.errors import ChannelError, FileFormatError, InputError, UnitError, describe
+from pneufdd.limits import MAX_RATE_HZ, read_text_capped
 from pneufdd.physics.units import UNITS
 from pneufdd.recording._files import check_input_file, file_label
 from pneufdd.recording.model import DIGITAL, Channel, Recording
@@ -172,7 +173,7 @@ def _unit(source: str, column: str, role: str, entry: Mapping[str, Any]) -> str:
         allowed = sorted(k for k, s in UNITS.items() if s.quantity == quantity)
         raise UnitError(describe(f"{where}.unit (role {role}, a {quantity})", unit, allowed))
     if quantity == "mass flow":
-        if basis is not None and basis not in FLOW_BASES:
+        if basis is not None and (not isinstance(basis, str) or basis not in FLOW_BASES):
             raise UnitError(describe(f"{where}.basis", basis, sorted(FLOW_BASES)))
         if unit in _LITRES_PER_MINUTE:
             if basis is None:
@@ -215,9 +216,11 @@ def _grid_rate(where: str, entry: Mapping[str, Any]) -> float | None:
     if (
         isinstance(rate, bool)
         or not isinstance(rate, int | float)
-        or not (math.isfinite(rate) and rate > 0)
+        or not (math.isfinite(rate) and 0.1 <= rate <= MAX_RATE_HZ)
     ):
-        raise InputError(describe(f"{where}.rate_hz", rate, "a grid rate > 0 [Hz]"))
+        raise InputError(
+            describe(f"{where}.rate_hz", rate, f"a grid rate from 0.1 to {MAX_RATE_HZ:g} Hz")
+        )
     return float(rate)
 
 
@@ -227,9 +230,9 @@ def _live_options(data: Mapping[str, Any], source: str) -> tuple[float, str | No
     if (
         isinstance(lateness, bool)
         or not isinstance(lateness, int | float)
-        or not (math.isfinite(lateness) and lateness >= 0)
+        or not (math.isfinite(lateness) and 0 <= lateness <= 3600)
     ):
-        raise InputError(describe(f"{source}: lateness_s", lateness, "a number >= 0 [s]"))
+        raise InputError(describe(f"{source}: lateness_s", lateness, "0 to 3600 [s]"))
     end = data.get("end")
     if end is not None and not isinstance(end, str):
         raise InputError(describe(f"{source}: end", end, "the node id of a boolean tag"))
@@ -319,7 +322,7 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
         if extra:
             raise InputError(describe(f"{where}: unknown key", extra[0], list(_COLUMN_KEYS)))
         role = entry.get("role")
-        if not isinstance(role, str) or not ROLE_PATTERN.match(role):
+        if not isinstance(role, str) or not ROLE_PATTERN.fullmatch(role):
             raise InputError(
                 describe(
                     f"{where}.role",
@@ -354,9 +357,13 @@ def parse_tag_map(data: Mapping[str, Any], source: str = "<map>", *, live: bool 
         raise InputError(describe(f"{source}: ignore", ignore, "a list of column names"))
     rate = data.get("rate_hz")
     if rate is not None and (
-        isinstance(rate, bool) or not isinstance(rate, int | float) or not rate >= MIN_RATE_HZ
+        isinstance(rate, bool)
+        or not isinstance(rate, int | float)
+        or not MIN_RATE_HZ <= rate <= MAX_RATE_HZ
     ):
-        raise InputError(describe(f"{source}: rate_hz", rate, f"a number >= {MIN_RATE_HZ:g} Hz"))
+        raise InputError(
+            describe(f"{source}: rate_hz", rate, f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g} Hz")
+        )
     dialect = {}
     for key, default in (("delimiter", ","), ("decimal", ".")):
         value = data.get(key, default)
@@ -387,8 +394,9 @@ def load_tag_map(path: str | Path, *, live: bool = False) -> TagMap:
     if live and path.is_file() and path.stat().st_size == 0:
         return parse_tag_map({}, path.name, live=True)
     path = check_input_file(path, "a tag map (.toml)")
+    text = read_text_capped(path, "tag map")  # a regular file of at most 1 MiB
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"{file_label(path)} is not valid TOML ({exc})") from exc
     except RecursionError as exc:
