@@ -92,8 +92,9 @@ MAX_ARL0 = 1e9
 MAX_HOURS_PER_YEAR = 8784.0
 """Most operating hours in a year (a leap year, around the clock) [h]."""
 
-MAX_TEXT_FILE_BYTES = 1 << 20
-"""Largest tag map or settings file read [bytes] (1 MiB; real ones are a few kB)."""
+MAX_TEXT_FILE_BYTES = 4 << 20
+"""Largest tag map or settings file read [bytes] (4 MiB, as machine files; real ones
+are a few kB, one ignoring 100,000 columns about 1.1 MB)."""
 
 MAX_JSON_DEPTH = 64
 """Deepest nesting of objects and arrays in JSON read from a file (Parquet metadata,

@@ -394,7 +394,7 @@ def load_tag_map(path: str | Path, *, live: bool = False) -> TagMap:
     if live and path.is_file() and path.stat().st_size == 0:
         return parse_tag_map({}, path.name, live=True)
     path = check_input_file(path, "a tag map (.toml)")
-    text = read_text_capped(path, "tag map")  # a regular file of at most 1 MiB
+    text = read_text_capped(path, "tag map")  # a regular file of at most 4 MiB
     try:
         data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
@@ -422,12 +422,13 @@ def _check_unmapped(label: str, tag_map: TagMap, present: list[str]) -> None:
 def _check_rates(label: str, tag_map: TagMap, recording: Recording) -> None:
     for name in recording.channels:
         rate = recording.rate(name)
-        if rate < MIN_RATE_HZ:
+        if not MIN_RATE_HZ <= rate <= MAX_RATE_HZ:  # the rates every command accepts
             raise InputError(
                 describe(
                     f"{label}: sample rate of channel {name!r}",
                     f"{rate:g} Hz",
-                    f">= {MIN_RATE_HZ:g} Hz (steps are timed to tens of ms)",
+                    f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g} Hz (steps are timed to tens of ms; "
+                    "docs/limits.md)",
                 )
             )
         if tag_map.rate_hz is not None and abs(rate - tag_map.rate_hz) > 1e-3 * tag_map.rate_hz:
@@ -513,7 +514,8 @@ def read_mapped(path: str | Path, tag_map: TagMap) -> Recording:
                 )
             )
         header = _csv_header(path, tag_map)
-        missing = [c.column for c in tag_map.columns if c.column not in header]
+        present = set(header)
+        missing = [c.column for c in tag_map.columns if c.column not in present]
         if missing:
             raise ChannelError(
                 describe(f"{label}: column(s) of the tag map not in the file", missing, header)
