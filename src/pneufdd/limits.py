@@ -37,6 +37,8 @@ __all__ = [
     "MAX_MESSAGE_CHARS",
     "MAX_RATE_HZ",
     "MAX_REFERENCE_CYCLES",
+    "MAX_REPLAY_CHUNK_S",
+    "MAX_REPLAY_SPEED",
     "MAX_RUN_CYCLES",
     "MAX_SIGNATURE_CYCLES",
     "MAX_STEPS",
@@ -44,6 +46,7 @@ __all__ = [
     "MAX_UNCERTAINTY_PLANTS",
     "MEMORY_BUDGET_BYTES",
     "MIN_REPLAY_CHUNK_S",
+    "MIN_REPLAY_SPEED",
     "check_count",
     "check_json_depth",
     "check_memory",
@@ -84,7 +87,16 @@ MAX_RATE_HZ = 10e6
 """Fastest plausible sample rate of any channel [Hz]; ``import`` refuses faster too."""
 
 MIN_REPLAY_CHUNK_S = 1e-3
-"""Shortest chunk a replayed source delivers (``replay:...?chunk=``) [s]."""
+"""Shortest block a replayed source delivers (``replay:...?chunk=``) [s]."""
+
+MAX_REPLAY_CHUNK_S = 3600.0
+"""Longest block a replayed source delivers [s]."""
+
+MIN_REPLAY_SPEED = 0.1
+"""Slowest replay (``replay:...?speed=``): a tenth of real time [-]."""
+
+MAX_REPLAY_SPEED = 1e6
+"""Fastest replay given as a number (``speed=max`` reads as fast as it can) [-]."""
 
 MAX_ARL0 = 1e9
 """Largest in-control average run length of the monitor's alarm (``--arl0``) [cycles]."""

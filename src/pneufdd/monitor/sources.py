@@ -70,6 +70,12 @@ from typing import Any
 import numpy as np
 
 from pneufdd.errors import InputError, describe
+from pneufdd.limits import (
+    MAX_REPLAY_CHUNK_S,
+    MAX_REPLAY_SPEED,
+    MIN_REPLAY_CHUNK_S,
+    MIN_REPLAY_SPEED,
+)
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.physics.units import UNITS, to_si
 from pneufdd.recording.model import Recording
@@ -181,10 +187,23 @@ class ReplaySource:
     lateness_s: float = 0.0
 
     def __post_init__(self) -> None:
-        if not self.speed > 0:
-            raise InputError(describe("replay speed", self.speed, "> 0 or 'max'"))
-        if not self.chunk_s > 0:
-            raise InputError(describe("replay chunk [s]", self.chunk_s, "> 0"))
+        if not (self.speed == math.inf or MIN_REPLAY_SPEED <= self.speed <= MAX_REPLAY_SPEED):
+            raise InputError(
+                describe(
+                    "replay speed (replay:...?speed=)",
+                    self.speed,
+                    f"{MIN_REPLAY_SPEED:g} to {MAX_REPLAY_SPEED:g} times real time, or 'max' "
+                    "(docs/limits.md)",
+                )
+            )
+        if not MIN_REPLAY_CHUNK_S <= self.chunk_s <= MAX_REPLAY_CHUNK_S:
+            raise InputError(
+                describe(
+                    "replay chunk [s] (replay:...?chunk=)",
+                    self.chunk_s,
+                    f"{MIN_REPLAY_CHUNK_S:g} to {MAX_REPLAY_CHUNK_S:g} s (docs/limits.md)",
+                )
+            )
         self.rates_hz = {c: self.recording.rate(c) for c in self.recording.channels}
 
     def __iter__(self) -> Iterator[SampleBatch | None]:
