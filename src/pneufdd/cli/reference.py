@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from pneufdd import limits
+import pneufdd.limits as limits
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption
 from pneufdd.errors import InputError, describe

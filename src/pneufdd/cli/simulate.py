@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from pneufdd import limits
+import pneufdd.limits as limits
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import InputError, describe
 

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from pneufdd import limits
+import pneufdd.limits as limits
 from pneufdd.array_types import BoolArray, FloatArray, IntArray
 from pneufdd.errors import ChannelError, NoCompleteCycleError, UnitError, describe
 from pneufdd.recording.model import Recording
