@@ -178,14 +178,11 @@ def _read_table(path: Path, columns: list[str], dialect: dict[str, str]) -> pd.D
     # export (thousands of ignored columns) has its rows' widths checked in one pass
     # of the csv module instead, and only the wanted columns parsed: linear in the
     # number of columns (issue 39: 100,000 ignored columns took 93 s).
-    wide = _row_widths_checked(path, dialect, label)
+    parse: dict[str, Any] = {**options, "dtype": dict.fromkeys(columns, np.float64)}
+    if _row_widths_checked(path, dialect, label):
+        parse["usecols"] = columns
     try:
-        frame: pd.DataFrame = pd.read_csv(
-            path,
-            dtype=dict.fromkeys(columns, np.float64),
-            **({"usecols": columns} if wide else {}),
-            **options,
-        )[columns]
+        frame: pd.DataFrame = pd.read_csv(path, **parse)[columns]
     except pd.errors.ParserError as exc:  # before ValueError: it is one
         raise FileFormatError(f"{label} is not valid CSV ({exc})") from exc
     except ValueError:
