@@ -204,12 +204,17 @@ MAX_DEFLATE_RATIO = 1032
 """Largest expansion of deflate (zlib's documented limit is 1032:1)."""
 
 
+REFERENCE_LOAD_FACTOR = 4
+"""Working memory per byte of a reference's arrays while it is loaded and used."""
+
+
 def _check_entries(handle: Any, source: Path) -> None:
     """Refuse entries whose declared dtype or shape the archive cannot hold."""
     try:
         archive = zipfile.ZipFile(handle)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
         raise _bad(source, "not readable", type(exc).__name__, "a .pnref (NPZ) file") from exc
+    total = 0
     with archive:
         for info in archive.infolist():
             if not info.filename.endswith(".npy"):
@@ -236,6 +241,12 @@ def _check_entries(handle: Any, source: Path) -> None:
                     f"{shape} ({declared:,} bytes)",
                     f"what the file holds ({info.file_size:,} bytes uncompressed)",
                 )
+            total += declared
+    check_memory(  # deflate packs 1032:1: a 7.8 MB file may declare 8 GB of zeros
+        f"reference file {str(source)!r}: its arrays ({total:,} bytes uncompressed)",
+        REFERENCE_LOAD_FACTOR * total,
+        error=FileFormatError,
+    )
 
 
 def _header_fields(header: dict[str, Any], source: Path) -> None:
