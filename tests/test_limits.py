@@ -44,6 +44,12 @@ def base(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return fuzzing.make_base(tmp_path_factory.mktemp("limits-base"), full=False)
 
 
+@pytest.fixture(scope="module")
+def diagnose_cases(base, tmp_path_factory: pytest.TempPathFactory) -> dict[str, fuzzing.Case]:
+    folder = tmp_path_factory.mktemp("limits-diagnose")
+    return {c.name: c for c in fuzzing_bounds._cases_diagnose(base, folder, full=True)}
+
+
 # ------------------------------------------------------------- the module
 
 
@@ -141,13 +147,14 @@ def test_campaign_counts_are_bounded(tmp_path: Path, option: str, value: str, sh
         ("ref_band_eps_nan", ["'band_eps': received nan", "<= 10 standard deviations"]),
         ("ref_n_nuisance_-5", ["'n_nuisance': received -5", "an integer from 0 to 1000"]),
         ("ref_features_1e308", ["values of 'features'", "magnitude <= 1e+12"]),
+        ("ref_band_3e7_samples", ["its arrays (", "bytes uncompressed): needs about",
+                                  "allowed: at most 1.6 GB"]),
     ],
 )  # fmt: skip
 def test_pnref_headers_settings_and_values_are_validated(
-    base, tmp_path: Path, name: str, words: list[str]
+    diagnose_cases, name: str, words: list[str]
 ) -> None:
-    cases = {c.name: c for c in fuzzing_bounds._cases_diagnose(base, tmp_path, full=True)}
-    case = cases[f"diagnose/{name}"]
+    case = diagnose_cases[f"diagnose/{name}"]
     code, text = run(case.argv, case.folder)
     assert code == 2
     assert f"reference file '{name}.pnref'" in text
