@@ -177,6 +177,8 @@ def _cases_diagnose(base: dict[str, Path], root: Path, full: bool) -> list[Case]
         ("--hours", "nan"),
         ("--price", "1e308"),
         ("--kw-per-100cfm", "inf"),
+        ("--threads", "100000000"),
+        ("--workers", "100000000"),
     ):
         cases.append(
             Case(f"diagnose/cost{option}_{value}", "diagnose",

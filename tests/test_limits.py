@@ -297,6 +297,12 @@ def test_cost_settings_are_bounded(base, tmp_path: Path) -> None:
         ("--hours", "1e308", "hours (--hours): received 1e+308; allowed: 0 to 8784"),
         ("--price", "inf", "price_per_kwh (--price): received inf; allowed: 0 to 100"),
         ("--kw-per-100cfm", "1e9", "kw_per_100_cfm (--kw-per-100cfm): received 1000000000.0"),
+        (
+            "--threads",
+            "100000000",
+            "--threads: received 100000000; allowed: an integer from 1 to 1,024",
+        ),
+        ("--workers", "100000000", "--workers: received 100000000"),
     ):
         code, text = run(["diagnose", base["run"], "--reference", base["pnref"],
                           "--no-simulate", option, value], tmp_path)  # fmt: skip

@@ -44,6 +44,7 @@ __all__ = [
     "MAX_STEPS",
     "MAX_TEXT_FILE_BYTES",
     "MAX_UNCERTAINTY_PLANTS",
+    "MAX_WORKERS",
     "MEMORY_BUDGET_BYTES",
     "MIN_REPLAY_CHUNK_S",
     "MIN_REPLAY_SPEED",
@@ -76,6 +77,9 @@ MAX_CAMPAIGN_COUNT = 10_000
 
 MAX_REFERENCE_CYCLES = 1_000_000
 """Most reference cycles a ``.pnref`` file may declare (``n_cycles``)."""
+
+MAX_WORKERS = 1_024
+"""Most processes or threads one command may start (``--workers``, ``--threads``)."""
 
 MAX_ACTUATORS = 64
 """Most actuators a machine description may have (the largest built-in has 9)."""

@@ -137,6 +137,7 @@ def diagnose(
     from pneufdd.diagnosis.cost import CostSettings
     from pneufdd.diagnosis.recordings import diagnose_recording
     from pneufdd.diagnosis.reference.file import load_reference
+    from pneufdd.limits import MAX_WORKERS, check_count
     from pneufdd.physics.units import kg_s_to_slpm
 
     inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}
@@ -144,6 +145,9 @@ def diagnose(
     check_outputs({"--json": json_out, "--report": report}, inputs, overwrite=overwrite)
     if max_leaks is not None and max_leaks not in (1, 2):
         raise InputError(describe("--max-leaks", max_leaks, [1, 2]))
+    for option, count in (("--workers", workers), ("--threads", threads)):
+        if count is not None:
+            check_count(option, count, MAX_WORKERS, low=1)
     console = Console()
     settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
     from pneufdd.cli.diagnose_batch import is_batch, run_batch
