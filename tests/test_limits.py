@@ -333,3 +333,18 @@ def test_detection_settings_are_validated_in_python_too() -> None:
     assert DetectionSettings().to_dict()["false_alarm_rate"] == 0.001
     assert json.loads(json.dumps(DetectionSettings().to_dict()))["n_nuisance"] == 2
     assert np.isfinite(DetectionSettings().band_eps)
+
+
+def test_mqtt_payloads_are_bounded() -> None:
+    from pneufdd.monitor.sources import parse_payload
+
+    with pytest.raises(FileFormatError, match=r"MQTT payload: nesting .* at most 64 levels"):
+        parse_payload("[" * 100_000 + "]" * 100_000)
+    slow = '{"channels": {"P_In": {"t0": 0, "rate_hz": 1e-300, "values": [1, 2]}}}'
+    with pytest.raises(InputError, match=r"rate_hz: received \(0.0, 1e-300\).*0.1 to 1e\+07 Hz"):
+        parse_payload(slow)
+    ragged = '{"channels": {"P_In": {"t0": 0, "rate_hz": 10, "values": [[1], [2, 3]]}}}'
+    with pytest.raises(InputError, match="MQTT payload channel 'P_In'.*allowed: numbers"):
+        parse_payload(ragged)
+    with pytest.raises(InputError, match=r"MQTT payload size \[bytes\]"):
+        parse_payload(b" " * (limits.MAX_PAYLOAD_BYTES + 1))

@@ -35,6 +35,7 @@ __all__ = [
     "MAX_HOURS_PER_YEAR",
     "MAX_JSON_DEPTH",
     "MAX_MESSAGE_CHARS",
+    "MAX_PAYLOAD_BYTES",
     "MAX_RATE_HZ",
     "MAX_REFERENCE_CYCLES",
     "MAX_REPLAY_CHUNK_S",
@@ -111,6 +112,9 @@ MAX_HOURS_PER_YEAR = 8784.0
 MAX_TEXT_FILE_BYTES = 4 << 20
 """Largest tag map or settings file read [bytes] (4 MiB, as machine files; real ones
 are a few kB, one ignoring 100,000 columns about 1.1 MB)."""
+
+MAX_PAYLOAD_BYTES = 64 << 20
+"""Largest MQTT payload a live monitor parses [bytes] (64 MiB: minutes of every channel)."""
 
 MAX_JSON_DEPTH = 64
 """Deepest nesting of objects and arrays in JSON read from a file (Parquet metadata,
