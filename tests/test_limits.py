@@ -344,7 +344,7 @@ def test_mqtt_payloads_are_bounded() -> None:
     with pytest.raises(InputError, match=r"rate_hz: received \(0.0, 1e-300\).*0.1 to 1e\+07 Hz"):
         parse_payload(slow)
     ragged = '{"channels": {"P_In": {"t0": 0, "rate_hz": 10, "values": [[1], [2, 3]]}}}'
-    with pytest.raises(InputError, match="MQTT payload channel 'P_In'.*allowed: numbers"):
+    with pytest.raises(InputError, match=r"MQTT payload channel 'P_In'.*allowed: numbers"):
         parse_payload(ragged)
     with pytest.raises(InputError, match=r"MQTT payload size \[bytes\]"):
         parse_payload(b" " * (limits.MAX_PAYLOAD_BYTES + 1))
