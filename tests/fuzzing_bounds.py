@@ -119,6 +119,19 @@ def _first_actuator_set(text: str, key: str, value: str) -> bytes:
     return (text[:start] + new + text[start + len(block) :]).encode()
 
 
+def _first_sensor_set(text: str, key: str, value: str) -> bytes:
+    """The machine with ``key = value`` in its first ``[[sensor]]`` (replaced or added)."""
+    start = text.index("[[sensor]]")
+    end = text.find("\n[[", start + 5)
+    block = text[start : end if end > 0 else len(text)]
+    line = re.compile(rf"^{re.escape(key)} = (\[[^\]]*\]|.*)$", re.M)  # arrays span lines
+    if line.search(block):
+        new = line.sub(f"{key} = {value}", block, count=1)
+    else:
+        new = block.replace("[[sensor]]\n", f"[[sensor]]\n{key} = {value}\n", 1)
+    return (text[:start] + new + text[start + len(block) :]).encode()
+
+
 def _many_actuators(text: str, size: int) -> bytes:
     """The machine with copies of its first actuator appended up to ``size`` bytes."""
     start = text.index("[[actuator]]")
@@ -343,6 +356,8 @@ def _cases_counts(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         ("friction_1e308", _first_actuator_set(text, "static_friction_n", "1e308"),
          ("static_friction_n",)),
         ("actuators_3_5mb", _many_actuators(text, 3_500_000), ("actuator",)),
+        ("sensor_range_inf", _first_sensor_set(text, "range", "[0.0, inf]"), ("range",)),
+        ("sensor_noise_1e308", _first_sensor_set(text, "noise", "1e308"), ("noise",)),
     ]  # fmt: skip
     for name, content, words in machines:
         toml = _put(folder, f"{name}.toml", content)

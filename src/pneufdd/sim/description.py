@@ -48,6 +48,8 @@ MIN_CV = 1e-4
 valve nearly shut); a smaller one would divide by zero in eq. 3.8 (issue 39)."""
 MAX_SENSORS = 4 * MAX_ACTUATORS + 8
 """Most sensors of a description: every line's pressure and flow, and the supply's."""
+MAX_SENSOR_RANGE = 1e6
+"""Largest magnitude of a sensor's range, in its unit (bar(g), SLPM or mm)."""
 MIN_XT = 0.05
 """Smallest pressure-drop ratio factor xT (ISA-75.01; valves have 0.2 to 0.9)."""
 """Highest regulated supply pressure a description may ask for: 10 bar(g) [psig].
@@ -457,9 +459,13 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
         not isinstance(rng, list)
         or len(rng) != 2
         or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in rng)
-        or not rng[0] < rng[1]
+        or not -MAX_SENSOR_RANGE <= rng[0] < rng[1] <= MAX_SENSOR_RANGE  # also nan, inf
     ):
-        raise r.fail("range", rng, "[low, high] with low < high")
+        raise r.fail(
+            "range",
+            rng,
+            f"[low, high] with -{MAX_SENSOR_RANGE:g} <= low < high <= {MAX_SENSOR_RANGE:g}",
+        )
     span = float(rng[1]) - float(rng[0])
     s = Sensor(
         channel=channel,
@@ -467,7 +473,7 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
         location=location,
         range_low=float(rng[0]),
         range_high=float(rng[1]),
-        noise=r.number("noise", 0.0, low=0.0),
+        noise=r.number("noise", 0.0, low=0.0, high=span),
         bits=int(r.number("bits", 12, low=1, high=24)),
         time_constant_s=r.number("time_constant_s", 0.0, low=0.0, high=10.0),
         direction=r.text("direction", "forward", choices=METER_DIRECTIONS),
