@@ -348,3 +348,14 @@ def test_mqtt_payloads_are_bounded() -> None:
         parse_payload(ragged)
     with pytest.raises(InputError, match=r"MQTT payload size \[bytes\]"):
         parse_payload(b" " * (limits.MAX_PAYLOAD_BYTES + 1))
+
+
+def test_parquet_channel_count_is_bounded_from_the_footer(
+    base, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pneufdd.recording import parquet
+
+    monkeypatch.setattr(parquet, "MAX_CHANNELS", 3)  # the real limit: 10,000 channel rows
+    code, text = run(["steps", base["run"]], tmp_path)
+    assert code == 2
+    assert "number of channels: received 21; allowed: at most 3 (docs/limits.md)" in text

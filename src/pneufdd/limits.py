@@ -31,6 +31,7 @@ __all__ = [
     "MAX_ACTUATORS",
     "MAX_ARL0",
     "MAX_CAMPAIGN_COUNT",
+    "MAX_CHANNELS",
     "MAX_CYCLES",
     "MAX_HOURS_PER_YEAR",
     "MAX_JSON_DEPTH",
@@ -81,6 +82,9 @@ MAX_REFERENCE_CYCLES = 1_000_000
 
 MAX_WORKERS = 1_024
 """Most processes or threads one command may start (``--workers``, ``--threads``)."""
+
+MAX_CHANNELS = 10_000
+"""Most channels a recording file may hold (a machine of 64 actuators has about 400)."""
 
 MAX_ACTUATORS = 64
 """Most actuators a machine description may have (the largest built-in has 9)."""

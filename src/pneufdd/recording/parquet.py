@@ -56,7 +56,7 @@ import numpy.typing as npt
 
 from pneufdd.errors import ChannelError, FileFormatError, InputError, describe
 from pneufdd.files import atomic_target
-from pneufdd.limits import check_json_depth, check_memory
+from pneufdd.limits import MAX_CHANNELS, check_json_depth, check_memory
 from pneufdd.recording._files import FileExistsInputError, check_input_file, file_label
 from pneufdd.recording.model import Channel, Recording
 
@@ -356,6 +356,14 @@ def _check_declared_size(path: Path, metadata: Any) -> None:
     A few kB of zstd can declare 10^8 identical samples; the footer's value counts
     say so before any page is decompressed.
     """
+    if metadata.num_rows > MAX_CHANNELS:  # one row per channel
+        raise FileFormatError(
+            describe(
+                f"{file_label(path)}: number of channels",
+                metadata.num_rows,
+                f"at most {MAX_CHANNELS:,} (docs/limits.md)",
+            )
+        )
     declared = 0
     for group in range(metadata.num_row_groups):
         row_group = metadata.row_group(group)
