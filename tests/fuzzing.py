@@ -1741,12 +1741,17 @@ def build_corpus(
     base: dict[str, Path], root: Path, full: bool = True, commands: Iterable[str] | None = None
 ) -> list[Case]:
     """Every case of the corpus (``full``) or of its quick slice."""
+    import fuzzing_bounds
+
     cases: list[Case] = []
-    for command in commands or discover_commands():
+    chosen = list(commands or discover_commands())
+    for command in chosen:
         builder = BUILDERS.get(command)
         if builder is not None:
             cases.extend(builder(base, root, full))
-    return cases
+    # resource bounds (issue 39): campaign's bounds fail at once, so they are fuzzed too
+    wanted = chosen if commands is not None else [*chosen, "campaign"]
+    return cases + fuzzing_bounds.build_bounds(base, root, full, wanted)
 
 
 # ------------------------------------------------------------------ running

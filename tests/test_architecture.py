@@ -24,7 +24,7 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "pneufdd"
 
-BASE = ("_lazy", "errors", "array_types", "files", "location", "parallel", "progress")
+BASE = ("_lazy", "errors", "array_types", "files", "limits", "location", "parallel", "progress")
 LAYERS: tuple[str, ...] = (
     "physics",
     "recording",

@@ -18,6 +18,7 @@ import pytest
 import typer.main
 
 import fuzzing
+import fuzzing_bounds
 from pneufdd.cli.app import app, main
 
 
@@ -72,6 +73,9 @@ def test_quick_slice_of_the_fuzz_corpus(base, tmp_path) -> None:
         "simulate/cycles_1e6",
         "diagnose/json_is_folder",
     ):
+        assert codes[name] == 2, name
+    # resource bounds and accepted values that crashed (issue 39): each a clean exit 2
+    for name in fuzzing_bounds.QUICK:
         assert codes[name] == 2, name
     # 1 % NaN in short bursts: repaired, and the leak-free run stays leak-free
     assert codes["diagnose/nan_bursts_1pct"] == 0

@@ -60,13 +60,21 @@ class NoCompleteCycleError(InputError):
     """A recording holds no complete machine cycle (truncated, stopped, or too slow)."""
 
 
+MAX_RECEIVED_CHARS = 600
+"""Longest shown form of a received value in a message (``docs/limits.md``)."""
+
+
 def describe(what: str, received: object, allowed: Iterable[object] | str | None = None) -> str:
     """Build a uniform error message: what is wrong, what was received, what is allowed.
 
     >>> describe("unit of channel 'P_In'", "furlong", ["Pa", "bar", "psi"])
     "unit of channel 'P_In': received 'furlong'; allowed: 'Pa', 'bar', 'psi'"
     """
-    message = f"{what}: received {received!r}"
+    shown = repr(received)
+    if len(shown) > MAX_RECEIVED_CHARS:  # a whole file's worth of columns: its start and end
+        half = MAX_RECEIVED_CHARS // 2
+        shown = f"{shown[:half]} [... {len(shown) - 2 * half:,} characters ...] {shown[-half:]}"
+    message = f"{what}: received {shown}"
     if allowed is None:
         return message
     if isinstance(allowed, str):

@@ -105,8 +105,13 @@ def _error(text: str) -> None:
     """Print ``error: text`` on stderr, the text as written (no markup read in it)."""
     from rich.markup import escape
 
+    from pneufdd.limits import clip_message
+
     _stderr().print(
-        f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True
+        f"[bold red]error:[/] {escape(clip_message(text))}",
+        highlight=False,
+        markup=True,
+        soft_wrap=True,
     )
 
 

@@ -39,6 +39,9 @@ def demo(
     reference_cycles: Annotated[int, typer.Option(help="Leak-free reference cycles.")] = 100,
 ) -> None:
     """Run the section 5.3.1.5 demonstration and write its outputs under OUT."""
+    from pneufdd.limits import MAX_CYCLES, check_count
+
+    check_count("--reference-cycles", reference_cycles, MAX_CYCLES, low=10)
     import numpy as np
     from rich.console import Console
     from rich.table import Table

@@ -159,12 +159,16 @@ def diagnose(
 
     from pneufdd.diagnosis.cost import CostSettings
     from pneufdd.diagnosis.reference.file import load_reference
+    from pneufdd.limits import MAX_WORKERS, check_count
 
     inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}
     inputs.update({"RUN" if len(runs) == 1 else f"RUN {i + 1}": p for i, p in enumerate(runs)})
     check_outputs({"--json": json_out, "--report": report}, inputs, overwrite=overwrite)
     if max_leaks is not None and max_leaks not in (1, 2):
         raise InputError(describe("--max-leaks", max_leaks, [1, 2]))
+    for option, count in (("--workers", workers), ("--threads", threads)):
+        if count is not None:
+            check_count(option, count, MAX_WORKERS, low=1)
     console = Console()
     settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
     from pneufdd.cli.diagnose_batch import is_batch, run_batch

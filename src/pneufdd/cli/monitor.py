@@ -84,6 +84,7 @@ def monitor_command(
     analog, digital = needed_channels(model)
     src = open_source(source, analog, digital, tags, log=lambda m: err.print(m))
     db = open_history(history)
+    db.check_writable()  # a read-only history fails now, not at the first cycle
     sinks = AlarmSinks(
         echo=lambda m: typer.echo(m),
         log_path=alarm_log,

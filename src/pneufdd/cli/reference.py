@@ -8,9 +8,11 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+import pneufdd.limits as limits
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption
 from pneufdd.errors import InputError, describe
+from pneufdd.limits import check_count
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -115,8 +117,9 @@ def build(
     inputs["--machine"] = machine
     inputs["--map"] = tag_map
     check_outputs({"--out": out}, inputs, overwrite)
-    if signature_cycles < 1:
-        raise InputError(describe("--signature-cycles", signature_cycles, ">= 1"))
+    check_count("--signature-cycles", signature_cycles, limits.MAX_SIGNATURE_CYCLES, low=1)
+    if uncertainty_plants is not None:
+        check_count("--uncertainty-plants", uncertainty_plants, limits.MAX_UNCERTAINTY_PLANTS)
     ladder = None
     if signature_sizes is not None:
         try:

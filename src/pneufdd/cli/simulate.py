@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+import pneufdd.limits as limits
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.errors import InputError, describe
 
@@ -19,8 +20,9 @@ if TYPE_CHECKING:
 
 __all__ = ["MAX_CYCLES", "parse_leak_option", "register"]
 
-MAX_CYCLES = 100_000
-"""Most cycles one ``simulate`` run may ask for (a long shift of a fast machine)."""
+MAX_CYCLES = limits.MAX_CYCLES
+"""Most cycles one ``simulate`` run may ask for (:mod:`pneufdd.limits`; the memory
+they imply is checked after the first cycle)."""
 
 
 def parse_leak_option(text: str) -> tuple[str, str]:

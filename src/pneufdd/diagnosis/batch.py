@@ -13,7 +13,6 @@ gives a record with an ``"error"`` message instead of stopping the batch.
 
 from __future__ import annotations
 
-import glob
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +30,22 @@ from pneufdd.recording.io import SUFFIXES
 __all__ = ["RunJob", "diagnose_one", "diagnose_runs", "expand_runs"]
 
 _PATTERN_CHARACTERS = frozenset("*?[")
+
+
+def _glob(pattern: str) -> Iterator[Path]:
+    """The paths ``pattern`` matches; ``**`` does not descend into symlinked folders.
+
+    :func:`glob.glob` follows them, so a folder holding a link to itself or to its
+    parent never finishes (issue 39); :meth:`pathlib.Path.glob` does not follow them
+    (Python < 3.13; from 3.13 its default, ``recurse_symlinks=False``).
+    """
+    parts = Path(pattern).parts
+    first = next(i for i, part in enumerate(parts) if _PATTERN_CHARACTERS & set(part))
+    anchor = Path(*parts[:first]) if first else Path()
+    rest = "/".join(parts[first:])
+    if not anchor.is_dir():
+        return iter(())
+    return anchor.glob(rest)
 
 
 def expand_runs(items: Sequence[str | Path]) -> list[Path]:
@@ -59,11 +74,7 @@ def expand_runs(items: Sequence[str | Path]) -> list[Path]:
             )
             what = f"recordings in folder {text!r}"
         elif _PATTERN_CHARACTERS & set(text) and not path.exists():
-            matches = sorted(
-                Path(p)
-                for p in glob.glob(text, recursive=True)
-                if Path(p).is_file() and Path(p).suffix.lower() in SUFFIXES
-            )
+            matches = sorted(p for p in _glob(text) if p.is_file() and p.suffix.lower() in SUFFIXES)
             what = f"recordings matching {text!r}"
         else:
             found.append(path)

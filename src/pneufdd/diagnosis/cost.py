@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 from pneufdd.diagnosis.findings import LeakFinding
 from pneufdd.errors import InputError, describe
+from pneufdd.limits import MAX_HOURS_PER_YEAR
 from pneufdd.location import Location
 from pneufdd.physics.constants import P_ATM, T_ROOM
 from pneufdd.physics.economics import leak_annual_cost
@@ -67,6 +68,13 @@ COST_BASIS_CONTINUOUS = "nominal flow, continuous leakage assumed"
 """Cost basis when the average flow is unknown: the nominal flow all operating hours."""
 
 
+MAX_PRICE_PER_KWH = 100.0
+"""Highest electricity price accepted [$ / kWh] (prices are below 1)."""
+
+MAX_KW_PER_100_CFM = 100.0
+"""Highest compressor specific power accepted [kW per 100 scfm] (typical: 15-25)."""
+
+
 @dataclass(frozen=True)
 class CostSettings:
     """Economic inputs of eq. 1.1.
@@ -86,10 +94,14 @@ class CostSettings:
     kw_per_100_cfm: float = 18.0
 
     def __post_init__(self) -> None:
-        for name in ("hours", "price_per_kwh", "kw_per_100_cfm"):
+        for name, option, high, unit in (
+            ("hours", "--hours", MAX_HOURS_PER_YEAR, "h per year: a leap year around the clock"),
+            ("price_per_kwh", "--price", MAX_PRICE_PER_KWH, "$ / kWh"),
+            ("kw_per_100_cfm", "--kw-per-100cfm", MAX_KW_PER_100_CFM, "kW per 100 scfm"),
+        ):
             value = getattr(self, name)
-            if not math.isfinite(value) or value < 0:
-                raise InputError(describe(name, value, ">= 0 and finite"))
+            if not math.isfinite(value) or not 0 <= value <= high:
+                raise InputError(describe(f"{name} ({option})", value, f"0 to {high:g} ({unit})"))
 
 
 def annual_cost(mass_flow: float, settings: CostSettings) -> float:

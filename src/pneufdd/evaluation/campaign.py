@@ -48,6 +48,14 @@ from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.features.step_summaries import machine_sequence
 from pneufdd.features.step_table import feature_names
 from pneufdd.files import safe_name, write_text_atomic
+from pneufdd.limits import (
+    MAX_CAMPAIGN_COUNT,
+    MAX_CYCLES,
+    MAX_RUN_CYCLES,
+    MAX_SIGNATURE_CYCLES,
+    MAX_UNCERTAINTY_PLANTS,
+    check_count,
+)
 from pneufdd.location import locations_of
 from pneufdd.parallel import available_cores, executor, map_unordered, resolve_workers
 from pneufdd.physics.leaks import leak_mass_flow
@@ -172,6 +180,18 @@ class CampaignDesign:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise InputError(describe(f"campaign {name}", value, "an integer >= 1"))
+        for name, limit, low in (
+            ("run_cycles", MAX_RUN_CYCLES, 1),
+            ("signature_cycles", MAX_SIGNATURE_CYCLES, 1),
+            ("uncertainty_plants", MAX_UNCERTAINTY_PLANTS, 0),
+            ("reference_cycles", MAX_CYCLES, 10),
+            *(
+                (name, MAX_CAMPAIGN_COUNT, 0)
+                for name in ("plants", "reps", "leak_free_runs", "pairs")
+            ),
+        ):
+            option = f"campaign {name} (--{name.replace('_', '-')})"
+            check_count(option, getattr(self, name), limit, low)
         for name in ("leak_free_runs", "pairs"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:

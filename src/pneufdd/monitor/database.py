@@ -249,6 +249,28 @@ class HistoryDatabase:
         with self.engine.connect() as conn:
             return _stored_version(conn)
 
+    def check_writable(self) -> None:
+        """Refuse, before any work, a database this process may not write (issue 39).
+
+        A no-op update in a transaction that is rolled back: a read-only file or
+        connection, or a user without write rights, fails here and not at the first
+        cycle recorded.
+
+        Raises
+        ------
+        InputError
+            Naming the URL and the database's reason.
+        """
+        try:
+            with self.engine.connect() as conn:
+                conn.execute(sa.update(schema_info).values(version=schema_info.c.version))
+                conn.rollback()
+        except (sa.exc.OperationalError, sa.exc.DatabaseError) as exc:
+            reason = str(getattr(exc, "orig", exc)).splitlines()[0]
+            raise InputError(
+                describe("--history", self.url, "a database this user may write") + f" ({reason})"
+            ) from exc
+
     def migrate(self) -> None:
         """Bring the schema to :data:`SCHEMA_VERSION` (each step one transaction).
 

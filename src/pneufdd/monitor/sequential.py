@@ -51,6 +51,7 @@ from typing import Any
 from scipy import optimize, stats
 
 from pneufdd.errors import InputError, describe
+from pneufdd.limits import MAX_ARL0
 
 __all__ = ["CusumDecision", "CusumDetector", "CusumState"]
 
@@ -153,8 +154,14 @@ class CusumDetector:
             raise InputError(
                 describe("leak-free score fit (g, h, threshold)", (chi2_scale, chi2_dof), "> 0")
             )
-        if not arl0 > 1:
-            raise InputError(describe("in-control average run length [cycles]", arl0, "> 1"))
+        if not 1 < arl0 <= MAX_ARL0:  # also refuses nan and inf
+            raise InputError(
+                describe(
+                    "in-control average run length (--arl0) [cycles]",
+                    arl0,
+                    f"> 1 and <= {MAX_ARL0:g} (docs/limits.md)",
+                )
+            )
         if not 0.5 <= cap_fraction < 1.0:
             raise InputError(describe("cap_fraction", cap_fraction, "[0.5, 1)"))
         self.chi2_scale = float(chi2_scale)

@@ -76,6 +76,15 @@ from typing import Any
 import numpy as np
 
 from pneufdd.errors import InputError, describe
+from pneufdd.limits import (
+    MAX_PAYLOAD_BYTES,
+    MAX_RATE_HZ,
+    MAX_REPLAY_CHUNK_S,
+    MAX_REPLAY_SPEED,
+    MIN_REPLAY_CHUNK_S,
+    MIN_REPLAY_SPEED,
+    check_json_depth,
+)
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.physics.units import UNITS, to_si
 from pneufdd.recording.model import Recording
@@ -187,10 +196,23 @@ class ReplaySource:
     lateness_s: float = 0.0
 
     def __post_init__(self) -> None:
-        if not self.speed > 0:
-            raise InputError(describe("replay speed", self.speed, "> 0 or 'max'"))
-        if not self.chunk_s > 0:
-            raise InputError(describe("replay chunk [s]", self.chunk_s, "> 0"))
+        if not (self.speed == math.inf or MIN_REPLAY_SPEED <= self.speed <= MAX_REPLAY_SPEED):
+            raise InputError(
+                describe(
+                    "replay speed (replay:...?speed=)",
+                    self.speed,
+                    f"{MIN_REPLAY_SPEED:g} to {MAX_REPLAY_SPEED:g} times real time, or 'max' "
+                    "(docs/limits.md)",
+                )
+            )
+        if not MIN_REPLAY_CHUNK_S <= self.chunk_s <= MAX_REPLAY_CHUNK_S:
+            raise InputError(
+                describe(
+                    "replay chunk [s] (replay:...?chunk=)",
+                    self.chunk_s,
+                    f"{MIN_REPLAY_CHUNK_S:g} to {MAX_REPLAY_CHUNK_S:g} s (docs/limits.md)",
+                )
+            )
         self.rates_hz = {c: self.recording.rate(c) for c in self.recording.channels}
 
     def __iter__(self) -> Iterator[SampleBatch | None]:
@@ -229,9 +251,14 @@ def parse_payload(payload: bytes | str) -> tuple[list[SampleBatch], bool]:
     >>> batches[0].sample_times().tolist(), end
     ([10.0, 10.5], False)
     """
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        raise InputError(
+            describe("MQTT payload size [bytes]", len(payload), f"<= {MAX_PAYLOAD_BYTES:,}")
+        )
+    check_json_depth(payload, "MQTT payload")
     try:
         data = json.loads(payload)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         raise InputError(describe("MQTT payload", str(payload)[:60], "JSON")) from exc
     if not isinstance(data, dict):
         raise InputError(describe("MQTT payload", type(data).__name__, "a JSON object"))
@@ -242,16 +269,28 @@ def parse_payload(payload: bytes | str) -> tuple[list[SampleBatch], bool]:
     for name, entry in channels.items():
         if not isinstance(entry, dict) or "values" not in entry:
             raise InputError(describe(f"MQTT payload channel {name!r}", entry, "{values, ...}"))
-        values = np.asarray(entry["values"], dtype=np.float64)
+        try:
+            values = np.asarray(entry["values"], dtype=np.float64)
+            times = np.asarray(entry.get("times", []), dtype=np.float64)
+            t0, rate = float(entry.get("t0", 0.0)), float(entry.get("rate_hz", 1.0))
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                describe(f"MQTT payload channel {name!r}", str(entry)[:60], "numbers")
+            ) from exc
+        if values.ndim != 1 or times.ndim != 1:
+            raise InputError(describe(f"MQTT payload channel {name!r}", "nested lists", "lists"))
         if "times" in entry:
-            times = np.asarray(entry["times"], dtype=np.float64)
             out.append(SampleBatch(str(name), values, times=times))
         elif "t0" in entry and "rate_hz" in entry:
-            out.append(
-                SampleBatch(
-                    str(name), values, t0=float(entry["t0"]), rate_hz=float(entry["rate_hz"])
+            if not (math.isfinite(t0) and 0.1 <= rate <= MAX_RATE_HZ):
+                raise InputError(
+                    describe(
+                        f"MQTT payload channel {name!r} t0, rate_hz",
+                        (t0, rate),
+                        f"a finite t0 [s] and a rate from 0.1 to {MAX_RATE_HZ:g} Hz",
+                    )
                 )
-            )
+            out.append(SampleBatch(str(name), values, t0=t0, rate_hz=rate))
         else:
             raise InputError(
                 describe(

@@ -56,6 +56,7 @@ import numpy.typing as npt
 
 from pneufdd.errors import ChannelError, FileFormatError, InputError, describe
 from pneufdd.files import atomic_target
+from pneufdd.limits import MAX_CHANNELS, check_json_depth, check_memory
 from pneufdd.recording._files import FileExistsInputError, check_input_file, file_label
 from pneufdd.recording.model import Channel, Recording
 
@@ -308,9 +309,10 @@ def _check_format(path: Path, kv: dict[bytes, bytes]) -> dict[str, Any]:
             f"{label} is corrupted: its {_KEY_RECORDING.decode()!r} metadata does not match "
             f"its CRC-32 ({_KEY_CHECKSUM.decode()!r})"
         )
+    check_json_depth(raw, f"{label}: its {_KEY_RECORDING.decode()!r} metadata")
     try:
         info = json.loads(raw)
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise FileFormatError(
             f"{label} is corrupted: its {_KEY_RECORDING.decode()!r} metadata "
             f"is not valid JSON ({exc})"
@@ -341,6 +343,42 @@ def _start_time(path: Path, info: dict[str, Any]) -> datetime:
             if zoned.utcoffset() == start.utcoffset():
                 start = zoned
     return start
+
+
+READ_BYTES_PER_BYTE = 4
+"""Working memory per byte of sample data while a recording is read and used (Arrow's
+table, its NumPy copy, the channel and one working copy)."""
+
+
+def _check_declared_size(path: Path, metadata: Any) -> None:
+    """Refuse a file whose channels declare more samples than memory allows, unread.
+
+    A few kB of zstd can declare 10^8 identical samples; the footer's value counts
+    say so before any page is decompressed.
+    """
+    if metadata.num_rows > MAX_CHANNELS:  # one row per channel
+        raise FileFormatError(
+            describe(
+                f"{file_label(path)}: number of channels",
+                metadata.num_rows,
+                f"at most {MAX_CHANNELS:,} (docs/limits.md)",
+            )
+        )
+    declared = 0
+    for group in range(metadata.num_row_groups):
+        row_group = metadata.row_group(group)
+        for col in range(row_group.num_columns):
+            chunk = row_group.column(col)
+            column = chunk.path_in_schema.split(".", 1)[0]
+            if column.startswith("values_"):
+                itemsize = np.dtype(column[len("values_") :]).itemsize
+                declared += max(int(chunk.num_values), 0) * itemsize
+    check_memory(
+        f"{file_label(path)}: samples declared by its channels "
+        f"({declared:,} bytes of samples; split long recordings)",
+        READ_BYTES_PER_BYTE * declared,
+        error=FileFormatError,
+    )
 
 
 def _row_values(path: Path, table: pa.Table, row: int, name: str) -> npt.NDArray[Any]:
@@ -410,6 +448,7 @@ def read_parquet(path: str | Path) -> Recording:
     try:
         parquet = pq.ParquetFile(path, page_checksum_verification=True)
         kv = dict(parquet.schema_arrow.metadata or {})
+        metadata = parquet.metadata
     except unreadable as exc:
         raise FileFormatError(
             f"{label} is corrupted: its Parquet footer cannot be read "
@@ -417,6 +456,7 @@ def read_parquet(path: str | Path) -> Recording:
         ) from exc
     try:
         info = _check_format(path, kv)
+        _check_declared_size(path, metadata)
         table = parquet.read()
         names = table.column_names
     except InputError:

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from pneufdd.errors import ChannelError, FileFormatError, InputError, UnitError, describe
+from pneufdd.limits import MAX_RATE_HZ, read_text_capped
 from pneufdd.physics.units import UNITS
 from pneufdd.recording._files import check_input_file, file_label
 from pneufdd.recording.csv_layout import (
@@ -181,7 +182,7 @@ def _unit(source: str, column: str, role: str, entry: Mapping[str, Any]) -> str:
         allowed = sorted(k for k, s in UNITS.items() if s.quantity == quantity)
         raise UnitError(describe(f"{where}.unit (role {role}, a {quantity})", unit, allowed))
     if quantity == "mass flow":
-        if basis is not None and basis not in FLOW_BASES:
+        if basis is not None and (not isinstance(basis, str) or basis not in FLOW_BASES):
             raise UnitError(describe(f"{where}.basis", basis, sorted(FLOW_BASES)))
         if unit in _LITRES_PER_MINUTE:
             if basis is None:
@@ -225,9 +226,11 @@ def _grid_rate(where: str, entry: Mapping[str, Any]) -> float | None:
     if (
         isinstance(rate, bool)
         or not isinstance(rate, int | float)
-        or not (math.isfinite(rate) and rate > 0)
+        or not (math.isfinite(rate) and 0.1 <= rate <= MAX_RATE_HZ)
     ):
-        raise InputError(describe(f"{where}.rate_hz", rate, "a grid rate > 0 [Hz]"))
+        raise InputError(
+            describe(f"{where}.rate_hz", rate, f"a grid rate from 0.1 to {MAX_RATE_HZ:g} Hz")
+        )
     return float(rate)
 
 
@@ -237,9 +240,9 @@ def _live_options(data: Mapping[str, Any], source: str) -> tuple[float, str | No
     if (
         isinstance(lateness, bool)
         or not isinstance(lateness, int | float)
-        or not (math.isfinite(lateness) and lateness >= 0)
+        or not (math.isfinite(lateness) and 0 <= lateness <= 3600)
     ):
-        raise InputError(describe(f"{source}: lateness_s", lateness, "a number >= 0 [s]"))
+        raise InputError(describe(f"{source}: lateness_s", lateness, "0 to 3600 [s]"))
     end = data.get("end")
     if end is not None and not isinstance(end, str):
         raise InputError(describe(f"{source}: end", end, "the node id of a boolean tag"))
@@ -360,7 +363,7 @@ def parse_tag_map(
         if extra:
             raise InputError(describe(f"{where}: unknown key", extra[0], list(_COLUMN_KEYS)))
         role = entry.get("role")
-        if not isinstance(role, str) or not ROLE_PATTERN.match(role):
+        if not isinstance(role, str) or not ROLE_PATTERN.fullmatch(role):
             raise InputError(
                 describe(
                     f"{where}.role",
@@ -396,9 +399,13 @@ def parse_tag_map(
         raise InputError(describe(f"{source}: ignore", ignore, "a list of column names"))
     rate = data.get("rate_hz")
     if rate is not None and (
-        isinstance(rate, bool) or not isinstance(rate, int | float) or not rate >= MIN_RATE_HZ
+        isinstance(rate, bool)
+        or not isinstance(rate, int | float)
+        or not MIN_RATE_HZ <= rate <= MAX_RATE_HZ
     ):
-        raise InputError(describe(f"{source}: rate_hz", rate, f"a number >= {MIN_RATE_HZ:g} Hz"))
+        raise InputError(
+            describe(f"{source}: rate_hz", rate, f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g} Hz")
+        )
     layout = parse_layout(data, source, layout_parts["times"], layout_parts["channel_time"], preset)
     lateness, end = _live_options(data, source)
     return TagMap(
@@ -426,8 +433,9 @@ def load_tag_map(path: str | Path, *, live: bool = False, preset: str | None = N
     if live and path.is_file() and path.stat().st_size == 0:
         return parse_tag_map({}, path.name, live=True)
     path = check_input_file(path, "a tag map (.toml)")
+    text = read_text_capped(path, "tag map")  # a regular file of at most 4 MiB
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"{file_label(path)} is not valid TOML ({exc})") from exc
     except RecursionError as exc:
@@ -453,12 +461,13 @@ def _check_unmapped(label: str, tag_map: TagMap, present: list[str]) -> None:
 def _check_rates(label: str, tag_map: TagMap, recording: Recording) -> None:
     for name in recording.channels:
         rate = recording.rate(name)
-        if rate < MIN_RATE_HZ:
+        if not MIN_RATE_HZ <= rate <= MAX_RATE_HZ:  # the rates every command accepts
             raise InputError(
                 describe(
                     f"{label}: sample rate of channel {name!r}",
                     f"{rate:g} Hz",
-                    f">= {MIN_RATE_HZ:g} Hz (steps are timed to tens of ms)",
+                    f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g} Hz (steps are timed to tens of ms; "
+                    "docs/limits.md)",
                 )
             )
         if tag_map.rate_hz is not None and abs(rate - tag_map.rate_hz) > 1e-3 * tag_map.rate_hz:
@@ -548,7 +557,8 @@ def read_mapped(path: str | Path, tag_map: TagMap) -> Recording:
                 )
             )
         header = _csv_header(path, tag_map)
-        missing = [c.column for c in tag_map.columns if c.column not in header]
+        present = set(header)
+        missing = [c.column for c in tag_map.columns if c.column not in present]
         if missing:
             raise ChannelError(
                 describe(f"{label}: column(s) of the tag map not in the file", missing, header)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+import pneufdd.limits as limits
 from pneufdd.array_types import BoolArray, FloatArray, IntArray
 from pneufdd.errors import ChannelError, NoCompleteCycleError, UnitError, describe
 from pneufdd.recording.model import Recording
@@ -68,8 +69,8 @@ MIN_ANALOG_RATE_HZ = 50.0
 MIN_DIGITAL_RATE_HZ = 10.0
 """Slowest plausible sample rate of a PLC signal (valve solenoid, switch) [Hz]."""
 
-MAX_RATE_HZ = 10e6
-"""Fastest plausible sample rate of any channel [Hz]."""
+MAX_RATE_HZ = limits.MAX_RATE_HZ
+"""Fastest plausible sample rate of any channel [Hz] (:mod:`pneufdd.limits`)."""
 
 MAX_START_OFFSET_S = 1.0
 """Largest difference between an analog channel's start and the PLC signals' [s]."""

@@ -8,11 +8,13 @@ naming the file, the key path, the value received and what is allowed.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from pneufdd.errors import MachineError, describe
+from pneufdd.limits import MAX_ACTUATORS, MAX_STEPS
 
 __all__ = [
     "ACTUATOR_KINDS",
@@ -41,6 +43,15 @@ SENSOR_KINDS = ("pressure", "flow", "position")
 SENSOR_UNITS = {"pressure": "bar(g)", "flow": "SLPM", "position": "mm"}
 METER_DIRECTIONS = ("forward", "bidirectional")
 MAX_SUPPLY_PSIG = 145.0
+MIN_CV = 1e-4
+"""Smallest flow coefficient of a valve, line, regulator or flow control (a needle
+valve nearly shut); a smaller one would divide by zero in eq. 3.8 (issue 39)."""
+MAX_SENSORS = 4 * MAX_ACTUATORS + 8
+"""Most sensors of a description: every line's pressure and flow, and the supply's."""
+MAX_SENSOR_RANGE = 1e6
+"""Largest magnitude of a sensor's range, in its unit (bar(g), SLPM or mm)."""
+MIN_XT = 0.05
+"""Smallest pressure-drop ratio factor xT (ISA-75.01; valves have 0.2 to 0.9)."""
 """Highest regulated supply pressure a description may ask for: 10 bar(g) [psig].
 
 ISO 4414 machines and their standard components (ISO 15552 cylinders, ISO 5599
@@ -106,10 +117,14 @@ class _Reader:
         sub = f"{self.path}.{key}" if self.path else key
         return _Reader(value, sub, self.source)
 
-    def tables(self, key: str) -> list[_Reader]:
+    def tables(self, key: str, most: int | None = None) -> list[_Reader]:
         value = self.raw(key, [])
         if not isinstance(value, list):
             raise self.fail(key, value, "an array of tables ([[...]])")
+        if most is not None and len(value) > most:
+            raise self.fail(
+                f"{key} (count)", f"{len(value):,} tables", f"at most {most:,} (docs/limits.md)"
+            )
         sub = f"{self.path}.{key}" if self.path else key
         return [_Reader(v, f"{sub}[{i}]", self.source) for i, v in enumerate(value)]
 
@@ -327,20 +342,20 @@ def _supply(r: _Reader) -> Supply:
     s = Supply(
         house_psig=r.number("house_psig", low=0.0, high=250.0),
         house_drift_psi=r.number("house_drift_psi", 0.0, low=0.0, high=50.0),
-        house_drift_time_s=r.number("house_drift_time_s", 60.0, low=0.0, low_open=True),
+        house_drift_time_s=r.number("house_drift_time_s", 60.0, low=0.01, high=1e6),
         compressor_band_psi=r.number("compressor_band_psi", 0.0, low=0.0, high=100.0),
-        compressor_period_s=r.number("compressor_period_s", 60.0, low=0.0, low_open=True),
+        compressor_period_s=r.number("compressor_period_s", 60.0, low=0.01, high=1e6),
         regulator_set_psig=r.number(
             "regulator_set_psig", low=0.0, low_open=True, high=MAX_SUPPLY_PSIG
         ),
-        regulator_cv=r.number("regulator_cv", low=0.0, low_open=True, high=50.0),
-        regulator_xt=r.number("regulator_xt", 0.7, low=0.0, low_open=True, high=1.0),
+        regulator_cv=r.number("regulator_cv", low=MIN_CV, high=50.0),
+        regulator_xt=r.number("regulator_xt", 0.7, low=MIN_XT, high=1.0),
         regulator_supply_effect=r.number("regulator_supply_effect", 0.0, low=0.0, high=1.0),
-        reservoir_volume_l=r.number("reservoir_volume_l", low=0.0, low_open=True),
-        line_cv=r.number("line_cv", low=0.0, low_open=True, high=50.0),
-        line_xt=r.number("line_xt", 1.0, low=0.0, low_open=True, high=1.0),
-        manifold_volume_l=r.number("manifold_volume_l", low=0.0, low_open=True),
-        thermal_time_s=r.number("thermal_time_s", 1.0, low=0.0, low_open=True),
+        reservoir_volume_l=r.number("reservoir_volume_l", low=1e-3, high=1e5),
+        line_cv=r.number("line_cv", low=MIN_CV, high=50.0),
+        line_xt=r.number("line_xt", 1.0, low=MIN_XT, high=1.0),
+        manifold_volume_l=r.number("manifold_volume_l", low=1e-3, high=1e5),
+        thermal_time_s=r.number("thermal_time_s", 1.0, low=1e-3, high=1e4),
     )
     if s.regulator_set_psig >= s.house_psig:
         raise r.fail(
@@ -355,8 +370,8 @@ def _supply(r: _Reader) -> Supply:
 def _valve(r: _Reader) -> Valve:
     v = Valve(
         kind=r.text("kind", choices=VALVE_KINDS),
-        cv=r.number("cv", low=0.0, low_open=True, high=50.0),
-        xt=r.number("xt", 1.0, low=0.0, low_open=True, high=1.0),
+        cv=r.number("cv", low=MIN_CV, high=50.0),
+        xt=r.number("xt", 1.0, low=MIN_XT, high=1.0),
         on_delay_s=r.number("on_delay_s", 0.020, low=0.0, high=1.0),
         off_delay_s=r.number("off_delay_s", 0.042, low=0.0, high=1.0),
     )
@@ -375,7 +390,7 @@ def _actuator(r: _Reader) -> Actuator:
         raise r.fail("rod_mm", rod, f"< bore_mm ({bore})")
     if r.has("angle_deg"):
         angle = r.number("angle_deg", low=0.0, low_open=True, high=360.0)
-        lever = r.number("lever_mm", low=0.0, low_open=True)
+        lever = r.number("lever_mm", low=0.1, high=10_000.0)
         stroke = math.radians(angle) * lever
     else:
         stroke = r.number("stroke_mm", low=0.0, low_open=True, high=10_000.0)
@@ -383,6 +398,8 @@ def _actuator(r: _Reader) -> Actuator:
     if stroke <= 2 * window:
         raise r.fail("stroke_mm", stroke, "> 1 mm")
     meter_out = r.number("meter_out_cv", 0.0, low=0.0, high=50.0)
+    if 0.0 < meter_out < MIN_CV:  # 0: no flow control (the line alone)
+        raise r.fail("meter_out_cv", meter_out, f"0 (none) or from {MIN_CV:g} to 50")
     act = Actuator(
         id=ident,
         kind=kind,
@@ -390,19 +407,17 @@ def _actuator(r: _Reader) -> Actuator:
         bore_mm=bore,
         rod_mm=rod,
         stroke_mm=stroke,
-        moving_mass_kg=r.number("moving_mass_kg", low=0.0, low_open=True),
-        static_friction_n=r.number("static_friction_n", low=0.0),
-        coulomb_friction_n=r.number("coulomb_friction_n", low=0.0),
-        viscous_friction_n_s_m=r.number("viscous_friction_n_s_m", low=0.0),
-        dead_volume_a_cm3=r.number("dead_volume_a_cm3", low=0.0, low_open=True),
-        dead_volume_b_cm3=r.number("dead_volume_b_cm3", low=0.0, low_open=True),
-        thermal_time_s=r.number("thermal_time_s", 0.5, low=0.0, low_open=True),
-        tube_length_m=r.number("tube_length_m", low=0.0, low_open=True, high=100.0),
-        tube_inner_diameter_mm=r.number(
-            "tube_inner_diameter_mm", low=0.0, low_open=True, high=50.0
-        ),
-        meter_out_cv_a=r.number("meter_out_cv_a", meter_out or 50.0, low=0.0, low_open=True),
-        meter_out_cv_b=r.number("meter_out_cv_b", meter_out or 50.0, low=0.0, low_open=True),
+        moving_mass_kg=r.number("moving_mass_kg", low=1e-3, high=1e5),
+        static_friction_n=r.number("static_friction_n", low=0.0, high=1e6),
+        coulomb_friction_n=r.number("coulomb_friction_n", low=0.0, high=1e6),
+        viscous_friction_n_s_m=r.number("viscous_friction_n_s_m", low=0.0, high=1e7),
+        dead_volume_a_cm3=r.number("dead_volume_a_cm3", low=1e-3, high=1e6),
+        dead_volume_b_cm3=r.number("dead_volume_b_cm3", low=1e-3, high=1e6),
+        thermal_time_s=r.number("thermal_time_s", 0.5, low=1e-3, high=1e4),
+        tube_length_m=r.number("tube_length_m", low=1e-3, high=100.0),
+        tube_inner_diameter_mm=r.number("tube_inner_diameter_mm", low=0.1, high=50.0),
+        meter_out_cv_a=r.number("meter_out_cv_a", meter_out or 50.0, low=MIN_CV, high=50.0),
+        meter_out_cv_b=r.number("meter_out_cv_b", meter_out or 50.0, low=MIN_CV, high=50.0),
         initial=r.text("initial", "retracted", choices=("retracted", "extended")),
         valve=_valve(r.table("valve")),
     )
@@ -420,10 +435,10 @@ def _actuator(r: _Reader) -> Actuator:
 def _vacuum(r: _Reader) -> Vacuum:
     v = Vacuum(
         id=r.text("id"),
-        nozzle_diameter_mm=r.number("nozzle_diameter_mm", low=0.0, low_open=True, high=20.0),
-        nozzle_cd=r.number("nozzle_cd", 0.8, low=0.0, low_open=True, high=1.0),
-        evacuation_time_s=r.number("evacuation_time_s", low=0.0, low_open=True),
-        release_time_s=r.number("release_time_s", low=0.0, low_open=True),
+        nozzle_diameter_mm=r.number("nozzle_diameter_mm", low=0.01, high=20.0),
+        nozzle_cd=r.number("nozzle_cd", 0.8, low=0.05, high=1.0),
+        evacuation_time_s=r.number("evacuation_time_s", low=1e-3, high=600.0),
+        release_time_s=r.number("release_time_s", low=1e-3, high=600.0),
         switch_level=r.number("switch_level", 0.6, low=0.0, low_open=True, high=0.99),
         on_delay_s=r.number("on_delay_s", 0.020, low=0.0, high=1.0),
         off_delay_s=r.number("off_delay_s", 0.042, low=0.0, high=1.0),
@@ -444,9 +459,13 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
         not isinstance(rng, list)
         or len(rng) != 2
         or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in rng)
-        or not rng[0] < rng[1]
+        or not -MAX_SENSOR_RANGE <= rng[0] < rng[1] <= MAX_SENSOR_RANGE  # also nan, inf
     ):
-        raise r.fail("range", rng, "[low, high] with low < high")
+        raise r.fail(
+            "range",
+            rng,
+            f"[low, high] with -{MAX_SENSOR_RANGE:g} <= low < high <= {MAX_SENSOR_RANGE:g}",
+        )
     span = float(rng[1]) - float(rng[0])
     s = Sensor(
         channel=channel,
@@ -454,7 +473,7 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
         location=location,
         range_low=float(rng[0]),
         range_high=float(rng[1]),
-        noise=r.number("noise", 0.0, low=0.0),
+        noise=r.number("noise", 0.0, low=0.0, high=span),
         bits=int(r.number("bits", 12, low=1, high=24)),
         time_constant_s=r.number("time_constant_s", 0.0, low=0.0, high=10.0),
         direction=r.text("direction", "forward", choices=METER_DIRECTIONS),
@@ -532,20 +551,20 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     scatter = m.number("friction_scatter", 0.02, low=0.0, high=0.5)
     m.finish()
     supply = _supply(top.table("supply"))
-    actuators = tuple(_actuator(a) for a in top.tables("actuator"))
+    actuators = tuple(_actuator(a) for a in top.tables("actuator", MAX_ACTUATORS))
     if not actuators:
         raise MachineError(describe(f"{source}: actuator", [], "at least one [[actuator]]"))
     ids = [a.id for a in actuators]
-    dup = {i for i in ids if ids.count(i) > 1}
+    dup = {i for i, n in Counter(ids).items() if n > 1}
     if dup:
         raise MachineError(describe(f"{source}: actuator id", sorted(dup)[0], "unique ids"))
     vacuum = _vacuum(top.table("vacuum")) if top.has("vacuum") else None
     if vacuum is not None and vacuum.id in ids:
         raise MachineError(describe(f"{source}: vacuum.id", vacuum.id, "an id no actuator has"))
     locations = ["supply"] + [f"{i}_{s}" for i in ids for s in "AB"]
-    sensors = tuple(_sensor(s, locations, ids) for s in top.tables("sensor"))
+    sensors = tuple(_sensor(s, locations, ids) for s in top.tables("sensor", MAX_SENSORS))
     chans = [s.channel for s in sensors]
-    dupc = {c for c in chans if chans.count(c) > 1}
+    dupc = {c for c, n in Counter(chans).items() if n > 1}
     if dupc:
         raise MachineError(describe(f"{source}: sensor channel", sorted(dupc)[0], "unique"))
     solenoids = [f"U_{a.id}_A" for a in actuators] + [
@@ -556,7 +575,7 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
         solenoids.append(f"U_{vacuum.id}")
         switches.append(f"S_{vacuum.id}")
     monostable = {f"U_{a.id}_B": a.id for a in actuators if a.valve.kind == "5/2-monostable"}
-    for k, raw_step in enumerate(top.tables("step")):
+    for k, raw_step in enumerate(top.tables("step", MAX_STEPS)):
         for a, raw_action in enumerate(raw_step.tables("do")):
             for verb in ("set", "reset"):
                 sol = raw_action.data.get(verb)

@@ -13,6 +13,7 @@ import numpy.typing as npt
 
 from pneufdd import __version__
 from pneufdd.errors import InputError, PneufddError, describe
+from pneufdd.limits import check_memory
 from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
 from pneufdd.sim.buffers import POOL, BufferShape, OutputBuffers
@@ -182,6 +183,7 @@ class _CycleLoop:
         self.start_shape: BufferShape = (self.n_buf, *self.dims)
         self.buf = self.pooled = POOL.take(self.start_shape)
         self.n_recorded = sum(sensor is not None for sensor in sensors)
+        self.n_sensors = len(sensors)
         self.n_ou = int(max_cycle_s / 0.1) + 4
         drift_std = plant.sp[lay.SP_DRIFT_STD]
         self.ou_now = rng.normal(0.0, drift_std) if drift_std > 0 else 0.0
@@ -279,8 +281,26 @@ class _CycleLoop:
         self.strokes += self._cycle_strokes(cyc, n_ev)
         done = k_start + n  # samples so far: the run's length follows from them
         expected = done * self.cycles // (cyc + 1) + 1000
+        if cyc == 0:  # before the run's buffers are sized from its first cycle
+            _check_run_memory(self.cycles, expected, self.n_sensors, self.n_recorded)
         store = self.pooled.truth_store(self.n_recorded, k_start, done, expected)
         self.chunks.append(_take(self.truth_sources, self.buf, n, k_start, keep_outputs, store))
+
+
+def _check_run_memory(cycles: int, samples: int, n_sensors: int, n_recorded: int) -> None:
+    """Refuse a run whose recording would not fit :data:`MEMORY_BUDGET_BYTES`.
+
+    ``samples`` is the run's length at 1 kHz estimated from its first cycle; each
+    sample costs the noise of every sensor, the truth store and the recording of
+    each recorded one, and the time axis (8 bytes each; measured peak: about 0.9 of
+    this estimate).
+    """
+    estimate = 8.0 * samples * (n_sensors + 2 * n_recorded + 2)
+    check_memory(
+        f"cycles (--cycles): {cycles:,} cycles of {samples / cycles * SAMPLE_DT:.1f} s "
+        "(split the run into shorter ones)",
+        estimate,
+    )
 
 
 def _with_schedule(

@@ -39,6 +39,7 @@ from scipy.integrate import cumulative_trapezoid
 from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.features.step_summaries import build_step_table, segment_cycles
+from pneufdd.limits import MAX_SIGNATURE_CYCLES, MAX_UNCERTAINTY_PLANTS, check_count
 from pneufdd.location import SUPPLY, Location, locations_of
 from pneufdd.physics.units import kg_s_to_slpm, slpm_to_kg_s
 from pneufdd.progress import Progress, counter
@@ -410,8 +411,7 @@ def compute_signatures(
         raise InputError(
             describe(f"leak locations of {machine.name!r}", unknown, [str(k) for k in known])
         )
-    if cycles < 1:
-        raise InputError(describe("signature cycles", cycles, ">= 1"))
+    check_count("signature cycles (--signature-cycles)", cycles, MAX_SIGNATURE_CYCLES, low=1)
     advance = counter(progress, "simulating leak signatures", 1 + len(locations))
     base, _, names, _ = _mean_features(machine, {}, cycles, seed, sequence, channels)
     advance()
@@ -709,8 +709,7 @@ def signature_spread(
     from pneufdd.physics.leaks import SHARP_EDGE_CD, leak_area
     from pneufdd.physics.units import psig_to_pa
 
-    if plants < 1:
-        raise InputError(describe("uncertainty plants", plants, ">= 1"))
+    check_count("uncertainty plants (--uncertainty-plants)", plants, MAX_UNCERTAINTY_PLANTS, low=1)
     p_nom = float(psig_to_pa(machine.nominal_supply_psig))
     areas = [float(leak_area(s, "SLPM", p_nom)) for s in sizes_slpm]
     diameters = tuple(1e3 * float(np.sqrt(4.0 * a / (np.pi * SHARP_EDGE_CD))) for a in areas)

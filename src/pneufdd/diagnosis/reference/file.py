@@ -70,6 +70,7 @@ from pneufdd.errors import (
     describe,
 )
 from pneufdd.files import atomic_target
+from pneufdd.limits import MAX_REFERENCE_CYCLES, check_memory
 from pneufdd.physics.units import UNITS
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_reference", "save_reference"]
@@ -203,12 +204,17 @@ MAX_DEFLATE_RATIO = 1032
 """Largest expansion of deflate (zlib's documented limit is 1032:1)."""
 
 
+REFERENCE_LOAD_FACTOR = 4
+"""Working memory per byte of a reference's arrays while it is loaded and used."""
+
+
 def _check_entries(handle: Any, source: Path) -> None:
     """Refuse entries whose declared dtype or shape the archive cannot hold."""
     try:
         archive = zipfile.ZipFile(handle)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
         raise _bad(source, "not readable", type(exc).__name__, "a .pnref (NPZ) file") from exc
+    total = 0
     with archive:
         for info in archive.infolist():
             if not info.filename.endswith(".npy"):
@@ -235,6 +241,12 @@ def _check_entries(handle: Any, source: Path) -> None:
                     f"{shape} ({declared:,} bytes)",
                     f"what the file holds ({info.file_size:,} bytes uncompressed)",
                 )
+            total += declared
+    check_memory(  # deflate packs 1032:1: a 7.8 MB file may declare 8 GB of zeros
+        f"reference file {str(source)!r}: its arrays ({total:,} bytes uncompressed)",
+        REFERENCE_LOAD_FACTOR * total,
+        error=FileFormatError,
+    )
 
 
 def _header_fields(header: dict[str, Any], source: Path) -> None:
@@ -263,8 +275,18 @@ def _header_fields(header: dict[str, Any], source: Path) -> None:
         "SI units ('Pa', 'kg/s', 'm', ...)",
     )
     need("n_steps", is_int(header.get("n_steps"), 1, 100_000), "an integer from 1 to 100000")
-    need("n_cycles", is_int(header.get("n_cycles"), 1, 10**8), "an integer >= 1")
+    need(
+        "n_cycles",
+        is_int(header.get("n_cycles"), 1, MAX_REFERENCE_CYCLES),
+        f"an integer from 1 to {MAX_REFERENCE_CYCLES:,} (docs/limits.md)",
+    )
     need("feature_names", str_list(header.get("feature_names")), "a list of feature names")
+    check_memory(  # a FileFormatError: the file, not an option, asks for too much
+        f"reference file {str(source)!r}: header fields 'n_cycles' x 'feature_names' "
+        f"({header['n_cycles']:,} x {len(header['feature_names']):,} features)",
+        REFERENCE_BYTES_PER_VALUE * header["n_cycles"] * max(len(header["feature_names"]), 1),
+        error=FileFormatError,
+    )
     rate = header.get("trace_rate_hz")
     need(
         "trace_rate_hz",
@@ -304,6 +326,36 @@ def _header_fields(header: dict[str, Any], source: Path) -> None:
                 for s in step.get("switches", [])
             ),
             "steps of {'valves': [...], 'switches': [[name, 0 or 1], ...]}",
+        )
+
+
+REFERENCE_BYTES_PER_VALUE = 80
+"""Working memory of one reference feature value while a reference is loaded and its
+detectors are fitted (the matrix, its cross-validation folds and scaled copies) [bytes]."""
+
+MAX_FEATURE_MAGNITUDE = 1e12
+"""Largest magnitude of a reference feature value (features are SI: Pa, kg, s, m)."""
+
+
+def _settings(data: Any, source: Path) -> DetectionSettings:
+    """The detection settings of a file's header, validated (an error names the file)."""
+    try:
+        return DetectionSettings.from_dict(data)
+    except InputError as exc:
+        raise FileFormatError(f"reference file {str(source)!r}: {exc}") from None
+
+
+def _check_features(features: npt.NDArray[Any], source: Path) -> None:
+    """Refuse infinite or absurd feature values (NaN marks a feature not measured)."""
+    finite = features[np.isfinite(features)]
+    if np.isinf(features).any() or (
+        finite.size and float(np.max(np.abs(finite))) > MAX_FEATURE_MAGNITUDE
+    ):
+        raise _bad(
+            source,
+            "values of 'features'",
+            "infinite or larger than 1e12 in magnitude",
+            f"finite values of magnitude <= {MAX_FEATURE_MAGNITUDE:g} (SI units)",
         )
 
 
@@ -347,17 +399,20 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 n_steps = int(header["n_steps"])
                 n_cycles = int(header["n_cycles"])
                 names = tuple(str(n) for n in header["feature_names"])
-                settings = DetectionSettings.from_dict(header["settings"])
+                settings = _settings(header["settings"], source)
                 localisation = LocalisationSettings.from_dict(header["localisation"])
                 description = header["machine_description"]
                 if description is not None and not isinstance(description, dict):
                     raise TypeError("machine_description is not a table")
                 machine = str(header["machine"])
                 rate = float(header["trace_rate_hz"])
+            except FileFormatError:
+                raise
             except (KeyError, TypeError, ValueError, AttributeError) as exc:
                 raise _bad(source, "header field", str(exc), "a complete header") from exc
             n_feat = len(names)
             features = _array(data, source, "features", "f", (n_cycles, n_feat))
+            _check_features(features, source)
             cycle_recording = None
             if "cycle_recording" in data.files:
                 cycle_recording = _array(data, source, "cycle_recording", "i", (n_cycles,))

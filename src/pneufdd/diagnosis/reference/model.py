@@ -23,6 +23,7 @@ It is saved to a portable ``.pnref`` file by :mod:`pneufdd.diagnosis.reference.f
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -117,6 +118,25 @@ class DetectionSettings:
         if not isinstance(self.startup_cycles, int) or not 0 <= self.startup_cycles <= 10:
             raise ValueError(
                 f"startup_cycles: received {self.startup_cycles!r}; allowed: an integer 0-10"
+            )
+        self._check_ranges()
+
+    def _check_ranges(self) -> None:
+        """Refuse values no detector can use (a file's settings are read through here)."""
+
+        def number(name: str, low: float, high: float, allowed: str) -> None:
+            value = getattr(self, name)
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not ok or not (math.isfinite(value) and low < value <= high):
+                raise InputError(describe(f"detection setting {name!r}", value, allowed))
+
+        number("false_alarm_rate", 0.0, 0.5, "a probability > 0 and <= 0.5")
+        number("band_eps", 0.0, 10.0, "a width > 0 and <= 10 standard deviations")
+        number("band_alarm_fraction", 0.0, 1.0, "a fraction > 0 and <= 1")
+        n = self.n_nuisance
+        if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 1000:
+            raise InputError(
+                describe("detection setting 'n_nuisance'", n, "an integer from 0 to 1000")
             )
 
     def to_dict(self) -> dict[str, Any]:
