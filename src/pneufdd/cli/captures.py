@@ -170,19 +170,10 @@ def simulate_continuous(
     schedule: Any,
 ) -> Recording:
     """One continuous run, started in mid-sequence and quantised as ``options`` ask."""
-    from pneufdd.sim import run_simulation, simulate
+    from pneufdd.sim import run_simulation
     from pneufdd.sim.captures import quantize, start_mid_sequence
 
-    if options.start_in_step is None and not options.quanta:
-        return simulate(
-            machine,
-            cycles=cycles,
-            leaks=leaks,
-            seed=seed,
-            max_cycle_s=max_cycle_s,
-            progress=progress,
-            schedule=schedule,
-        )
+    # what pneufdd.sim.simulate runs; the step starts place a start in mid-sequence
     result = run_simulation(
         machine,
         cycles,
