@@ -18,13 +18,15 @@ def check_export(
     export_format: str | None, out: Path, export_map: Path | None, overwrite: bool
 ) -> None:
     """Refuse a bad ``--export-format``/``--export-map``/``--out`` before the simulation."""
-    from pneufdd.cli.outputs import check_outputs
-    from pneufdd.recording.field_export import EXPORT_FORMATS
-
     if export_format is None:
         if export_map is not None:
             raise InputError(describe("--export-map", str(export_map), "only with --export-format"))
         return
+    # the export's writer (and its layouts) only when an export is asked for: a plain
+    # `simulate` starts without them
+    from pneufdd.cli.outputs import check_outputs
+    from pneufdd.recording.field_export import EXPORT_FORMATS
+
     if export_format not in EXPORT_FORMATS:
         raise InputError(describe("--export-format", export_format, EXPORT_FORMATS))
     if out.suffix.lower() != ".csv":
