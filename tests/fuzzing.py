@@ -9,7 +9,11 @@ command over them and checks, for each invocation:
 * an exit 2 prints one ``error:`` line naming the file, channel, key or option;
 * every input file is unchanged (bytes and mode);
 * no partial output: after a failure no output file and no temporary file exists;
-  after a success every output exists and parses.
+  after a success every output exists and parses;
+* in a subprocess (``make fuzz``): no hang (killed and counted after
+  :data:`CASE_TIMEOUT_S`), under an address-space cap of :data:`MEMORY_CAP_BYTES`,
+  and a resident set that stays under :data:`RSS_LIMIT_BYTES` (the child's own peak,
+  from ``wait4``).
 
 Commands are discovered from :data:`pneufdd.cli.app.app`; each needs a case builder in
 :data:`BUILDERS` (or a reason in :data:`NOT_FUZZED`), so a command added later is
@@ -52,6 +56,13 @@ SEED = 96_000_101
 """Seed of the base recordings (>= 96,000,000: never used while developing methods)."""
 
 EXIT_OK, EXIT_LEAK, EXIT_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+CASE_TIMEOUT_S = 120.0
+"""A command still running after this long is a hang: killed and counted [s]."""
+MEMORY_CAP_BYTES = 4_000_000_000
+"""Address space each command may map (``RLIMIT_AS``), like a 4 GB container [bytes]."""
+RSS_LIMIT_BYTES = 2 * 1024**3
+"""A command whose resident set grew past this counts as a memory problem [bytes]."""
+EXIT_HANG = -9
 
 # --------------------------------------------------------------------- cases
 
@@ -85,6 +96,8 @@ class Outcome:
     stderr: str
     seconds: float
     problems: list[str]
+    peak_rss: int | None = None
+    """Largest resident set of the command's process [bytes] (None in-process)."""
 
 
 # --------------------------------------------------------------- base inputs
@@ -1771,13 +1784,18 @@ def run_case(case: Case, in_process: bool) -> Outcome:
     outputs_before = {name: _digest(case.folder / name) for name in case.outputs}
     listing_before = set(os.listdir(case.folder))
     start = time.perf_counter()
+    peak: int | None = None
     if in_process:
         code, stderr = _in_process(case)
     else:
-        code, stderr = _subprocess(case)
+        code, stderr, peak = _subprocess(case)
     seconds = time.perf_counter() - start
     problems = check(case, code, stderr, before, outputs_before, listing_before)
-    return Outcome(case, code, stderr, seconds, problems)
+    if code == EXIT_HANG:
+        problems.append(f"hang (killed after {CASE_TIMEOUT_S:g} s)")
+    if peak is not None and peak > RSS_LIMIT_BYTES:
+        problems.append(f"resident set {peak / 2**30:.2f} GiB, over 2 GiB")
+    return Outcome(case, code, stderr, seconds, problems, peak)
 
 
 def _in_process(case: Case) -> tuple[int, str]:
@@ -1794,19 +1812,55 @@ def _in_process(case: Case) -> tuple[int, str]:
     return code, err.getvalue()
 
 
-def _subprocess(case: Case) -> tuple[int, str]:
+def _cap_memory() -> None:
+    """In the child before exec: the address-space cap of :data:`MEMORY_CAP_BYTES`."""
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
+
+
+def _subprocess(case: Case) -> tuple[int, str, int]:
+    """Exit code (:data:`EXIT_HANG` when killed at the time limit), stderr, peak RSS [bytes]."""
+    import threading
+
     exe = Path(sys.executable).with_name("pneufdd")
     env = dict(os.environ, COLUMNS="200", NO_COLOR="1")
-    proc = subprocess.run(
+    proc = subprocess.Popen(
         [str(exe), *case.argv],
         cwd=case.folder,
-        capture_output=True,
-        text=True,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
         env=env,
-        timeout=600,
-        check=False,
+        preexec_fn=_cap_memory,
     )
-    return proc.returncode, proc.stderr
+    assert proc.stdout is not None
+    assert proc.stderr is not None
+    streams: dict[str, bytes] = {}
+    readers = [
+        threading.Thread(target=lambda n=n, s=s: streams.__setitem__(n, s.read()))
+        for n, s in (("out", proc.stdout), ("err", proc.stderr))
+    ]
+    for reader in readers:
+        reader.start()
+    hung = threading.Event()
+
+    def _kill() -> None:
+        hung.set()
+        proc.kill()
+
+    timer = threading.Timer(CASE_TIMEOUT_S, _kill)
+    timer.start()
+    try:
+        _, status, usage = os.wait4(proc.pid, 0)  # the child's own resource usage
+    finally:
+        timer.cancel()
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    for reader in readers:
+        reader.join()
+    stderr = streams.get("err", b"").decode("utf-8", "replace")
+    code = EXIT_HANG if hung.is_set() else proc.returncode
+    return code, stderr, usage.ru_maxrss * 1024  # ru_maxrss is in KiB on Linux
 
 
 def check(
@@ -1911,6 +1965,14 @@ def summary(outcomes: list[Outcome]) -> dict[str, Any]:
         "inputs_changed": sum(p.startswith("input ") for p in flat),
         "partial_outputs": sum(p.startswith(("partial output", "temporary")) for p in flat),
         "cases_with_problems": sum(bool(o.problems) for o in outcomes),
+        "hangs": sum(o.code == EXIT_HANG for o in outcomes),
+        "over_2_gib": sum(
+            o.peak_rss is not None and o.peak_rss > RSS_LIMIT_BYTES for o in outcomes
+        ),
+        "largest_rss_mib": round(max((o.peak_rss or 0) for o in outcomes) / 2**20, 1)
+        if outcomes
+        else 0.0,
+        "slowest_s": round(max((o.seconds for o in outcomes), default=0.0), 1),
         "exit_codes_by_command": {
             c: dict(sorted(v.items())) for c, v in sorted(by_command.items())
         },
@@ -1949,6 +2011,9 @@ def main(argv: list[str] | None = None) -> int:
                         "problems": o.problems,
                         "stderr": o.stderr[-2000:],
                         "seconds": round(o.seconds, 2),
+                        "peak_rss_mib": None
+                        if o.peak_rss is None
+                        else round(o.peak_rss / 2**20, 1),
                     }
                     for o in outcomes
                 ],
