@@ -1755,6 +1755,7 @@ def build_corpus(
 ) -> list[Case]:
     """Every case of the corpus (``full``) or of its quick slice."""
     import fuzzing_bounds
+    import fuzzing_outputs
 
     cases: list[Case] = []
     chosen = list(commands or discover_commands())
@@ -1764,6 +1765,7 @@ def build_corpus(
             cases.extend(builder(base, root, full))
     # resource bounds (issue 39): campaign's bounds fail at once, so they are fuzzed too
     wanted = chosen if commands is not None else [*chosen, "campaign"]
+    cases += fuzzing_outputs.build_outputs(base, root, full, chosen)
     return cases + fuzzing_bounds.build_bounds(base, root, full, wanted)
 
 
