@@ -27,7 +27,12 @@ alive), with ``rates_hz`` (grid rate of each channel) and ``lateness_s``.
     sample is the server's source timestamp. After a lost connection it reconnects
     every second and says so. An optional ``end`` tag in the tag map ends the stream
     when it becomes true. ``OpcUaSource(watchdog_s=10)``: the server must answer a
-    state probe within this time [s] before the connection is taken as lost.
+    state probe within this time [s] before the connection is taken as lost. The
+    parameters the server grants are checked against the channels' rates
+    (:mod:`pneufdd.monitor.opcua`): asked once more, then refused (exit 2) unless
+    ``?accept_revised=1``. Every value's status is checked: Overflow, Bad and
+    Uncertain values mark lost samples in ``losses``
+    (:class:`~pneufdd.monitor.completeness.LossLedger`).
 
 The tag map (``--tags tags.toml``) names each channel's tag and grid rate::
 
