@@ -100,6 +100,12 @@ def monitor_command(
 
     def show(outcome: CycleOutcome) -> None:
         sinks.retry()  # alarms held by a failing output, when their retry is due
+        if outcome.incomplete:
+            shares = ", ".join(f"{c} {100 * s:.0f} % of samples" for c, s in outcome.incomplete)
+            err.print(
+                f"cycle {mon.stats.cycles} at {outcome.start:.3f} skipped: {shares} "
+                "(the source lost samples; not scored)"
+            )
         if outcome.cycles_lost:
             err.print(
                 f"gap: {outcome.gap_s:.1f} s without a cycle before the cycle at "
@@ -119,6 +125,7 @@ def monitor_command(
             on_cycle=show,
             max_cycles=max_cycles,
             flush=once,
+            losses=getattr(src, "losses", None),
         )
         if not once and (max_cycles is None or stats.cycles < max_cycles):
             err.print("the source ended; waiting for more (Ctrl-C stops; --once exits here)")
@@ -142,6 +149,7 @@ def monitor_command(
         "diagnoses": stats.diagnoses,
         "gaps": stats.gaps,
         "cycles_lost": stats.cycles_lost,
+        "incomplete_skipped": stats.incomplete,
         "seconds": round(stats.seconds, 3),
         "leak_active": mon.state.in_alarm,
     }

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import time as wallclock
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -34,6 +34,7 @@ from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, describe
 from pneufdd.monitor.alarms import Alarm
+from pneufdd.monitor.completeness import LossLedger
 from pneufdd.monitor.cycles import CompletedCycle, CycleStreamer, concatenate_rows, needed_channels
 from pneufdd.monitor.database import HistoryDatabase
 from pneufdd.monitor.samples import SampleAssembler, SampleBatch
@@ -66,6 +67,9 @@ class CycleOutcome:
     """Time without a cycle before this one (0: it follows the previous cycle) [s]."""
     cycles_lost: int = 0
     """Cycles estimated lost in that gap [-]."""
+    incomplete: tuple[tuple[str, float], ...] = ()
+    """Channels the source lost samples of in this cycle, with the share received [-]:
+    the cycle was skipped (not scored, not recorded; :mod:`pneufdd.monitor.completeness`)."""
 
 
 @dataclass
@@ -88,6 +92,8 @@ class MonitorStats:
     diagnoses: int = 0
     gaps: int = 0
     cycles_lost: int = 0
+    incomplete: int = 0
+    """Cycles skipped because the source lost samples in them."""
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
 
@@ -185,6 +191,18 @@ class MachineMonitor:
         except BaseException:
             self._recall(memory)
             raise
+
+    def skip_incomplete(
+        self, cycle: CompletedCycle, short: Sequence[tuple[str, float]]
+    ) -> CycleOutcome:
+        """Count a cycle the source lost samples of, without scoring or recording it.
+
+        Its time stays without a recorded cycle, so the next recorded cycle stores
+        the gap (section Gaps of ``docs/monitor.md``).
+        """
+        self.stats.cycles += 1
+        self.stats.incomplete += 1
+        return CycleOutcome(cycle.start, math.nan, self.state.up, False, incomplete=tuple(short))
 
     def _process(self, cycle: CompletedCycle) -> CycleOutcome:
         startup = self._is_startup(cycle)
@@ -468,6 +486,7 @@ def run_stream(
     on_cycle: Callable[[CycleOutcome], None] | None = None,
     max_cycles: int | None = None,
     flush: bool = True,
+    losses: LossLedger | None = None,
 ) -> MonitorStats:
     """Feed a source's batches through segmentation and the monitor until it ends.
 
@@ -478,6 +497,9 @@ def run_stream(
     of samples waits in the assembler). ``rates_hz`` gives the grid rate of each
     channel; channels the reference does not need are ignored.
     ``flush``: at the end, close the last cycle as a file's last cycle is closed.
+    ``losses``: the source's record of lost samples; a cycle where a channel was
+    received for less than :data:`~pneufdd.monitor.completeness.MIN_COMPLETENESS` of
+    its duration is skipped (:meth:`MachineMonitor.skip_incomplete`), never scored.
     """
     analog, digital = needed_channels(monitor.model)
     missing = [c for c in (*analog, *digital) if c not in rates_hz]
@@ -498,7 +520,14 @@ def run_stream(
     def handle(found: list[CompletedCycle]) -> bool:
         nonlocal done
         for cycle in found:
-            outcome = monitor.process(cycle)
+            short = (
+                losses.incomplete(cycle.start, cycle.start + cycle.duration_s, rates)
+                if losses is not None
+                else []
+            )
+            outcome = monitor.skip_incomplete(cycle, short) if short else monitor.process(cycle)
+            if losses is not None:
+                losses.forget(cycle.start)
             done += 1
             if on_cycle is not None:
                 on_cycle(outcome)
@@ -528,6 +557,12 @@ def run_stream(
             if streamer is None:
                 streamer = CycleStreamer(monitor.model, rates, assembler.origin or 0.0)
             handle(streamer.flush(block))
+    if monitor.stats.incomplete:
+        monitor.stats.notes.append(
+            f"{monitor.stats.incomplete} cycle(s) skipped: the source lost samples in them"
+        )
+    if losses is not None and losses.summary():
+        monitor.stats.notes.append(f"values the source marked lost: {losses.summary()}")
     if assembler.late_samples:
         monitor.stats.notes.append(f"{assembler.late_samples} late samples dropped")
     if streamer is not None and streamer.dropped_s > 0:

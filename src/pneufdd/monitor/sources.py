@@ -27,7 +27,12 @@ alive), with ``rates_hz`` (grid rate of each channel) and ``lateness_s``.
     sample is the server's source timestamp. After a lost connection it reconnects
     every second and says so. An optional ``end`` tag in the tag map ends the stream
     when it becomes true. ``OpcUaSource(watchdog_s=10)``: the server must answer a
-    state probe within this time [s] before the connection is taken as lost.
+    state probe within this time [s] before the connection is taken as lost. The
+    parameters the server grants are checked against the channels' rates
+    (:mod:`pneufdd.monitor.opcua`): asked once more, then refused (exit 2) unless
+    ``?accept_revised=1``. Every value's status is checked: Overflow, Bad and
+    Uncertain values mark lost samples in ``losses``
+    (:class:`~pneufdd.monitor.completeness.LossLedger`).
 
 The tag map (``--tags tags.toml``) names each channel's tag and grid rate::
 
@@ -70,6 +75,7 @@ import urllib.parse
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC as _UTC
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -85,6 +91,8 @@ from pneufdd.limits import (
     MIN_REPLAY_SPEED,
     check_json_depth,
 )
+from pneufdd.monitor.completeness import LossLedger
+from pneufdd.monitor.opcua import SubscriptionRefusedError, grant_problems, needed_queue, subscribe
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.physics.units import UNITS, to_si
 from pneufdd.recording.model import Recording
@@ -428,6 +436,7 @@ class OpcUaSource:
         log: Log = _quiet,
         publish_ms: float = 50.0,
         watchdog_s: float = 10.0,
+        accept_revised: bool = False,
     ) -> None:
         self.url = url
         self.tags = tags
@@ -437,6 +446,8 @@ class OpcUaSource:
         self.log = log
         self.publish_ms = publish_ms
         self.watchdog_s = watchdog_s
+        self.accept_revised = accept_revised
+        self.losses = LossLedger()
         self._queue: queue.Queue[SampleBatch | BaseException | None] = queue.Queue()
         self._stop = threading.Event()
 
@@ -470,7 +481,6 @@ class OpcUaSource:
 
     async def _run(self) -> None:
         from asyncua.client.client import Client
-        from asyncua.ua import Double
         from asyncua.ua.uaerrors import UaError
 
         source = self
@@ -488,13 +498,19 @@ class OpcUaSource:
                     if bool(val):
                         ended.set()
                     return
-                if stamp is None or val is None:
-                    return
+                code = int(getattr(value.StatusCode, "value", 0) or 0)
+                if stamp is None:
+                    if not code:
+                        return
+                    stamp = datetime.now(_UTC)  # a Bad value may carry no time stamp
                 t = stamp.timestamp() if stamp.tzinfo else stamp.replace(tzinfo=_UTC).timestamp()
+                if not source.losses.observe(name, t, code) or val is None:
+                    return  # Bad or Uncertain: the channel is unknown until a Good value
                 batch = SampleBatch(name, np.array([float(val)]), times=np.array([t]))
                 source._queue.put(source.tags.to_si(batch))
 
         attempt = 0
+        checked = False  # the granted parameters are judged at the first connection
         while not self._stop.is_set():
             # the client probes the server's state every watchdog_s and gives it as long
             # to answer: a diagnosis that keeps this process busy for seconds must not
@@ -521,10 +537,9 @@ class OpcUaSource:
                     node = client.get_node(self.tags.end)
                     nodes_by_id[node.nodeid.to_string()] = "__end__"
                     nodes.append(node)
-                sub = await client.create_subscription(self.publish_ms, Handler())
-                await sub.subscribe_data_change(
-                    nodes, queuesize=10_000, sampling_interval=Double(0.0)
-                )
+                names = [*self.channels, *(["__end__"] if self.tags.end else [])]
+                await self._subscribe(client, Handler(), nodes, names, first=not checked)
+                checked = True
                 while not self._stop.is_set() and not ended.is_set():
                     await asyncio.sleep(0.2)
                     self._queue.put(None)
@@ -536,11 +551,66 @@ class OpcUaSource:
                     return
                 await client.disconnect()
                 return
+            except SubscriptionRefusedError:
+                with contextlib.suppress(Exception):
+                    await client.disconnect()
+                raise
             except (TimeoutError, OSError, ConnectionError, UaError) as exc:
                 self.log(f"OPC UA connection to {self.url} lost ({exc}); reconnecting")
                 with contextlib.suppress(Exception):  # already broken
                     await client.disconnect()
                 await asyncio.sleep(1.0)
+
+    async def _subscribe(
+        self, client: Any, handler: Any, nodes: list[Any], names: list[str], first: bool
+    ) -> None:
+        """Subscribe; check what the server grants against the channels' rates.
+
+        At the first connection, parameters that cannot carry a channel's rate are
+        said (one line per channel) and asked for once more (half the publishing
+        interval, twice the queue the granted interval needs); if still short, the
+        source refuses (:class:`~pneufdd.monitor.opcua.SubscriptionRefusedError`, exit 2)
+        unless ``accept_revised`` (the URL's ``?accept_revised=1``): then it runs,
+        and the cycles the server loses samples of are skipped.
+        """
+        interval = self.publish_ms
+        queue = dict.fromkeys(self.channels, 10_000)
+        sub, granted = await subscribe(client, handler, nodes, names, interval, queue)
+        problems = grant_problems(self.rates_hz, interval, 10_000, granted)
+        if not problems or not first:
+            return
+        for line in problems:
+            self.log(line)
+        await sub.delete()
+        interval = interval / 2.0
+        queue = {
+            c: max(10_000, 2 * needed_queue(r, granted.publishing_ms))
+            for c, r in self.rates_hz.items()
+        }
+        self.log(
+            f"asking OPC UA {self.url} again: publishing interval {interval:g} ms, "
+            f"queue {max(queue.values())}"
+        )
+        sub, granted = await subscribe(client, handler, nodes, names, interval, queue)
+        problems = grant_problems(self.rates_hz, interval, max(queue.values()), granted)
+        if not problems:
+            return
+        for line in problems:
+            self.log(line)
+        if self.accept_revised:
+            self.log(
+                "accepting the revised parameters (accept_revised=1): cycles the server "
+                "loses samples of are skipped and reported"
+            )
+            return
+        await sub.delete()
+        raise SubscriptionRefusedError(
+            f"OPC UA server {self.url} cannot deliver the rates the reference needs "
+            f"({len(problems)} channel(s), above); lower the channels' rate_hz in the tag "
+            "map (and build the reference at that rate), raise the server's queue and "
+            "publishing limits, or add ?accept_revised=1 to the source to run anyway "
+            "(cycles with lost samples are then skipped)"
+        )
 
 
 # --------------------------------------------------------------------- factory
@@ -605,8 +675,17 @@ def open_source(
             protocol=options.get("protocol", "5"),
         )
     if parsed.scheme == "opcua":
-        url = "opc.tcp://" + text[len("opcua://") :]
-        return OpcUaSource(url, tag_map, [*analog, *digital], log)
+        address, _, query = text[len("opcua://") :].partition("?")
+        options = dict(urllib.parse.parse_qsl(query))
+        if set(options) - {"accept_revised"} or options.get("accept_revised", "0") not in (
+            "0",
+            "1",
+        ):
+            raise InputError(describe("--source OPC UA options", query, "accept_revised=0|1"))
+        accept = options.get("accept_revised", "0") == "1"
+        return OpcUaSource(
+            "opc.tcp://" + address, tag_map, [*analog, *digital], log, accept_revised=accept
+        )
     raise InputError(
         describe(
             "--source", text, "replay:FILE[?speed=N], mqtt://host:port/topic, opcua://host:port"
