@@ -1892,6 +1892,17 @@ def check(
     ]
     if leftovers:
         problems.append(f"temporary files left: {leftovers}")
+    # a command that refused its input writes nothing at all, named or not (files that
+    # other cases of the folder may write meanwhile, and their temporaries, excepted)
+    if code == EXIT_INPUT:
+        others = _FOLDER_OUTPUTS.get(case.folder, set())
+        written = sorted(
+            n
+            for n in set(os.listdir(case.folder)) - listing_before - set(case.outputs)
+            if n not in others and not (n.endswith(".tmp") or n.endswith(("-wal", "-shm")))
+        )
+        if written:
+            problems.append(f"wrote outside its outputs after exit 2: {written}")
     for name in case.outputs:
         now = _digest(case.folder / name)
         if code in (EXIT_OK, EXIT_LEAK):
@@ -1933,10 +1944,16 @@ def _readable(path: Path) -> bool:
         return False
 
 
+_FOLDER_OUTPUTS: dict[Path, set[str]] = {}
+"""Every output name of the cases sharing a folder (they may run at the same time)."""
+
+
 def run_corpus(
     cases: list[Case], in_process: bool, workers: int = 1, log: Callable[[str], None] | None = None
 ) -> list[Outcome]:
     """Run ``cases`` (in ``workers`` threads when in subprocesses)."""
+    for case in cases:
+        _FOLDER_OUTPUTS.setdefault(case.folder, set()).update(case.outputs)
     if in_process or workers <= 1:
         outcomes = []
         for k, case in enumerate(cases):
@@ -1966,6 +1983,7 @@ def summary(outcomes: list[Outcome]) -> dict[str, Any]:
         "internal_errors": sum(o.code == EXIT_INTERNAL for o in outcomes),
         "inputs_changed": sum(p.startswith("input ") for p in flat),
         "partial_outputs": sum(p.startswith(("partial output", "temporary")) for p in flat),
+        "writes_outside_outputs": sum(p.startswith("wrote outside") for p in flat),
         "cases_with_problems": sum(bool(o.problems) for o in outcomes),
         "hangs": sum(o.code == EXIT_HANG for o in outcomes),
         "over_2_gib": sum(
