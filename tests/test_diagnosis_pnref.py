@@ -283,3 +283,20 @@ def test_cycle_recording_of_fractions_is_refused_not_truncated():
             machine_description=synth_description(),
             cycle_recording=np.repeat([0.0, 1.5, 2.0], [7, 7, 6]),
         )
+
+
+@pytest.mark.parametrize("method", [0, 99])
+def test_a_damaged_local_header_is_refused(model, tmp_path, method):
+    """A local header whose compression method disagrees with the archive's directory
+    (zipfile reads by the directory and would not notice: stored 0) or that names a
+    method zipfile does not know (99) is a damaged file, refused like any other."""
+    path = save_reference(model, tmp_path / "r.pnref")
+    data = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as archive:
+        info = archive.getinfo("features.npy")
+    assert data[info.header_offset : info.header_offset + 4] == b"PK\x03\x04"
+    data[info.header_offset + 8 : info.header_offset + 10] = method.to_bytes(2, "little")
+    damaged = tmp_path / "damaged.pnref"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(FileFormatError, match=r"features\.npy"):
+        load_reference(damaged)

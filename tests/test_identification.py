@@ -153,3 +153,15 @@ def test_supply_path_cv_of_an_isa_restriction() -> None:
     fit = fit_supply_path(p, q)
     assert fit.path_cv == pytest.approx(0.21, rel=0.03)
     assert fit.path_set_point_pa == pytest.approx(set_point, abs=500.0)
+
+
+def test_supply_path_without_finite_samples_is_refused_by_name():
+    # a supply meter whose every sample was out of range (repaired to NaN by the gap
+    # rule) leaves nothing to fit: a clear error, not a reduction over nothing
+    from pneufdd.errors import InputError
+    from pneufdd.identification.supply import fit_supply_path
+
+    p = np.full(50, 6.0e5)
+    q = np.full(50, np.nan)
+    with pytest.raises(InputError, match="finite P_In and Q_In sample pairs: received 0"):
+        fit_supply_path(p, q)

@@ -80,6 +80,8 @@ def fit_supply_path(
         raise InputError(describe("P_In and Q_In samples", (p.size, q.size), "equal, >= 3"))
     ok = np.isfinite(p) & np.isfinite(q)
     p, q = p[ok], q[ok]
+    if p.size < 3:
+        raise InputError(describe("finite P_In and Q_In sample pairs", p.size, ">= 3"))
     if np.ptp(q) <= 0.0:
         raise InputError(
             describe("spread of supply flow", 0.0, "> 0 kg/s (samples at several flows)")

@@ -208,6 +208,33 @@ REFERENCE_LOAD_FACTOR = 4
 """Working memory per byte of a reference's arrays while it is loaded and used."""
 
 
+def _check_local_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, source: Path) -> None:
+    """Refuse an entry whose local header disagrees with the archive's directory.
+
+    zipfile reads an entry by its central-directory record and skips the local header,
+    so a damaged local header (another compression method, another name) would pass
+    unnoticed; such a file is damaged, and a damaged reference is refused.
+    """
+    fp = archive.fp
+    if fp is None:  # pragma: no cover - the archive is open while its entries are read
+        return
+    fp.seek(info.header_offset)
+    header = fp.read(30)
+    name = fp.read(len(info.orig_filename.encode("utf-8")))
+    method = int.from_bytes(header[8:10], "little") if len(header) == 30 else -1
+    if (
+        header[:4] != b"PK\x03\x04"
+        or method != info.compress_type
+        or name != (info.orig_filename.encode("utf-8"))
+    ):
+        raise _bad(
+            source,
+            f"entry {info.filename!r}",
+            "a local header that disagrees with the archive's directory",
+            "an undamaged .pnref (NPZ) file",
+        )
+
+
 def _check_entries(handle: Any, source: Path) -> None:
     """Refuse entries whose declared dtype or shape the archive cannot hold."""
     try:
@@ -220,6 +247,7 @@ def _check_entries(handle: Any, source: Path) -> None:
             if not info.filename.endswith(".npy"):
                 continue
             name = info.filename[:-4]
+            _check_local_header(archive, info, source)
             try:
                 with archive.open(info) as member:
                     version = np.lib.format.read_magic(member)
@@ -227,7 +255,14 @@ def _check_entries(handle: Any, source: Path) -> None:
                         shape, _, dtype = np.lib.format.read_array_header_1_0(member)
                     else:
                         shape, _, dtype = np.lib.format.read_array_header_2_0(member)
-            except (ValueError, OSError, EOFError, zlib.error, zipfile.BadZipFile) as exc:
+            except (
+                ValueError,
+                OSError,
+                EOFError,
+                zlib.error,
+                zipfile.BadZipFile,
+                NotImplementedError,  # a compression method zipfile does not know
+            ) as exc:
                 raise _bad(source, f"entry {name!r}", str(exc)[:80], "a NumPy array") from exc
             if dtype.hasobject:
                 raise _bad(source, f"dtype of {name!r}", str(dtype), "numbers or text (no pickle)")
