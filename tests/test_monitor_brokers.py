@@ -82,15 +82,20 @@ def _wait_for(log: list[str], text: str, count: int = 1, timeout: float = 180.0)
         time.sleep(0.05)
 
 
-def _check_history(db: HistoryDatabase, rec: Recording, sinks: AlarmSinks) -> None:
+def _check_history(
+    db: HistoryDatabase, rec: Recording, sinks: AlarmSinks, skipped: int = 0
+) -> None:
     machine = db.machine_id("festo-dsd")
     starts = rec.metadata["cycle_start_s"]
     recorded = db.cycle_starts(machine)
     t0 = rec.start_time.timestamp()
     # every cycle but possibly the last (closed only at the stream's end) is recorded once,
-    # at the PLC's time (within a grid sample)
-    assert len(recorded) >= len(starts) - 1
-    np.testing.assert_allclose(recorded, (t0 + np.array(starts))[: len(recorded)], atol=0.06)
+    # at the PLC's time (within a grid sample), unless it was skipped for lost samples
+    assert len(recorded) >= len(starts) - 1 - skipped
+    expected = t0 + np.array(starts)
+    nearest = np.abs(np.asarray(recorded)[:, None] - expected[None, :]).min(axis=1)
+    assert np.all(nearest <= 0.06), nearest
+    assert len(set(np.round(recorded, 1))) == len(recorded)  # each cycle once
     leak_alarms = [a for a in sinks.sent if a.kind == "leak"]
     assert len(leak_alarms) == 1
     alarm = leak_alarms[0]
@@ -100,7 +105,8 @@ def _check_history(db: HistoryDatabase, rec: Recording, sinks: AlarmSinks) -> No
     assert alarm.annual_cost > 0
     assert 0 < alarm.confidence <= 1
     first_leaky = next(i for i, t in enumerate(starts) if t >= 40.0)
-    assert t0 + starts[first_leaky] <= alarm.time <= t0 + starts[first_leaky + 2] + 0.1
+    latest = first_leaky + 2 + skipped  # a skipped cycle is no evidence: one later each
+    assert t0 + starts[first_leaky] <= alarm.time <= t0 + starts[latest] + 0.1
     assert db.alarm_rows(machine)[0]["locations"] == list(alarm.locations)
     assert db.integrity_ok()
 
@@ -200,7 +206,13 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
         topic = "plant/festo-dsd/samples"
         msgs = [{"topic": topic, "payload": p, "qos": 1} for p in payloads[:half]]
         publish.multiple(msgs, hostname="127.0.0.1", port=port)
-        time.sleep(0.5)
+        # the broker goes away once the monitor has had the first half (its third cycle
+        # closed), so only what is in flight can be lost
+        deadline = time.monotonic() + 120.0
+        while len(db.cycle_starts(db.machine_id("festo-dsd"))) < 3:
+            assert time.monotonic() < deadline, "the monitor did not consume the first half"
+            time.sleep(0.1)
+        time.sleep(1.0)
         loop.run(broker.shutdown())  # the broker goes away ...
         _wait_for(log, "connection lost")
         broker = loop.run(start())  # ... and comes back
@@ -212,10 +224,15 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
         thread.join(600)
         assert not thread.is_alive()
         assert "error" not in result, result.get("error")
-        _check_history(db, rec, sinks)
-        assert len(db.cycle_starts(db.machine_id("festo-dsd"))) == len(
-            rec.metadata["cycle_start_s"]
-        )
+        # samples in flight when the broker stopped are lost (amqtt keeps no session): a
+        # cycle that lost them is skipped and stored as a gap, never scored, never lost
+        # unreported
+        skipped = monitor.stats.incomplete
+        _check_history(db, rec, sinks, skipped)
+        machine = db.machine_id("festo-dsd")
+        assert len(db.cycle_starts(machine)) + skipped == len(rec.metadata["cycle_start_s"])
+        if skipped:
+            assert db.gap_rows(machine)
     finally:
         db.close()
         loop.run(broker.shutdown())
