@@ -285,17 +285,22 @@ def test_cycle_recording_of_fractions_is_refused_not_truncated():
         )
 
 
-@pytest.mark.parametrize("method", [0, 99])
-def test_a_damaged_local_header_is_refused(model, tmp_path, method):
-    """A local header whose compression method disagrees with the archive's directory
-    (zipfile reads by the directory and would not notice: stored 0) or that names a
+@pytest.mark.parametrize(
+    ("offset", "value"),
+    [(8, 0), (8, 99), (6, 0x0800)],
+    ids=["method_stored", "method_unknown", "flags_utf8_bit"],
+)
+def test_a_damaged_local_header_is_refused(model, tmp_path, offset, value):
+    """A local header whose compression method or flags disagree with the archive's
+    directory (zipfile reads by the directory and would not notice) or that names a
     method zipfile does not know (99) is a damaged file, refused like any other."""
     path = save_reference(model, tmp_path / "r.pnref")
     data = bytearray(path.read_bytes())
     with zipfile.ZipFile(path) as archive:
         info = archive.getinfo("features.npy")
     assert data[info.header_offset : info.header_offset + 4] == b"PK\x03\x04"
-    data[info.header_offset + 8 : info.header_offset + 10] = method.to_bytes(2, "little")
+    at = info.header_offset + offset
+    data[at : at + 2] = value.to_bytes(2, "little")
     damaged = tmp_path / "damaged.pnref"
     damaged.write_bytes(bytes(data))
     with pytest.raises(FileFormatError, match=r"features\.npy"):

@@ -69,8 +69,10 @@ def monitor_command(
     from pneufdd.monitor.cycles import needed_channels
     from pneufdd.monitor.database import masked_url, open_history, sqlite_path
     from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
+    from pneufdd.monitor.sequential import check_arl0
     from pneufdd.monitor.sources import open_source
 
+    check_arl0(arl0)  # every option is checked before the history is created
     if alarm_log is None:  # beside the history, never silently into the working folder
         database = sqlite_path(history)
         if database is not None:

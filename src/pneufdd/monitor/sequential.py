@@ -53,7 +53,7 @@ from scipy import optimize, stats
 from pneufdd.errors import InputError, describe
 from pneufdd.limits import MAX_ARL0
 
-__all__ = ["CusumDecision", "CusumDetector", "CusumState"]
+__all__ = ["CusumDecision", "CusumDetector", "CusumState", "check_arl0"]
 
 OVERSHOOT = 1.166
 """Siegmund's mean-overshoot correction of a normal random walk [standard deviations]."""
@@ -113,6 +113,31 @@ class CusumDecision:
     state: CusumState
 
 
+def check_arl0(arl0: float) -> None:
+    """Refuse an in-control average run length outside ``(1, MAX_ARL0]`` (nan, inf too).
+
+    Called by :class:`CusumDetector` and, before anything is opened or written, by
+    ``pneufdd monitor``.
+
+    Examples
+    --------
+    >>> check_arl0(1.0e6)
+    >>> try:
+    ...     check_arl0(float("inf"))
+    ... except InputError as exc:
+    ...     print(str(exc).split("; ")[1])
+    allowed: > 1 and <= 1e+09 (docs/limits.md)
+    """
+    if not 1 < arl0 <= MAX_ARL0:  # also refuses nan and inf
+        raise InputError(
+            describe(
+                "in-control average run length (--arl0) [cycles]",
+                arl0,
+                f"> 1 and <= {MAX_ARL0:g} (docs/limits.md)",
+            )
+        )
+
+
 class CusumDetector:
     """CUSUM of scaled-chi-square likelihood ratios on per-cycle scores.
 
@@ -154,14 +179,7 @@ class CusumDetector:
             raise InputError(
                 describe("leak-free score fit (g, h, threshold)", (chi2_scale, chi2_dof), "> 0")
             )
-        if not 1 < arl0 <= MAX_ARL0:  # also refuses nan and inf
-            raise InputError(
-                describe(
-                    "in-control average run length (--arl0) [cycles]",
-                    arl0,
-                    f"> 1 and <= {MAX_ARL0:g} (docs/limits.md)",
-                )
-            )
+        check_arl0(arl0)
         if not 0.5 <= cap_fraction < 1.0:
             raise InputError(describe("cap_fraction", cap_fraction, "[0.5, 1)"))
         self.chi2_scale = float(chi2_scale)

@@ -211,9 +211,10 @@ REFERENCE_LOAD_FACTOR = 4
 def _check_local_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, source: Path) -> None:
     """Refuse an entry whose local header disagrees with the archive's directory.
 
-    zipfile reads an entry by its central-directory record and skips the local header,
-    so a damaged local header (another compression method, another name) would pass
-    unnoticed; such a file is damaged, and a damaged reference is refused.
+    zipfile reads an entry by its central-directory record and most of the local header
+    goes unread, so a damaged local header (other flags, another compression method,
+    name or checksum) would pass unnoticed; pneufdd writes both alike, so any
+    disagreement is damage, and a damaged reference is refused.
     """
     fp = archive.fp
     if fp is None:  # pragma: no cover - the archive is open while its entries are read
@@ -221,11 +222,18 @@ def _check_local_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, source:
     fp.seek(info.header_offset)
     header = fp.read(30)
     name = fp.read(len(info.orig_filename.encode("utf-8")))
-    method = int.from_bytes(header[8:10], "little") if len(header) == 30 else -1
+    if len(header) != 30:
+        header = bytes(30)
+    flags = int.from_bytes(header[6:8], "little")
+    method = int.from_bytes(header[8:10], "little")
+    crc = int.from_bytes(header[14:18], "little")
+    crc_here = not flags & 0x08  # else it follows the data (a data descriptor)
     if (
         header[:4] != b"PK\x03\x04"
+        or flags != info.flag_bits
         or method != info.compress_type
-        or name != (info.orig_filename.encode("utf-8"))
+        or name != info.orig_filename.encode("utf-8")
+        or (crc_here and crc != info.CRC)
     ):
         raise _bad(
             source,
