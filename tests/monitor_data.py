@@ -7,12 +7,15 @@ signature ladder so that it builds in seconds; the runs are a few cycles.
 from __future__ import annotations
 
 import functools
+import socket
 from datetime import UTC, datetime
+
+import numpy as np
 
 from pneufdd.diagnosis.recordings import build_reference_from_recordings
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.physics.units import slpm_to_kg_s
-from pneufdd.recording import Recording
+from pneufdd.recording import ANALOG, Channel, Recording
 from pneufdd.sim import simulate
 from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
 
@@ -20,17 +23,55 @@ SEED = 41_000
 START = datetime(2026, 3, 1, 6, 0, tzinfo=UTC)
 
 
-@functools.cache
-def reference(channels: tuple[str, ...] = ("P_In", "Q_In")) -> ReferenceModel:
-    refs = [simulate("festo-dsd", cycles=8, seed=SEED + i) for i in range(2)]
+PLC_ANALOG_HZ = 50.0
+"""Rate of analog tags as a PLC publishes them: the lowest analog rate the recording
+checks accept (docs/data-quality.md) [Hz]."""
+
+
+def free_port() -> int:
+    """A TCP port free on the loopback interface now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def as_plc_tags(rec: Recording) -> Recording:
+    """Analog channels as a PLC would publish them: block means at :data:`PLC_ANALOG_HZ`."""
+    channels = []
+    for name in rec.channels:
+        info = rec.info(name)
+        if info.kind != ANALOG:
+            channels.append(info)
+            continue
+        n = round(info.rate_hz / PLC_ANALOG_HZ)
+        values = np.asarray(info.values, dtype=np.float64)
+        blocks = values[: values.size // n * n].reshape(-1, n).mean(axis=1)
+        channels.append(Channel(name, blocks, PLC_ANALOG_HZ, info.unit, ANALOG, info.t0))
+    return Recording(channels, start_time=rec.start_time, metadata=rec.metadata)
+
+
+def _build(refs: list[Recording], channels: list[str]) -> ReferenceModel:
     return build_reference_from_recordings(
         refs,
-        list(channels),
+        channels,
         signature_mass_flows=(slpm_to_kg_s(30.0), slpm_to_kg_s(120.0)),
         signature_cycles=1,
         uncertainty_plants=0,
         workers=1,
     )
+
+
+@functools.cache
+def reference(channels: tuple[str, ...] = ("P_In", "Q_In")) -> ReferenceModel:
+    refs = [simulate("festo-dsd", cycles=8, seed=SEED + i) for i in range(2)]
+    return _build(refs, list(channels))
+
+
+@functools.cache
+def plc_reference() -> ReferenceModel:
+    """The supply-sensor reference of recordings whose analog tags a PLC publishes."""
+    refs = [as_plc_tags(simulate("festo-dsd", cycles=8, seed=SEED + i)) for i in range(2)]
+    return _build(refs, ["P_In", "Q_In"])
 
 
 def started(rec: Recording, start: datetime = START) -> Recording:

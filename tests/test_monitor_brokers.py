@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from monitor_data import leak_run, reference
+from monitor_data import PLC_ANALOG_HZ, as_plc_tags, free_port, leak_run, plc_reference, reference
 from pneufdd.errors import InputError
 from pneufdd.monitor.alarms import AlarmSinks
 from pneufdd.monitor.cycles import needed_channels
@@ -29,14 +29,8 @@ from pneufdd.monitor.database import HistoryDatabase
 from pneufdd.monitor.live import MachineMonitor, run_stream
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.monitor.sources import ChannelTags, MqttSource, OpcUaSource
-from pneufdd.physics.units import kg_s_to_l_min_anr, pa_to_bar_gauge, slpm_to_kg_s
-from pneufdd.recording.model import ANALOG, Channel, Recording
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from pneufdd.physics.units import kg_s_to_l_min_anr, pa_to_bar_gauge
+from pneufdd.recording.model import ANALOG, Recording
 
 
 class _Loop:
@@ -163,7 +157,7 @@ def test_monitor_over_mqtt_survives_a_broker_restart(tmp_path):
     model = reference()
     rec = leak_run()
     analog, digital = needed_channels(model)
-    port = _free_port()
+    port = free_port()
     config = {
         "listeners": {"default": {"type": "tcp", "bind": f"127.0.0.1:{port}"}},
         "plugins": {"amqtt.plugins.authentication.AnonymousAuthPlugin": {"allow_anonymous": True}},
@@ -252,7 +246,7 @@ def mosquitto(tmp_path):
     )
     if binary is None:
         pytest.skip("mosquitto is not installed")
-    port = _free_port()
+    port = free_port()
     config = tmp_path / "mosquitto.conf"
     config.write_text(f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
     proc = subprocess.Popen(
@@ -339,39 +333,7 @@ def test_mqtt_source_options_from_the_url():
 
 
 # ---------------------------------------------------------------------------- OPC UA
-ANALOG_HZ = 50.0  # the lowest analog rate the recording checks accept (docs/data-quality.md)
 SPEED = 8.0
-
-
-def _as_plc_tags(rec: Recording) -> Recording:
-    """Analog channels as a PLC would publish them: 50 Hz block means."""
-    channels = []
-    for name in rec.channels:
-        info = rec.info(name)
-        if info.kind != ANALOG:
-            channels.append(info)
-            continue
-        n = round(info.rate_hz / ANALOG_HZ)
-        values = np.asarray(info.values, dtype=np.float64)
-        blocks = values[: values.size // n * n].reshape(-1, n).mean(axis=1)
-        channels.append(Channel(name, blocks, ANALOG_HZ, info.unit, ANALOG, info.t0))
-    return Recording(channels, start_time=rec.start_time, metadata=rec.metadata)
-
-
-@pytest.fixture(scope="module")
-def tag_reference():
-    from pneufdd.diagnosis.recordings import build_reference_from_recordings
-    from pneufdd.sim import simulate
-
-    refs = [_as_plc_tags(simulate("festo-dsd", cycles=8, seed=41_000 + i)) for i in range(2)]
-    return build_reference_from_recordings(
-        refs,
-        ["P_In", "Q_In"],
-        signature_mass_flows=(slpm_to_kg_s(30.0), slpm_to_kg_s(120.0)),
-        signature_cycles=1,
-        uncertainty_plants=0,
-        workers=1,
-    )
 
 
 async def _serve(
@@ -425,17 +387,17 @@ async def _serve(
         await finish.wait()
 
 
-def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path, tag_reference):
-    model = tag_reference
-    rec = _as_plc_tags(leak_run())
+def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path):
+    model = plc_reference()
+    rec = as_plc_tags(leak_run())
     analog, digital = needed_channels(model)
-    port = _free_port()
+    port = free_port()
     # lateness is in the data's time: the replay runs SPEED x real time, so SPEED s of
     # data time is the 1 s of wall time a live PLC gets (1 s of data time, 0.125 s of
     # wall time, lost late samples and with them two cycles on a loaded 2-core machine)
     toml = [f"lateness_s = {SPEED:g}", 'end = "ns=2;s=ReplayDone"']
     for name in (*analog, *digital):
-        rate = ANALOG_HZ if name in analog else 100.0
+        rate = PLC_ANALOG_HZ if name in analog else 100.0
         toml += [f"[channels.{name}]", f'node = "ns=2;s={name}"', f"rate_hz = {rate}"]
     tags_path = tmp_path / "tags.toml"
     tags_path.write_text("\n".join(toml) + "\n")

@@ -11,7 +11,6 @@ alarm, no skipped cycle.
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
 from datetime import UTC, datetime
@@ -20,64 +19,26 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from monitor_data import free_run
+from monitor_data import PLC_ANALOG_HZ, as_plc_tags, free_port, free_run, plc_reference
 from pneufdd.monitor.alarms import AlarmSinks
 from pneufdd.monitor.cycles import needed_channels
 from pneufdd.monitor.database import HistoryDatabase
 from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
 from pneufdd.monitor.opcua import SubscriptionRefusedError
 from pneufdd.monitor.sources import open_source
-from pneufdd.physics.units import slpm_to_kg_s
-from pneufdd.recording.model import ANALOG, Channel, Recording
+from pneufdd.recording.model import ANALOG, Recording
 
 o6 = pytest.importorskip("o6")
 
-ANALOG_HZ = 50.0  # analog tags as a PLC publishes them (block means)
 SPEED = 8.0  # the replay runs 8x real time (400 values/s per analog tag: the server
 # carries 100 values per 100 ms publish)
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _as_plc_tags(rec: Recording) -> Recording:
-    channels = []
-    for name in rec.channels:
-        info = rec.info(name)
-        if info.kind != ANALOG:
-            channels.append(info)
-            continue
-        n = round(info.rate_hz / ANALOG_HZ)
-        values = np.asarray(info.values, dtype=np.float64)
-        blocks = values[: values.size // n * n].reshape(-1, n).mean(axis=1)
-        channels.append(Channel(name, blocks, ANALOG_HZ, info.unit, ANALOG, info.t0))
-    return Recording(channels, start_time=rec.start_time, metadata=rec.metadata)
-
-
-@pytest.fixture(scope="module")
-def plc_reference():
-    from pneufdd.diagnosis.recordings import build_reference_from_recordings
-    from pneufdd.sim import simulate
-
-    refs = [_as_plc_tags(simulate("festo-dsd", cycles=8, seed=41_000 + i)) for i in range(2)]
-    return build_reference_from_recordings(
-        refs,
-        ["P_In", "Q_In"],
-        signature_mass_flows=(slpm_to_kg_s(30.0), slpm_to_kg_s(120.0)),
-        signature_cycles=1,
-        uncertainty_plants=0,
-        workers=1,
-    )
 
 
 class _Plc:
     """An open62541 server holding the channels' tags (``ns=1;s=<channel>``)."""
 
     def __init__(self, rec: Recording, channels: list[str]) -> None:
-        self.port = _free_port()
+        self.port = free_port()
         self.rec = rec
         self.server = o6.Server(port=self.port)
         self.server.start()
@@ -138,7 +99,7 @@ class _Plc:
 def _tag_map(tmp_path: Path, analog, digital, rates: dict[str, float] | None = None) -> Path:
     toml = [f"lateness_s = {SPEED:g}", 'end = "ns=1;s=ReplayDone"']
     for name in (*analog, *digital):
-        rate = (rates or {}).get(name, ANALOG_HZ if name in analog else 100.0)
+        rate = (rates or {}).get(name, PLC_ANALOG_HZ if name in analog else 100.0)
         toml += [f"[channels.{name}]", f'node = "ns=1;s={name}"', f"rate_hz = {rate}"]
     path = tmp_path / "tags.toml"
     path.write_text("\n".join(toml) + "\n")
@@ -183,13 +144,13 @@ def _monitor(tmp_path, model, plc: _Plc, tags: Path, **play):
     return outcomes, log, sinks, db, source
 
 
-def test_a_rate_the_server_cannot_carry_is_refused_at_start(tmp_path, plc_reference, capsys):
+def test_a_rate_the_server_cannot_carry_is_refused_at_start(tmp_path, capsys):
     from pneufdd.cli.app import main
     from pneufdd.diagnosis.reference.file import save_reference
 
-    model = plc_reference
+    model = plc_reference()
     analog, digital = needed_channels(model)
-    plc = _Plc(_as_plc_tags(free_run()), [*analog, *digital])
+    plc = _Plc(as_plc_tags(free_run()), [*analog, *digital])
     try:
         # P_In at 1 kHz needs 200 queued values per 100 ms publish; open62541 grants 100
         tags = _tag_map(tmp_path, analog, digital, {"P_In": 1000.0})
@@ -221,10 +182,10 @@ def test_a_rate_the_server_cannot_carry_is_refused_at_start(tmp_path, plc_refere
         plc.stop()
 
 
-def test_overflow_and_bad_values_skip_their_cycles_and_never_alarm(tmp_path, plc_reference):
-    model = plc_reference
+def test_overflow_and_bad_values_skip_their_cycles_and_never_alarm(tmp_path):
+    model = plc_reference()
     analog, digital = needed_channels(model)
-    rec = _as_plc_tags(free_run())
+    rec = as_plc_tags(free_run())
     starts = rec.metadata["cycle_start_s"]
     plc = _Plc(rec, [*analog, *digital])
     try:
@@ -259,10 +220,10 @@ def test_overflow_and_bad_values_skip_their_cycles_and_never_alarm(tmp_path, plc
     db.close()
 
 
-def test_a_leak_free_run_over_open62541_has_no_alarm_and_no_skipped_cycle(tmp_path, plc_reference):
-    model = plc_reference
+def test_a_leak_free_run_over_open62541_has_no_alarm_and_no_skipped_cycle(tmp_path):
+    model = plc_reference()
     analog, digital = needed_channels(model)
-    rec = _as_plc_tags(free_run())
+    rec = as_plc_tags(free_run())
     plc = _Plc(rec, [*analog, *digital])
     try:
         tags = _tag_map(tmp_path, analog, digital)
