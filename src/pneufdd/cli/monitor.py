@@ -161,7 +161,13 @@ def monitor_command(
         err.print(f"warning: {held} alarm(s) not delivered (their outputs still fail; see above)")
     for note in stats.notes:
         err.print(f"note: {note}")
-    summary = {
+    err.print(json.dumps(_summary(stats, mon.state.in_alarm)))
+    raise typer.Exit(ExitCode.LEAK_FOUND if mon.state.in_alarm else ExitCode.OK)
+
+
+def _summary(stats: Any, leak_active: bool) -> dict[str, Any]:
+    """The run's last line (JSON)."""
+    return {
         "cycles": stats.cycles,
         "recorded": stats.recorded,
         "already_recorded": stats.skipped,
@@ -171,10 +177,8 @@ def monitor_command(
         "cycles_lost": stats.cycles_lost,
         "incomplete_skipped": stats.incomplete,
         "seconds": round(stats.seconds, 3),
-        "leak_active": mon.state.in_alarm,
+        "leak_active": leak_active,
     }
-    err.print(json.dumps(summary))
-    raise typer.Exit(ExitCode.LEAK_FOUND if mon.state.in_alarm else ExitCode.OK)
 
 
 def _publishers(urls: list[str], metrics_port: int | None, warn: Callable[[str], None]) -> Any:
