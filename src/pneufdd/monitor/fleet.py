@@ -303,12 +303,12 @@ def alarm_list(db: HistoryDatabase, machine_id: int, limit: int = 200) -> list[d
     with db.engine.connect() as conn:
         return [
             {
+                **json.loads(r.data),  # the alarm log's object (its "time" is ISO text)
                 "id": int(r.id),
                 "time": float(r.time),
                 "kind": str(r.kind),
                 "ack_time": r.ack_time,
                 "ack_user": r.ack_user,
-                **json.loads(r.data),
             }
             for r in conn.execute(query)
         ]

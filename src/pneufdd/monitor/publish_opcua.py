@@ -21,7 +21,8 @@ variable                     type        meaning
 ``LastAlarmTime``            DateTime    its time (UTC)
 ===========================  ==========  ================================================
 
-and per leak location ever found an object ``<machine>.Findings.<location>`` with
+and, in the folder ``<machine>.Leaks``, per leak location ever found an object
+``<machine>.Leaks.<location>`` with
 ``Location`` (String), ``Active`` (Boolean), ``FlowSLPM`` and ``AnnualCost`` (Double).
 
 Security: only the policy **Basic256Sha256 with SignAndEncrypt**; clients log in with
@@ -84,7 +85,11 @@ def ensure_certificate(folder: Path, host: str) -> tuple[Path, Path]:
         return cert, key
     folder.mkdir(parents=True, exist_ok=True, mode=0o700)
     private = generate_private_key()
-    names = [x509.UniformResourceIdentifier(APPLICATION_URI), x509.DNSName(host or "localhost")]
+    import socket
+
+    hosts = dict.fromkeys([host or "localhost", socket.gethostname(), "localhost"])
+    names: list[x509.GeneralName] = [x509.UniformResourceIdentifier(APPLICATION_URI)]
+    names += [x509.DNSName(h) for h in hosts if h]
     certificate = generate_self_signed_app_certificate(
         private,
         APPLICATION_URI,
@@ -264,7 +269,7 @@ class OpcUaPublisher:
         nodes: dict[str, Any] = {
             "__object__": obj,
             "__findings__": await obj.add_folder(
-                _node_id(f"{machine}.Findings", self.namespace), "Findings"
+                _node_id(f"{machine}.Leaks", self.namespace), "Leaks"
             ),
         }
         for name, (value, kind) in spec.items():
@@ -280,7 +285,7 @@ class OpcUaPublisher:
         if found is not None:
             return found
         folder = (await self._machine(machine))["__findings__"]
-        base = f"{machine}.Findings.{location}"
+        base = f"{machine}.Leaks.{location}"
         obj = await folder.add_object(_node_id(base, self.namespace), location)
         v = ua.VariantType
         nodes = {}
@@ -348,3 +353,5 @@ class OpcUaPublisher:
         asyncio.run_coroutine_threadsafe(self.server.stop(), self._loop).result(timeout=10.0)
         self._loop.call_soon_threadsafe(self._loop.stop)
         self._thread.join(timeout=10.0)
+        if not self._thread.is_alive():
+            self._loop.close()

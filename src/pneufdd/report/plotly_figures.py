@@ -134,12 +134,14 @@ def leak_trend_figure(trends: Sequence[Mapping[str, Any]], title: str) -> str:
 
     fig = go.Figure()
     flows: list[float] = []
+    times: list[float] = []
     for leak in trends:
         points = [s for s in leak["sizes"] if _ok(s.get("flow_slpm"))]
         if not points:
             continue
         flow = [float(s["flow_slpm"]) for s in points]
         flows += flow
+        times += [float(s["time"]) for s in points]
         fig.add_trace(
             go.Scatter(
                 x=[_when(s["time"]) for s in points],

@@ -29,7 +29,7 @@ def _e(value: object) -> str:
     return html.escape(str(value), quote=True)
 
 
-def _leak_mark(x: float, y: float, leak: Mapping[str, Any]) -> str:
+def _leak_mark(x: float, y: float, leak: Mapping[str, Any], below: bool = False) -> str:
     flow = leak.get("flow_slpm")
     size = float(flow) if isinstance(flow, int | float) and math.isfinite(flow) else 0.0
     radius = 6.0 + 3.0 * math.sqrt(max(size, 0.0) / 10.0)
@@ -39,7 +39,8 @@ def _leak_mark(x: float, y: float, leak: Mapping[str, Any]) -> str:
         f"<title>{_e(text)}</title>"
         f"<circle cx='{x:.1f}' cy='{y:.1f}' r='{min(radius, 22.0):.1f}' fill='#d62728' "
         "fill-opacity='0.75' stroke='#7f0000'/>"
-        f"<text x='{x + 8:.1f}' y='{y - 10:.1f}' font-size='11' fill='#7f0000'>{_e(text)}</text>"
+        f"<text x='{x - 20:.1f}' y='{y + 34 if below else y - 10:.1f}' font-size='11' "
+        f"fill='#7f0000'>{_e(text)}</text>"
         "</g>"
     )
 
@@ -106,7 +107,7 @@ def schematic_svg(
         f"<text x='33' y='{_BUS_Y + 4}' font-size='10' text-anchor='middle'>supply</text>",
         f"<line x1='56' y1='{_BUS_Y}' x2='{width - 20}' y2='{_BUS_Y}' stroke='#444' "
         "stroke-width='3'/>",
-        f"<text x='{_LEFT - 40}' y='{_BUS_Y - 8}' font-size='10' fill='#555'>manifold</text>",
+        f"<text x='{_LEFT - 50}' y='{_BUS_Y - 8}' font-size='10' fill='#555'>manifold</text>",
     ]
     for i, actuator in enumerate(actuators):
         svg, spots = _actuator(i, actuator)
@@ -129,7 +130,7 @@ def schematic_svg(
         if spot is None:
             unplaced.append(str(leak.get("location")))
             continue
-        body.append(_leak_mark(spot[0], spot[1], leak))
+        body.append(_leak_mark(spot[0], spot[1], leak, below=leak.get("location") == "supply"))
     if unplaced:
         body.append(
             f"<text x='10' y='{height - 6}' font-size='11' fill='#7f0000'>not on the schematic: "
