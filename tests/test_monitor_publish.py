@@ -204,7 +204,7 @@ def test_a_late_mqtt_subscriber_gets_the_retained_state_and_diagnosis(published)
 
     def on_message(_c, _u, message) -> None:
         got[message.topic] = {"retain": message.retain, **json.loads(message.payload)}
-        if {"plant/line1/festo-dsd/state", "plant/line1/festo-dsd/diagnosis"} <= got.keys():
+        if {f"plant/line1/festo-dsd/{t}" for t in ("state", "diagnosis", "alarm")} <= got.keys():
             done.set()
 
     client = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)

@@ -88,6 +88,8 @@ def site(tmp_path_factory):
     finally:
         proc.terminate()
         proc.wait(20)
+        if proc.stderr is not None:
+            proc.stderr.close()
         db.close()
 
 
