@@ -72,8 +72,18 @@ def _fill(path: Path, now: float) -> int:
                     "INSERT INTO leaks (machine_id, location, state, first_seen, last_seen, "
                     "repaired_at, flow_slpm, annual_cost, confidence, cost_to_date) "
                     "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                    (m + 1, location, state_text, now - 90 * DAY_S, now, None, 40.0 + j,
-                     400.0 + j, 0.8, 50.0),
+                    (
+                        m + 1,
+                        location,
+                        state_text,
+                        now - 90 * DAY_S,
+                        now,
+                        None,
+                        40.0 + j,
+                        400.0 + j,
+                        0.8,
+                        50.0,
+                    ),
                 ).lastrowid
                 con.executemany(
                     "INSERT INTO leak_sizes VALUES (?, ?, ?, ?)",
@@ -86,8 +96,10 @@ def _fill(path: Path, now: float) -> int:
             con.executemany(
                 "INSERT INTO gaps (machine_id, start, end, source, cycles_lost) "
                 "VALUES (?, ?, ?, ?, ?)",
-                [(m + 1, now - k * 30 * DAY_S, now - k * 30 * DAY_S + 60, "mqtt://b/x", 4)
-                 for k in range(1, 6)],
+                [
+                    (m + 1, now - k * 30 * DAY_S, now - k * 30 * DAY_S + 60, "mqtt://b/x", 4)
+                    for k in range(1, 6)
+                ],
             )
     con.execute("ANALYZE")
     con.close()
@@ -112,13 +124,22 @@ def run() -> list[BenchResult]:
         path = Path(folder) / "fleet.db"
         began = time.perf_counter()
         rows = _fill(path, now)
-        print(f"   filled {MACHINES} machines, {rows:,} cycles in "
-              f"{time.perf_counter() - began:.1f} s", file=sys.stderr, flush=True)
+        print(
+            f"   filled {MACHINES} machines, {rows:,} cycles in "
+            f"{time.perf_counter() - began:.1f} s",
+            file=sys.stderr,
+            flush=True,
+        )
         url = f"sqlite:///{path}"
         port = _free_port()
         server = uvicorn.Server(
-            uvicorn.Config(create_app(ServeSettings(url, port=port)), host="127.0.0.1",
-                           port=port, log_level="warning", access_log=False)
+            uvicorn.Config(
+                create_app(ServeSettings(url, port=port)),
+                host="127.0.0.1",
+                port=port,
+                log_level="warning",
+                access_log=False,
+            )
         )
         thread = threading.Thread(target=server.run)
         thread.start()
