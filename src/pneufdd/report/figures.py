@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator, NullFormatter
 
 from pneufdd.array_types import FloatArray
 from pneufdd.files import atomic_target
@@ -242,8 +242,7 @@ def step_trace_figure(
         bottom.axhline(0.0, color="k", lw=0.5)
         bottom.set_ylim(*difference_range(d))
         name = labels[step - 1] if 0 < step <= len(labels) else f"{step}"
-        top.set_title(f"step {name}", fontsize="small")
-        bottom.set_xlabel("time from step start [s]")
+        bottom.set_xlabel(f"step {name}: time from its start [s]")
         top.set_ylabel(f"{channel} [{label}]")
         bottom.set_ylabel(f"difference [{dlabel}]")
     _legend_above(axes[0][0], ncol=2)
@@ -317,6 +316,9 @@ def statistic_figure(
     ax.set_yscale("log")
     low, high = score_range([*scores, run_score, run_threshold], threshold)
     ax.set_ylim(10.0**low, 10.0**high)
+    # plain numbers: figures draw no mathtext (report/plain_text.py), so no 10^k labels
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlim(0.4, scores.size + 0.6)
     ax.set_xlabel("cycle of the run")
