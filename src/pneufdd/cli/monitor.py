@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -60,6 +61,18 @@ def monitor_command(
         int | None, typer.Option(min=1, help="Stop after this many cycles.")
     ] = None,
     verbose: Annotated[bool, typer.Option("--verbose", help="Print every cycle's score.")] = False,
+    publish: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="Publish each machine's state: opcua://host:port?users=FILE (OPC UA server,"
+            " Basic256Sha256 SignAndEncrypt) or mqtt://broker/topic (retained JSON);"
+            " repeatable (docs/monitor.md, Publishing)."
+        ),
+    ] = None,
+    metrics_port: Annotated[
+        int | None,
+        typer.Option(min=1, max=65535, help="Serve Prometheus /metrics on 127.0.0.1:PORT."),
+    ] = None,
 ) -> None:
     """Watch a machine: score every cycle, declare leaks sequentially, record the history."""
     from rich.console import Console
@@ -93,7 +106,11 @@ def monitor_command(
         webhook=webhook,
         warn=lambda m: err.print(f"warning: {m}"),
     )
-    mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks, source=masked_url(source))
+    publishers = _publishers(publish or [], metrics_port, lambda m: err.print(f"warning: {m}"))
+    mon = MachineMonitor(
+        model, db, machine, arl0=arl0, alarm=sinks, source=masked_url(source), publish=publishers
+    )
+    _store_machine_info(mon)
     err.print(
         f"monitoring {mon.machine}: CUSUM threshold {mon.cusum.decision_threshold:.2f} "
         f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {masked_url(history)}; "
@@ -137,13 +154,20 @@ def monitor_command(
         stats = mon.stats
         err.print("stopped")
     finally:
+        publishers.close()
         db.close()
         held = sinks.retry(force=True)
     if held:
         err.print(f"warning: {held} alarm(s) not delivered (their outputs still fail; see above)")
     for note in stats.notes:
         err.print(f"note: {note}")
-    summary = {
+    err.print(json.dumps(_summary(stats, mon.state.in_alarm)))
+    raise typer.Exit(ExitCode.LEAK_FOUND if mon.state.in_alarm else ExitCode.OK)
+
+
+def _summary(stats: Any, leak_active: bool) -> dict[str, Any]:
+    """The run's last line (JSON)."""
+    return {
         "cycles": stats.cycles,
         "recorded": stats.recorded,
         "already_recorded": stats.skipped,
@@ -153,10 +177,61 @@ def monitor_command(
         "cycles_lost": stats.cycles_lost,
         "incomplete_skipped": stats.incomplete,
         "seconds": round(stats.seconds, 3),
-        "leak_active": mon.state.in_alarm,
+        "leak_active": leak_active,
     }
-    err.print(json.dumps(summary))
-    raise typer.Exit(ExitCode.LEAK_FOUND if mon.state.in_alarm else ExitCode.OK)
+
+
+def _publishers(urls: list[str], metrics_port: int | None, warn: Callable[[str], None]) -> Any:
+    """The publish hook: OPC UA servers, MQTT publishers, the metrics endpoint."""
+    from pneufdd.errors import InputError, describe
+    from pneufdd.monitor.publish import Publisher, Publishers
+
+    made: list[Publisher] = []
+    try:
+        for url in urls:
+            if url.startswith("opcua://"):
+                from pneufdd.monitor.publish_opcua import OpcUaPublisher
+
+                made.append(OpcUaPublisher(url, warn))
+            elif url.startswith(("mqtt://", "mqtts://")):
+                from pneufdd.monitor.publish_mqtt import MqttPublisher
+
+                made.append(MqttPublisher(url, warn))
+            else:
+                raise InputError(
+                    describe("--publish", url, ["opcua://...", "mqtt://...", "mqtts://..."])
+                )
+        if metrics_port is not None:
+            from pneufdd.monitor.metrics import MonitorMetrics
+
+            metrics = MonitorMetrics()
+            metrics.serve(metrics_port)
+            made.append(metrics)
+    except BaseException:
+        Publishers(made, warn).close()
+        raise
+    return Publishers(made, warn)
+
+
+def _store_machine_info(mon: Any) -> None:
+    """What the dashboard draws from: description, thresholds, step names (schema 3)."""
+    import time as clock
+
+    from pneufdd.monitor.fleet import save_machine_info
+    from pneufdd.report.steps import step_labels
+
+    model = mon.model
+    description = model.description
+    names = [s.name for s in description.steps] if description is not None else []
+    save_machine_info(
+        mon.history,
+        mon.machine_id,
+        clock.time(),
+        model.machine_description,
+        mon.cusum.decision_threshold,
+        float(mon.detector.threshold_),
+        step_labels(model.sequence, names, model.n_steps),
+    )
 
 
 def _check_outputs(

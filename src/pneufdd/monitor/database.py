@@ -26,6 +26,12 @@ Tables (schema version :data:`SCHEMA_VERSION`, migrations in :data:`MIGRATIONS`)
     spans without a recorded cycle between two cycles (an outage of the source, a
     monitor that was away, data that held no complete cycle): start, end, source and
     the cycles lost; recorded with the cycle that ends the gap.
+``machine_info`` (version 3)
+    what a monitor knows of its machine when it starts: the machine description (JSON
+    of the TOML mapping the reference carries), the CUSUM and per-cycle thresholds and
+    the PLC steps' names; the dashboard draws the schematic and the score chart from it.
+``acknowledgements`` (version 3)
+    who acknowledged which alarm, and when.
 
 A cycle, the detector state, the cost accrued by the active leaks and any alarm or
 diagnosis the cycle triggered are one transaction: a crash (even SIGKILL) loses at most
@@ -61,7 +67,7 @@ __all__ = [
 ]
 
 DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 SCHEMA_LOCK = 0x706E_6575_6664_6431
 """PostgreSQL advisory lock key held while the schema is created or migrated."""
 SCHEMA_ATTEMPTS = 5
@@ -170,6 +176,25 @@ gaps = sa.Table(
 sa.Index("ix_gaps_machine_start", gaps.c.machine_id, gaps.c.start)
 
 
+machine_info = sa.Table(
+    "machine_info",
+    metadata,
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), primary_key=True),
+    sa.Column("time", sa.Float, nullable=False),
+    sa.Column("description", sa.Text, nullable=False),
+    sa.Column("cusum_threshold", sa.Float),
+    sa.Column("cycle_threshold", sa.Float),
+    sa.Column("steps", sa.Text, nullable=False),
+)
+acknowledgements = sa.Table(
+    "acknowledgements",
+    metadata,
+    sa.Column("alarm_id", sa.Integer, sa.ForeignKey("alarms.id"), primary_key=True),
+    sa.Column("time", sa.Float, nullable=False),
+    sa.Column("user", sa.String(200), nullable=False),
+)
+
+
 def _create_v1(conn: Connection) -> None:
     metadata.create_all(conn, tables=list(_V1_TABLES))
 
@@ -178,7 +203,15 @@ def _add_gaps_v2(conn: Connection) -> None:
     metadata.create_all(conn, tables=[gaps])
 
 
-MIGRATIONS: tuple[Callable[[Connection], None], ...] = (_create_v1, _add_gaps_v2)
+def _add_machine_info_v3(conn: Connection) -> None:
+    metadata.create_all(conn, tables=[machine_info, acknowledgements])
+
+
+MIGRATIONS: tuple[Callable[[Connection], None], ...] = (
+    _create_v1,
+    _add_gaps_v2,
+    _add_machine_info_v3,
+)
 """``MIGRATIONS[k]`` takes a database from version ``k`` to ``k + 1``."""
 
 
@@ -221,7 +254,7 @@ class HistoryDatabase:
     ...         again = db.add_cycle(conn, m, 100.0, 14.8, 0.5, 0.0, 0.01, 6e5)
     ...     (first, again, db.cycle_count(m), db.schema_version())
     ...     db.close()
-    (True, False, 1, 2)
+    (True, False, 1, 3)
     """
 
     def __init__(self, url: str) -> None:

@@ -117,6 +117,9 @@ class MachineMonitor:
         Called with every :class:`Alarm` after it is committed.
     source : str
         What the cycles come from (a gap's ``source`` in the history; no password).
+    publish : callable, optional
+        Called with the monitor and each cycle's :class:`CycleOutcome` after the cycle
+        is committed (:class:`pneufdd.monitor.publish.Publishers`: OPC UA, MQTT, metrics).
     """
 
     def __init__(
@@ -128,7 +131,9 @@ class MachineMonitor:
         cost: CostSettings | None = None,
         alarm: Callable[[Alarm], None] | None = None,
         source: str = "",
+        publish: Callable[[MachineMonitor, CycleOutcome], None] | None = None,
     ) -> None:
+        self.publish = publish
         self.model = model
         self.source = source
         self.history = history
@@ -187,10 +192,13 @@ class MachineMonitor:
         self.stats.cycles += 1
         memory = self._memory()
         try:
-            return self._process(cycle)
+            outcome = self._process(cycle)
         except BaseException:
             self._recall(memory)
             raise
+        if self.publish is not None:  # the one publish hook: after the commit
+            self.publish(self, outcome)
+        return outcome
 
     def skip_incomplete(
         self, cycle: CompletedCycle, short: Sequence[tuple[str, float]]
