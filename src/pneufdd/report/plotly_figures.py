@@ -161,6 +161,13 @@ def leak_trend_figure(trends: Sequence[Mapping[str, Any]], title: str) -> str:
         title_text="leak flow while pressurised [SLPM]",
     )
     fig.update_xaxes(title_text="time (UTC); dotted: repaired")
+    if times:
+        # at least an hour wide: one estimate alone was drawn on a sub-millisecond axis
+        middle, half = (
+            (max(times) + min(times)) / 2.0,
+            max((max(times) - min(times)) * 0.55, 1800.0),
+        )
+        fig.update_xaxes(range=[_when(middle - half), _when(middle + half)])
     fig.update_layout(title=title, legend=_LEGEND, margin=_MARGIN, height=360)
     return _json(fig)
 
