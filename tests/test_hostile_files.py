@@ -1,0 +1,62 @@
+"""Issue 39, third round: what an attacker or a careless user feeds pneufdd.
+
+The corpus is ``tests/fuzzing_files.py`` (``make fuzz`` runs it through the commands);
+here each defect the round found is asserted at its cause: monitor source URLs that
+printed their password or exited 3, replay options that were silently ignored.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import fuzzing_files as ff
+from pneufdd.errors import InputError
+from pneufdd.monitor.sources import open_source
+
+ANALOG, DIGITAL = ["P_In"], ["U_FEED_A"]
+
+
+@pytest.mark.parametrize(
+    ("url", "shown"),
+    [
+        (f"mqtt://user:{ff.SECRET}@127.0.0.1:99999/t", "(Port out of range 0-65535)"),
+        (f"mqtt://user:{ff.SECRET}@[::1/t", "(Invalid IPv6 URL)"),
+        ("mqtt://127.0.0.1:abc/t", "(Port could not be cast to integer value as 'abc')"),
+        (f"mqtt://:{ff.SECRET}@/t", "received 'mqtt://:***@/t'; allowed: mqtt://host:port/topic"),
+        (f"opc.tcp://user:{ff.SECRET}@127.0.0.1:1/", "received 'opc.tcp://user:***@127.0.0.1:1/'"),
+        (f"http://user:{ff.SECRET}@h/", "received 'http://user:***@h/'; allowed: replay:FILE"),
+    ],
+)
+def test_source_urls_are_refused_without_their_password(url: str, shown: str) -> None:
+    with pytest.raises(InputError) as caught:
+        open_source(url, ANALOG, DIGITAL)
+    text = str(caught.value)
+    assert text.startswith("--source: received")
+    assert shown in text
+    assert ff.SECRET not in text
+
+
+def test_opcua_messages_never_show_the_password() -> None:
+    source = open_source(f"opcua://user:{ff.SECRET}@127.0.0.1:4840/", ANALOG, DIGITAL)
+    assert source.shown == "opc.tcp://user:***@127.0.0.1:4840/"
+    assert source.url == f"opc.tcp://user:{ff.SECRET}@127.0.0.1:4840/"  # asyncua logs in
+
+
+@pytest.mark.parametrize(
+    "query", ["speed=max&unknown=1", "sped=max", "speed=max&speed=1", "speed=", "?speed=max"]
+)
+def test_replay_options_are_never_silently_ignored(tmp_path: Path, query: str) -> None:
+    run = tmp_path / "run.parquet"
+    run.write_bytes(b"PAR1")
+    with pytest.raises(InputError, match=r"--source replay options: received .*; allowed: "
+                       r"speed=<number>\|max, chunk=<s>"):  # fmt: skip
+        open_source(f"replay:{run}?{query}", ANALOG, DIGITAL)
+
+
+@pytest.mark.parametrize("path", ["", ".", "/dev/zero"])
+def test_a_replay_needs_a_recording_file(path: str) -> None:
+    with pytest.raises(InputError, match=rf"--source replay file: received '{path}'; allowed: an "
+                       "existing recording file"):  # fmt: skip
+        open_source(f"replay:{path}?speed=max", ANALOG, DIGITAL)
