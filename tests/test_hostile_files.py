@@ -60,3 +60,37 @@ def test_a_replay_needs_a_recording_file(path: str) -> None:
     with pytest.raises(InputError, match=rf"--source replay file: received '{path}'; allowed: an "
                        "existing recording file"):  # fmt: skip
         open_source(f"replay:{path}?speed=max", ANALOG, DIGITAL)
+
+
+@pytest.fixture(scope="module")
+def pnref(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small reference built from a simulated run (no signatures)."""
+    import fuzzing
+
+    return fuzzing.make_base(tmp_path_factory.mktemp("hostile-base"), full=False)["pnref"]
+
+
+@pytest.mark.parametrize(
+    ("name", "shown"),
+    [
+        ("member_traversal", "entry name: received '../../evil.npy'; allowed: one <array>.npy"),
+        ("member_absolute", "entry name: received '/etc/evil.npy'"),
+        ("member_not_npy", "entry name: received 'readme.txt'"),
+        ("member_duplicate_features", "entry name: received 'features.npy'"),
+        ("member_encrypted", "entry 'features.npy': received 'encrypted'; allowed: not encrypted"),
+    ],
+)
+def test_pnref_entries_are_only_what_numpy_writes(
+    tmp_path: Path, pnref: Path, name: str, shown: str
+) -> None:
+    """A .pnref holds one <array>.npy per array: no path, no duplicate (zipfile reads the
+    last of two alike), no encryption (zipfile's RuntimeError was exit 3)."""
+    from pneufdd.diagnosis.reference.file import load_reference
+
+    path = tmp_path / "hostile.pnref"
+    path.write_bytes({n: c for n, c, _ in ff.hostile_pnrefs(pnref, full=False)}[name])
+    with pytest.raises(InputError) as caught:
+        load_reference(path)
+    assert str(caught.value).startswith(f"reference file '{path}': ")
+    assert shown in str(caught.value)
+    assert load_reference(pnref).feature_names  # the whole file still loads
