@@ -94,3 +94,36 @@ def test_pnref_entries_are_only_what_numpy_writes(
     assert str(caught.value).startswith(f"reference file '{path}': ")
     assert shown in str(caught.value)
     assert load_reference(pnref).feature_names  # the whole file still loads
+
+
+@pytest.mark.parametrize("name", ["bell\x07\x1b[31mred", "x\n[supply]\nhouse_psig = 1", "\x7f"])
+def test_a_varied_machine_is_valid_toml_whatever_its_name(tmp_path: Path, name: str) -> None:
+    """machine vary writes the source's name in its header comment: a control character
+    there made the written file unreadable TOML; a line end cannot inject a table."""
+    import contextlib
+    import io
+    import json
+    import os
+    import tomllib
+
+    from pneufdd.cli.app import main
+    from pneufdd.sim import load_machine
+    from pneufdd.sim.variation import machine_to_toml
+
+    source = tmp_path / "m.toml"
+    original = machine_to_toml(load_machine("press-fit-cell"))
+    source.write_text(original.replace('name = "press-fit-cell"', f"name = {json.dumps(name)}", 1))
+    here = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+            code = main(["machine", "vary", "m.toml", "--seed", "3", "--out", "v.toml"])
+    finally:
+        os.chdir(here)
+    assert code == 0
+    text = (tmp_path / "v.toml").read_text("utf-8")
+    written = tomllib.loads(text)
+    assert written["machine"]["name"] == name
+    header = text.split("\n\n", 1)[0].splitlines()
+    assert header[0].startswith("# plant varied from ")
+    assert all(line.startswith("#") for line in header)  # nothing of the name outside it
