@@ -19,6 +19,7 @@ import typer.main
 
 import fuzzing
 import fuzzing_bounds
+import fuzzing_generators
 from pneufdd.cli.app import app, main
 
 
@@ -30,8 +31,45 @@ def base(tmp_path_factory):
 def test_every_command_is_fuzzed() -> None:
     commands = fuzzing.discover_commands()
     assert {"steps", "features", "reference build", "diagnose", "simulate"} <= set(commands)
-    missing = [c for c in commands if c not in fuzzing.BUILDERS and c not in fuzzing.NOT_FUZZED]
-    assert missing == [], f"add a case builder to tests/fuzzing.py for {missing}"
+    handled = {*fuzzing.BUILDERS, *fuzzing.NOT_FUZZED, *fuzzing_generators.COMMANDS}
+    missing = [c for c in commands if c not in handled]
+    assert missing == [], f"add an entry to fuzzing_generators.COMMANDS for {missing}"
+
+
+def test_every_command_has_a_generator_entry() -> None:
+    """Every command of ``pneufdd --help``, including campaign and demo and any added
+    later, has an entry in the generators' table (``tests/fuzzing_generators.py``)."""
+    commands = fuzzing.discover_commands()
+    assert {"campaign", "demo", "monitor", "machines"} <= set(commands)
+    missing = fuzzing_generators.missing_entries(commands)
+    assert missing == [], f"add an Entry to fuzzing_generators.COMMANDS for {missing}"
+
+
+def test_generators_draw_every_kind_of_value_reproducibly(base, tmp_path) -> None:
+    import numpy as np
+
+    def labels(folder):
+        folder.mkdir()
+        kit = fuzzing_generators.Kit(base, tmp_path, folder)
+        rng = np.random.default_rng(fuzzing_generators.SEED)
+        return [v[0] for v in fuzzing_generators.variants("diagnose", kit, rng)]
+
+    first, again = labels(tmp_path / "a"), labels(tmp_path / "b")
+    assert first == again
+    kinds = {label.split("=")[0].split("_")[0] for label in first}
+    assert {"--hours", "--price", "--threads", "input", "output", "nested", "name"} <= kinds
+    assert "--hours='nan'" in first
+    assert "--hours='1e308'" in first
+    assert {"input_fifo_rec1.parquet", "output_dangling_--json", "output_loop_--report"} <= set(
+        first
+    )
+    # an expensive command gets only what must be refused, never a value it would run with
+    folder = tmp_path / "c"
+    folder.mkdir()
+    kit = fuzzing_generators.Kit(base, tmp_path, folder)
+    found = fuzzing_generators.variants("campaign", kit, np.random.default_rng(1))
+    assert found
+    assert all(allowed == {2} for _, _, allowed, _, _ in found)
 
 
 def test_quick_slice_of_the_fuzz_corpus(base, tmp_path) -> None:

@@ -100,3 +100,22 @@ def test_vector_map_refuses_a_machine_file_it_would_overwrite(tmp_path, capsys) 
     assert "it is --machine" in capsys.readouterr().err
     assert machine.read_bytes() == PRESS_FIT.read_bytes()
     assert sorted(p.name for p in out.iterdir()) == ["sign_table.png"]
+
+
+@pytest.mark.parametrize("target", ["elsewhere/missing.toml", "loop.toml"])
+def test_an_output_on_a_link_that_leads_nowhere_needs_overwrite(tmp_path, target) -> None:
+    """A dangling link, or one to itself, is there (path.exists() says not): replacing it
+    needs --overwrite, as for a file (machine draft replaced it unasked, exit 0)."""
+    from pneufdd.cli.outputs import check_outputs
+    from pneufdd.errors import FileExistsInputError
+
+    link = tmp_path / "loop.toml"
+    os.symlink(target, link)
+    with pytest.raises(FileExistsInputError, match=r"--out: received '.*loop\.toml'; allowed: a "
+                       r"new file \(or pass --overwrite to replace it\)"):  # fmt: skip
+        check_outputs({"--out": link}, {}, overwrite=False)
+    check_outputs({"--out": link}, {}, overwrite=True)
+    write_text_atomic(link, "x = 1\n", overwrite=True)  # the link replaced, nothing behind it
+    assert not link.is_symlink()
+    assert link.read_text() == "x = 1\n"
+    assert not (tmp_path / "elsewhere").exists()

@@ -32,6 +32,9 @@ __all__ = [
     "MAX_ARL0",
     "MAX_CAMPAIGN_COUNT",
     "MAX_CHANNELS",
+    "MAX_CSV_BYTES",
+    "MAX_CSV_COLUMNS",
+    "MAX_CSV_LINE_BYTES",
     "MAX_CYCLES",
     "MAX_HOURS_PER_YEAR",
     "MAX_JSON_DEPTH",
@@ -44,6 +47,9 @@ __all__ = [
     "MAX_RUN_CYCLES",
     "MAX_SIGNATURE_CYCLES",
     "MAX_STEPS",
+    "MAX_TDMS_LISTED_OBJECTS",
+    "MAX_TDMS_OBJECTS",
+    "MAX_TDMS_SEGMENTS",
     "MAX_TEXT_FILE_BYTES",
     "MAX_UNCERTAINTY_PLANTS",
     "MAX_WORKERS",
@@ -91,6 +97,29 @@ MAX_ACTUATORS = 64
 
 MAX_STEPS = 1_000
 """Most steps a machine description's sequence may have."""
+
+MAX_CSV_BYTES = 1 << 30
+"""Largest CSV export read [bytes] (1 GiB; the memory its rows imply is checked too)."""
+
+MAX_CSV_LINE_BYTES = 16 << 20
+"""Longest line of a CSV export [bytes] (16 MiB: a million columns; real rows are a few
+kB, a 100,000-column export's about 200 kB)."""
+
+MAX_CSV_COLUMNS = 200_000
+"""Most columns a CSV export's header may have (twice the widest export measured, 100,000
+ignored columns, about 4 s to import)."""
+
+MAX_TDMS_SEGMENTS = 100_000
+"""Most segments a TDMS file may have. LabVIEW writes one per write call; npTDMS spends
+about 60 us and 230 bytes on each, and NI's TDMS tools defragment a file into one."""
+
+MAX_TDMS_OBJECTS = 20_000
+"""Most objects (channels, their groups, the root) one TDMS segment may list."""
+
+MAX_TDMS_LISTED_OBJECTS = 2_000_000
+"""Most objects listed over all segments of a TDMS file (each segment's list, summed):
+npTDMS visits every one, about 8 us each (a 0.5 MB file of 20,000 objects repeated in
+2,000 segments took 328 s and 334 MB)."""
 
 MAX_RATE_HZ = 10e6
 """Fastest plausible sample rate of any channel [Hz]; ``import`` refuses faster too."""

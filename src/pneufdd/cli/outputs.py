@@ -7,7 +7,8 @@ and its outputs named by the option that gave them. The rules (issue 14):
   ``--overwrite`` (``--json run.parquet`` would destroy the recording);
 * two outputs of one command may not share a path (one would lose the other);
 * an output may not be a folder, nor lie inside a path that is a file;
-* an existing output is replaced only with ``--overwrite``.
+* an existing output is replaced only with ``--overwrite`` (a symbolic link too, even
+  one that leads nowhere or to itself: the link is replaced, never written through).
 
 Writing goes through :mod:`pneufdd.files` (``write_text_atomic``, ``atomic_target``): a temporary
 file in the target's folder, renamed into place once complete, so an error (or
@@ -117,7 +118,9 @@ def check_outputs(
                 raise InputError(
                     describe(name, str(path), f"a path in a folder ({str(parent)!r} is a file)")
                 )
-        if path.exists() and not overwrite:
+        # a link counts as there even when it leads nowhere (dangling, or a loop, which
+        # path.exists() reports as absent): replacing it needs --overwrite too
+        if os.path.lexists(path) and not overwrite:
             raise FileExistsInputError(
                 describe(name, str(path), "a new file (or pass --overwrite to replace it)")
             )

@@ -92,6 +92,7 @@ from pneufdd.limits import (
     check_json_depth,
 )
 from pneufdd.monitor.completeness import LossLedger
+from pneufdd.monitor.database import masked_url
 from pneufdd.monitor.opcua import SubscriptionRefusedError, grant_problems, needed_queue, subscribe
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.physics.units import UNITS, to_si
@@ -439,6 +440,7 @@ class OpcUaSource:
         accept_revised: bool = False,
     ) -> None:
         self.url = url
+        self.shown = masked_url(url)  # what messages show: never the password
         self.tags = tags
         self.channels = tuple(channels)
         self.rates_hz = {c: tags.rates_hz[c] for c in self.channels}
@@ -522,10 +524,10 @@ class OpcUaSource:
             except (TimeoutError, OSError, UaError) as exc:
                 attempt += 1
                 if attempt == 1 or attempt % 10 == 0:
-                    self.log(f"OPC UA server {self.url} unreachable ({exc}); retrying")
+                    self.log(f"OPC UA server {self.shown} unreachable ({exc}); retrying")
                 await asyncio.sleep(1.0)
                 continue
-            self.log(("reconnected to" if attempt else "connected to") + f" OPC UA {self.url}")
+            self.log(("reconnected to" if attempt else "connected to") + f" OPC UA {self.shown}")
             attempt = 1
             try:
                 nodes = []
@@ -556,7 +558,7 @@ class OpcUaSource:
                     await client.disconnect()
                 raise
             except (TimeoutError, OSError, ConnectionError, UaError) as exc:
-                self.log(f"OPC UA connection to {self.url} lost ({exc}); reconnecting")
+                self.log(f"OPC UA connection to {self.shown} lost ({exc}); reconnecting")
                 with contextlib.suppress(Exception):  # already broken
                     await client.disconnect()
                 await asyncio.sleep(1.0)
@@ -588,7 +590,7 @@ class OpcUaSource:
             for c, r in self.rates_hz.items()
         }
         self.log(
-            f"asking OPC UA {self.url} again: publishing interval {interval:g} ms, "
+            f"asking OPC UA {self.shown} again: publishing interval {interval:g} ms, "
             f"queue {max(queue.values())}"
         )
         sub, granted = await subscribe(client, handler, nodes, names, interval, queue)
@@ -605,7 +607,7 @@ class OpcUaSource:
             return
         await sub.delete()
         raise SubscriptionRefusedError(
-            f"OPC UA server {self.url} cannot deliver the rates the reference needs "
+            f"OPC UA server {self.shown} cannot deliver the rates the reference needs "
             f"({len(problems)} channel(s), above); lower the channels' rate_hz in the tag "
             "map (and build the reference at that rate), raise the server's queue and "
             "publishing limits, or add ?accept_revised=1 to the source to run anyway "
@@ -615,7 +617,9 @@ class OpcUaSource:
 
 # --------------------------------------------------------------------- factory
 def _replay_options(query: str) -> tuple[float, float]:
-    params = urllib.parse.parse_qs(query)
+    params = urllib.parse.parse_qs(query, keep_blank_values=True)
+    if set(params) - {"speed", "chunk"} or any(len(v) > 1 for v in params.values()):
+        raise ValueError("an unknown or repeated replay option")  # a typo is no default
     speed_text = params.get("speed", ["1"])[0]
     speed = math.inf if speed_text == "max" else float(speed_text)
     chunk = float(params.get("chunk", ["1"])[0])
@@ -644,14 +648,23 @@ def open_source(
                 describe("--source replay options", query, "speed=<number>|max, chunk=<s>")
             ) from exc
         path = Path(path_text)
-        if not path.exists():
-            raise InputError(describe("--source replay file", path_text, "an existing recording"))
+        if not path_text or not path.is_file():
+            raise InputError(
+                describe("--source replay file", path_text, "an existing recording file")
+            )
         return ReplaySource(Recording.read(path), speed, chunk, log)
-    parsed = urllib.parse.urlparse(text)
+    shown = masked_url(text)  # messages never show a password
+    try:
+        parsed = urllib.parse.urlparse(text)
+        port = parsed.port  # raises on a port that is no number from 0 to 65535
+    except ValueError as exc:
+        raise InputError(
+            describe("--source", shown, f"a URL with a host and a port from 0 to 65535 ({exc})")
+        ) from None
     if parsed.scheme == "mqtt":
         topic = parsed.path.lstrip("/")
         if not parsed.hostname or not topic:
-            raise InputError(describe("--source", text, "mqtt://host:port/topic"))
+            raise InputError(describe("--source", shown, "mqtt://host:port/topic"))
         options = dict(urllib.parse.parse_qsl(parsed.query))
         unknown = sorted(set(options) - {"client_id", "session_expiry", "protocol"})
         if unknown:
@@ -666,7 +679,7 @@ def open_source(
             ) from None
         return MqttSource(
             parsed.hostname,
-            parsed.port or 1883,
+            port or 1883,
             topic,
             tag_map,
             log,
@@ -688,6 +701,6 @@ def open_source(
         )
     raise InputError(
         describe(
-            "--source", text, "replay:FILE[?speed=N], mqtt://host:port/topic, opcua://host:port"
+            "--source", shown, "replay:FILE[?speed=N], mqtt://host:port/topic, opcua://host:port"
         )
     )

@@ -4,6 +4,12 @@ The user names which CSV column becomes which channel (codes of Fig. 3.16) and t
 unit of each channel; values are converted to SI at this edge with
 :func:`pneufdd.physics.units.to_si`. All channels of one CSV file share its time
 column, so they share one sample rate.
+
+Before anything is parsed, the file's size, its longest line and its number of lines
+are checked (:func:`check_csv_size`), and once the header is read its number of
+columns (:func:`check_csv_columns`) and the memory its rows imply
+(:func:`check_csv_cells`), against ``docs/limits.md``: a small file may not declare a
+million columns, nor a large one a single 100 MB line.
 """
 
 from __future__ import annotations
@@ -19,6 +25,12 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.errors import ChannelError, FileFormatError, InputError, UnitError, describe
+from pneufdd.limits import (
+    MAX_CSV_BYTES,
+    MAX_CSV_COLUMNS,
+    MAX_CSV_LINE_BYTES,
+    check_memory,
+)
 from pneufdd.physics.units import UNITS, si_unit_of, to_si
 from pneufdd.recording._files import check_input_file, file_label
 from pneufdd.recording._sampling import snap_rate
@@ -27,12 +39,110 @@ from pneufdd.recording.model import ANALOG, DIGITAL, Channel, Recording
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["NA_TOKENS", "read_csv"]
+__all__ = ["NA_TOKENS", "check_csv_cells", "check_csv_columns", "check_csv_size", "read_csv"]
 
 NA_TOKENS = ("", "nan", "NaN", "NAN", "NA", "N/A", "n/a", "#N/A", "null", "NULL", "None")
 """Cell texts read as a missing sample (NaN); a blank cell is one of them."""
 
 _HEADER_LINES = 1  # the first data row is line 2 of the file
+
+NUMBER_CELL_BYTES = 32
+"""Memory of a cell parsed as a number, with the text and copies around it [bytes]
+(13 to 22 measured over 8 to 40 million cells)."""
+
+TEXT_CELL_BYTES = 64
+"""Memory of a cell read as text (a field export's columns), and its number [bytes]
+(52 measured over 8 million cells)."""
+
+_BLOCK_BYTES = 1 << 23  # read in 8 MiB blocks while counting lines
+
+
+def check_csv_size(path: Path) -> int:
+    """Refuse a CSV file too large or with too long a line, before it is parsed.
+
+    Reads the file once in blocks (no line is held whole); a carriage return, a line
+    feed or both end a line, as in every export tool.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file (checked to exist).
+
+    Returns
+    -------
+    int
+        Its number of lines (a last line without an end counts).
+
+    Raises
+    ------
+    FileFormatError
+        Larger than :data:`~pneufdd.limits.MAX_CSV_BYTES`, or a line longer than
+        :data:`~pneufdd.limits.MAX_CSV_LINE_BYTES` (named by its number).
+    """
+    label = file_label(path)
+    size = path.stat().st_size
+    if size > MAX_CSV_BYTES:
+        raise FileFormatError(
+            describe(f"{label}: size [bytes] (split the export)", f"{size:,}",
+                     f"at most {MAX_CSV_BYTES:,} (docs/limits.md)")
+        )  # fmt: skip
+    lines = current = 0  # current: bytes of the line running on into the next block
+    with path.open("rb") as handle:
+        while block := handle.read(_BLOCK_BYTES):
+            data = np.frombuffer(block, np.uint8)
+            ends = np.flatnonzero((data == 0x0A) | (data == 0x0D))
+            if ends.size:
+                lengths = np.diff(ends, prepend=-1) - 1
+                lengths[0] += current
+                long = np.flatnonzero(lengths > MAX_CSV_LINE_BYTES)
+                if long.size:
+                    before = block[: int(ends[long[0]])]
+                    _too_long(label, lines + 1 + int(long[0]) - before.count(b"\r\n"))
+                lines += int(ends.size) - block.count(b"\r\n")
+                current = len(block) - 1 - int(ends[-1])
+            else:
+                current += len(block)
+            if current > MAX_CSV_LINE_BYTES:
+                _too_long(label, lines + 1)
+    return lines + (current > 0)
+
+
+def _too_long(label: str, line: int) -> None:
+    raise FileFormatError(
+        describe(f"{label}: length of line {line:,} [bytes]", f"> {MAX_CSV_LINE_BYTES:,}",
+                 f"at most {MAX_CSV_LINE_BYTES:,} (docs/limits.md; is it a CSV export?)")
+    )  # fmt: skip
+
+
+def check_csv_columns(path: Path, columns: int) -> None:
+    """Refuse a header of more than :data:`~pneufdd.limits.MAX_CSV_COLUMNS` columns."""
+    if columns > MAX_CSV_COLUMNS:
+        raise FileFormatError(
+            describe(f"{file_label(path)}: number of columns in the header", f"{columns:,}",
+                     f"at most {MAX_CSV_COLUMNS:,} (docs/limits.md)")
+        )  # fmt: skip
+
+
+def check_csv_cells(path: Path, lines: int, parsed: int, cell_bytes: int | None = None) -> None:
+    """Refuse rows whose parsed cells would need more memory than the budget.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file.
+    lines : int
+        Its number of lines (:func:`check_csv_size`): the rows it may hold.
+    parsed : int
+        Columns the reader parses in every row.
+    cell_bytes : int, optional
+        Memory of one parsed cell [bytes]; default :data:`NUMBER_CELL_BYTES`.
+    """
+    check_memory(
+        f"{file_label(path)}: {lines:,} lines x {parsed:,} columns parsed (split the "
+        "export, or ignore columns)",
+        lines * parsed * (cell_bytes or NUMBER_CELL_BYTES) + path.stat().st_size,
+        error=FileFormatError,
+    )
 
 
 def _line(row: int) -> int:
@@ -365,12 +475,16 @@ def read_csv(
         raise InputError(describe("rate_tolerance", rate_tolerance, "0 < rate_tolerance < 0.5"))
     digital = set(digital)
     _check_maps(label, column_map, units, time_column, digital)
+    lines = check_csv_size(path)
     header = _read_header(path, delimiter, encoding)
+    check_csv_columns(path, len(header))
     wanted = [time_column, *column_map]
     present = set(header)
     missing = [c for c in wanted if c not in present]
     if missing:
         raise ChannelError(describe(f"{label}: column(s) not in the file", missing, header))
+    wide = len(header) >= WIDE_COLUMNS  # only the wanted columns are parsed
+    check_csv_cells(path, lines, len(wanted) if wide else len(header))
     dialect = {"delimiter": delimiter, "decimal": decimal, "encoding": encoding}
     frame = _read_table(path, wanted, dialect)
     t0, rate = _time_base(

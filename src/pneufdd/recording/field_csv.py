@@ -26,7 +26,14 @@ import numpy.typing as npt
 from pneufdd.errors import ChannelError, FileFormatError, InputError, describe
 from pneufdd.physics.units import to_si
 from pneufdd.recording._files import file_label
-from pneufdd.recording.csv import NA_TOKENS, _time_base
+from pneufdd.recording.csv import (
+    NA_TOKENS,
+    TEXT_CELL_BYTES,
+    _time_base,
+    check_csv_cells,
+    check_csv_columns,
+    check_csv_size,
+)
 from pneufdd.recording.csv_layout import MAX_SKIP_ROWS, CsvLayout, TimeSpec
 from pneufdd.recording.model import ANALOG, DIGITAL, Channel, Recording
 
@@ -412,7 +419,9 @@ def read_field_csv(path: Path, tag_map: TagMap, metadata: Mapping[str, Any]) -> 
     implicit = layout.implicit_time()
     if implicit is not None and implicit[0] is not None:
         wanted.add(implicit[0])
+    lines = check_csv_size(path)  # size and line lengths, before a row is parsed
     head = _scan(path, layout, wanted, None)
+    check_csv_columns(path, len(head.header))
     where, times = _columns(label, tag_map, head.header)
     _check_unmapped(label, tag_map, [c for c in where if c and c not in times])
     probe = {where[name][0]: spec for name, spec in times.items() if name in where}
@@ -434,7 +443,9 @@ def read_field_csv(path: Path, tag_map: TagMap, metadata: Mapping[str, Any]) -> 
         left = bisect.bisect_left(candidates, where[role.column][0])
         owners[role.column] = candidates[max(left - 1, 0)]
     used = sorted(set(owners.values()))
-    frame = _read_cells(path, head, layout, sorted({*used, *(where[c][0] for c in owners)}))
+    indices = sorted({*used, *(where[c][0] for c in owners)})
+    check_csv_cells(path, lines, len(indices), TEXT_CELL_BYTES)
+    frame = _read_cells(path, head, layout, indices)
     if frame.shape[0] and "EOF" in {str(c).strip() for c in frame.iloc[-1]}:  # TwinCAT's EOF tag
         frame = frame.iloc[:-1]
     first = head.data_line

@@ -573,6 +573,9 @@ def machine_to_toml(machine: MachineDescription, header: str = "") -> str:
     '# a copy'
     >>> parse_description(tomllib.loads(text)).actuators == load_machine("festo-dsd").actuators
     True
+    >>> text = machine_to_toml(load_machine("festo-dsd"), header="from bell\x07\x1b[31m")
+    >>> tomllib.loads(text)["machine"]["name"]  # a control character is no TOML comment
+    'festo-dsd'
     """
     parsed = parse_description(machine.raw, machine.source)
     if replace(parsed, raw=machine.raw, source=machine.source) != machine:
@@ -584,8 +587,15 @@ def machine_to_toml(machine: MachineDescription, header: str = "") -> str:
         body = tomli_w.dumps(machine.raw)
     except TypeError as exc:
         raise MachineError(f"{machine.source}: not writable as TOML: {exc}") from None
+    # a TOML comment holds no control character but a tab: a name read from a file (a
+    # machine named "bell\x07") would make the written file unreadable
+    header = header.translate(_COMMENT_UNSAFE)
     lines = [line if line.startswith("#") else f"# {line}".rstrip() for line in header.splitlines()]
     return ("\n".join(lines) + "\n\n" if lines else "") + body
+
+
+_COMMENT_UNSAFE = {c: "\ufffd" for c in (*range(0x09), *range(0x0E, 0x20), 0x7F)}
+"""Control characters a TOML comment may not hold (line ends split it into lines)."""
 
 
 def _input_files(machine: MachineDescription) -> list[Path]:

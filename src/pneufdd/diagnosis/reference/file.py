@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import zipfile
 import zlib
 from pathlib import Path
@@ -207,6 +208,9 @@ MAX_DEFLATE_RATIO = 1032
 REFERENCE_LOAD_FACTOR = 4
 """Working memory per byte of a reference's arrays while it is loaded and used."""
 
+_ENTRY = re.compile(r"[A-Za-z0-9_]{1,64}\.npy")
+"""The entries numpy.savez writes: one per array, named after it."""
+
 
 def _check_local_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, source: Path) -> None:
     """Refuse an entry whose local header disagrees with the archive's directory.
@@ -250,10 +254,16 @@ def _check_entries(handle: Any, source: Path) -> None:
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
         raise _bad(source, "not readable", type(exc).__name__, "a .pnref (NPZ) file") from exc
     total = 0
+    seen: set[str] = set()
     with archive:
         for info in archive.infolist():
-            if not info.filename.endswith(".npy"):
-                continue
+            # only what numpy.savez writes: no path, no duplicate (zipfile reads the last
+            # of two alike, a check the first), no encryption (zipfile raised RuntimeError)
+            if not _ENTRY.fullmatch(info.filename) or info.filename in seen:
+                raise _bad(source, "entry name", info.filename, "one <array>.npy per array")
+            if info.flag_bits & 0x1:
+                raise _bad(source, f"entry {info.filename!r}", "encrypted", "not encrypted")
+            seen.add(info.filename)
             name = info.filename[:-4]
             _check_local_header(archive, info, source)
             try:
