@@ -277,6 +277,14 @@ COMMANDS: dict[str, Entry] = {
             k.out("--out", ".pnref"),
         ]
     ),
+    # serve runs until stopped when it accepts: only values that must be refused; the
+    # port stays fixed (any port in range is accepted and would serve for good).
+    "serve": Entry(
+        lambda k: ["serve", "--history", f"sqlite:///{k.history()}", "--port", "8765"],
+        expensive=True,
+        fixed=("--port",),
+        quick=False,
+    ),
     "simulate": Entry(
         lambda k: [
             "simulate",
@@ -289,6 +297,15 @@ COMMANDS: dict[str, Entry] = {
         ]
     ),
     "steps": Entry(lambda k: ["steps", k.run()]),
+    # users add reads its password from standard input, which the corpus closes: the
+    # working invocation is refused (a password of 0 characters) and no variant may
+    # write the users file or exit 3.
+    "users add": Entry(
+        lambda k: ["users", "add", "--file", k.out("--file", ".toml"), "--name", "ann",
+                   "--role", "viewer", "--password-stdin"],
+        ok=TWO,
+        quick=False,
+    ),
     "vector-map": Entry(  # festo-dsd's DNC (the default): its air is measured
         lambda k: ["vector-map", "--cycles", "2", "--sizes", "2", "--out", k.out("--out", "")]
     ),

@@ -39,6 +39,7 @@ def add_user(
         raise InputError(describe("--role", role, list(ROLES)))
     if not name or len(name) > 200 or any(c.isspace() or ord(c) < 32 for c in name):
         raise InputError(describe("--name", name, "1 to 200 characters, no spaces"))
+    _check_users_file(file)
     data: dict[str, dict[str, dict[str, str]]] = {"users": {}}
     if file.exists():
         load_users(file)  # refuses a damaged file before it is rewritten
@@ -54,6 +55,28 @@ def add_user(
     write_text_atomic(file, tomli_w.dumps(data))
     file.chmod(0o600)
     typer.echo(f"{name} ({role}) written to {file}")
+
+
+def _check_users_file(file: Path) -> None:
+    """Refuse, before the password is asked for, a users file that cannot be written."""
+    import os
+
+    from pneufdd.cli.outputs import check_writable
+    from pneufdd.errors import InputError, describe
+
+    if file.is_dir():
+        raise InputError(describe("--file", str(file), "a file path (this is a folder)"))
+    if os.path.lexists(file) and not file.exists():
+        raise InputError(
+            describe(
+                "--file", str(file), "a file or a new name (this is a link that leads nowhere)"
+            )
+        )
+    if not file.parent.is_dir():
+        raise InputError(
+            describe("--file", str(file), f"a file in an existing folder ({str(file.parent)!r})")
+        )
+    check_writable("--file", file)
 
 
 def register(app: typer.Typer) -> None:
