@@ -91,7 +91,7 @@ def delay(out: Path) -> None:
 
         def seen(outcome, mon=mon):  # type: ignore[no-untyped-def]
             nonlocal declared_at, position
-            if declared_at is None and any(a.kind == "leak" for a in outcome.alarms):
+            if declared_at is None and outcome.declared:
                 declared_at = position
             position += 1
 

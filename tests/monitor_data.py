@@ -6,11 +6,18 @@ signature ladder so that it builds in seconds; the runs are a few cycles.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import shutil
 import socket
+import subprocess
+import time
+from collections.abc import Iterator
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from pneufdd.diagnosis.recordings import build_reference_from_recordings
 from pneufdd.diagnosis.reference.model import ReferenceModel
@@ -89,3 +96,39 @@ def leak_run(cycles: int = 7, appear_s: float = 40.0, seed: int = SEED + 10) -> 
 @functools.cache
 def free_run(cycles: int = 5, seed: int = SEED + 11) -> Recording:
     return started(simulate("festo-dsd", cycles=cycles, seed=seed))
+
+
+@contextlib.contextmanager
+def running_mosquitto(folder: Path) -> Iterator[int]:
+    """A mosquitto broker (MQTT 5) on a free loopback port; the test is skipped without it.
+
+    amqtt (in-process) keeps no sessions, so persistent sessions and retained state are
+    tested against mosquitto (``apt-get install mosquitto``, best effort in .ci/run).
+    """
+    binary = shutil.which("mosquitto") or next(
+        (str(p) for p in (Path("/usr/sbin/mosquitto"),) if p.exists()), None
+    )
+    if binary is None:
+        pytest.skip("mosquitto is not installed (apt-get install mosquitto)")
+    port = free_port()
+    config = folder / "mosquitto.conf"
+    config.write_text(f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
+    proc = subprocess.Popen(
+        [binary, "-c", str(config)],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        end = time.monotonic() + 20
+        while True:
+            with socket.socket() as s, contextlib.suppress(OSError):
+                s.connect(("127.0.0.1", port))
+                break
+            assert proc.poll() is None, "mosquitto exited"
+            assert time.monotonic() < end, "mosquitto did not start"
+            time.sleep(0.1)
+        yield port
+    finally:
+        proc.terminate()
+        proc.wait(10)

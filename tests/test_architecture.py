@@ -4,7 +4,7 @@ The layers follow the ISO 13374 chain of the README's package map (acquire, cond
 detect, assess, advise)::
 
     physics -> recording -> identification -> sim -> signals -> features -> diagnosis
-    -> calibration -> classifiers -> evaluation -> monitor -> report -> cli
+    -> calibration -> classifiers -> evaluation -> monitor -> report -> web -> cli
 
 and inside :mod:`pneufdd.diagnosis`: detection -> effects -> localisation -> reference
 -> the diagnosis's own modules (engine, diagnoser, recordings, cost, ...). A module may
@@ -42,6 +42,7 @@ LAYERS: tuple[str, ...] = (
     "evaluation",
     "monitor",
     "report",
+    "web",
     "cli",
 )
 """The layers, lowest first (the README's package map)."""

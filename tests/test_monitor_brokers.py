@@ -10,18 +10,22 @@ import asyncio
 import contextlib
 import gc
 import json
-import shutil
-import socket
-import subprocess
 import threading
 import time
 from datetime import UTC, datetime
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from monitor_data import PLC_ANALOG_HZ, as_plc_tags, free_port, leak_run, plc_reference, reference
+from monitor_data import (
+    PLC_ANALOG_HZ,
+    as_plc_tags,
+    free_port,
+    leak_run,
+    plc_reference,
+    reference,
+    running_mosquitto,
+)
 from pneufdd.errors import InputError
 from pneufdd.monitor.alarms import AlarmSinks
 from pneufdd.monitor.cycles import needed_channels
@@ -242,33 +246,8 @@ def mosquitto(tmp_path):
     session_present=False after a clean-session-off reconnect), so the persistent session
     is tested against mosquitto (``apt-get install mosquitto``, best effort like PostgreSQL).
     """
-    binary = shutil.which("mosquitto") or next(
-        (str(p) for p in (Path("/usr/sbin/mosquitto"),) if p.exists()), None
-    )
-    if binary is None:
-        pytest.skip("mosquitto is not installed")
-    port = free_port()
-    config = tmp_path / "mosquitto.conf"
-    config.write_text(f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
-    proc = subprocess.Popen(
-        [binary, "-c", str(config)],
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        end = time.monotonic() + 20
-        while True:
-            with socket.socket() as s, contextlib.suppress(OSError):
-                s.connect(("127.0.0.1", port))
-                break
-            assert proc.poll() is None, "mosquitto exited"
-            assert time.monotonic() < end, "mosquitto did not start"
-            time.sleep(0.1)
+    with running_mosquitto(tmp_path) as port:
         yield port
-    finally:
-        proc.terminate()
-        proc.wait(10)
 
 
 def _receive(source: MqttSource, want: int, log: list[str], timeout: float = 60.0) -> list[float]:

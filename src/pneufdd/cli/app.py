@@ -25,8 +25,10 @@ from pneufdd.cli import (
     machine,
     monitor,
     reference,
+    serve,
     simulate,
     steps,
+    users,
 )
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.errors import InputError, PneufddError
@@ -47,7 +49,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data, evaluate, monitor, history, build_twin):
+for module in (import_data, evaluate, monitor, history, serve, users, build_twin):
     module.register(app)
 
 _STATE = {"debug": False}

@@ -194,9 +194,12 @@ def diagnose(
         data.update({"run": str(run), "reference": str(reference), "machine": model.machine})
         outputs.append((json_out, json.dumps(data, indent=2, allow_nan=False) + "\n"))
     if report is not None:
+        from pneufdd.recording.parquet import recording_start_time
         from pneufdd.report.html import render_report  # matplotlib: only for --report
 
-        outputs.append((report, render_report(model, table, result, run_name=str(run))))
+        when = recording_start_time(runs[0]) if len(runs) == 1 and tag_map is None else None
+        html = render_report(model, table, result, run_name=str(run), run_time=when)
+        outputs.append((report, html))
     for path, text in outputs:
         write_text_atomic(path, text)
     _print_result(console, run, result)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -62,6 +63,18 @@ def monitor_command(
         int | None, typer.Option(min=1, help="Stop after this many cycles.")
     ] = None,
     verbose: Annotated[bool, typer.Option("--verbose", help="Print every cycle's score.")] = False,
+    publish: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="Publish each machine's state: opcua://host:port?users=FILE (OPC UA server,"
+            " Basic256Sha256 SignAndEncrypt) or mqtt://broker/topic (retained JSON);"
+            " repeatable (docs/monitor.md, Publishing)."
+        ),
+    ] = None,
+    metrics_port: Annotated[
+        int | None,
+        typer.Option(min=1, max=65535, help="Serve Prometheus /metrics on 127.0.0.1:PORT."),
+    ] = None,
 ) -> None:
     """Watch a machine: score every cycle, declare leaks sequentially, record the history."""
     from rich.console import Console
@@ -96,7 +109,11 @@ def monitor_command(
         webhook=webhook,
         warn=lambda m: err.print(f"warning: {m}"),
     )
-    mon = MachineMonitor(model, db, machine, arl0=arl0, alarm=sinks, source=masked_url(source))
+    publishers = _publishers(publish or [], metrics_port, lambda m: err.print(f"warning: {m}"))
+    mon = MachineMonitor(
+        model, db, machine, arl0=arl0, alarm=sinks, source=masked_url(source), publish=publishers
+    )
+    _store_machine_info(mon)
     err.print(
         f"monitoring {mon.machine}: CUSUM threshold {mon.cusum.decision_threshold:.2f} "
         f"(ARL0 {arl0:.3g} cycles, rho {mon.cusum.rho:.2f}); history {masked_url(history)}; "
@@ -150,6 +167,7 @@ def monitor_command(
             mon.worker.abandon()
             err.print("an estimate was running: it runs again at the next start")
     finally:
+        publishers.close()
         held = sinks.retry(force=True)
         mon.worker.close()
         db.close()
@@ -170,21 +188,8 @@ def _finish(err: Any, mon: Any, src: Any, stats: Any, held: int) -> ExitCode:
     notes = getattr(src, "notes", None)
     for note in [*stats.notes, *(notes() if notes is not None else [])]:
         err.print(f"note: {note}")
+    summary = _summary(stats, mon.state.in_alarm)
     clocks = getattr(src, "clocks", None)
-    summary: dict[str, object] = {
-        "cycles": stats.cycles,
-        "recorded": stats.recorded,
-        "already_recorded": stats.skipped,
-        "judged": stats.judged,
-        "startup": stats.startup,
-        "alarms": stats.alarms,
-        "diagnoses": stats.diagnoses,
-        "gaps": stats.gaps,
-        "cycles_lost": stats.cycles_lost,
-        "incomplete_skipped": stats.incomplete,
-        "seconds": round(stats.seconds, 3),
-        "leak_active": mon.state.in_alarm,
-    }
     if clocks is not None and clocks.to_dict():
         summary["clock_offsets"] = clocks.to_dict()
     err.print(json.dumps(summary))
@@ -198,6 +203,77 @@ def _finish(err: Any, mon: Any, src: Any, stats: Any, held: int) -> ExitCode:
         )
         return ExitCode.INPUT_ERROR
     return ExitCode.OK
+
+
+def _summary(stats: Any, leak_active: bool) -> dict[str, Any]:
+    """The run's last line (JSON)."""
+    return {
+        "cycles": stats.cycles,
+        "recorded": stats.recorded,
+        "already_recorded": stats.skipped,
+        "judged": stats.judged,
+        "startup": stats.startup,
+        "alarms": stats.alarms,
+        "diagnoses": stats.diagnoses,
+        "gaps": stats.gaps,
+        "cycles_lost": stats.cycles_lost,
+        "incomplete_skipped": stats.incomplete,
+        "seconds": round(stats.seconds, 3),
+        "leak_active": leak_active,
+    }
+
+
+def _publishers(urls: list[str], metrics_port: int | None, warn: Callable[[str], None]) -> Any:
+    """The publish hook: OPC UA servers, MQTT publishers, the metrics endpoint."""
+    from pneufdd.errors import InputError, describe
+    from pneufdd.monitor.publish import Publisher, Publishers
+
+    made: list[Publisher] = []
+    try:
+        for url in urls:
+            if url.startswith("opcua://"):
+                from pneufdd.monitor.publish_opcua import OpcUaPublisher
+
+                made.append(OpcUaPublisher(url, warn))
+            elif url.startswith(("mqtt://", "mqtts://")):
+                from pneufdd.monitor.publish_mqtt import MqttPublisher
+
+                made.append(MqttPublisher(url, warn))
+            else:
+                raise InputError(
+                    describe("--publish", url, ["opcua://...", "mqtt://...", "mqtts://..."])
+                )
+        if metrics_port is not None:
+            from pneufdd.monitor.metrics import MonitorMetrics
+
+            metrics = MonitorMetrics()
+            metrics.serve(metrics_port)
+            made.append(metrics)
+    except BaseException:
+        Publishers(made, warn).close()
+        raise
+    return Publishers(made, warn)
+
+
+def _store_machine_info(mon: Any) -> None:
+    """What the dashboard draws from: description, thresholds, step names (schema 3)."""
+    import time as clock
+
+    from pneufdd.monitor.fleet import save_machine_info
+    from pneufdd.report.steps import step_labels
+
+    model = mon.model
+    description = model.description
+    names = [s.name for s in description.steps] if description is not None else []
+    save_machine_info(
+        mon.history,
+        mon.machine_id,
+        clock.time(),
+        model.machine_description,
+        mon.cusum.decision_threshold,
+        float(mon.detector.threshold_),
+        step_labels(model.sequence, names, model.n_steps),
+    )
 
 
 def _check_outputs(

@@ -26,11 +26,17 @@ Tables (schema version :data:`SCHEMA_VERSION`, migrations in :data:`MIGRATIONS`)
     spans without a recorded cycle between two cycles (an outage of the source, a
     monitor that was away, data that held no complete cycle): start, end, source and
     the cycles lost; recorded with the cycle that ends the gap.
-``pending_estimates`` (version 3)
+``machine_info`` (version 3)
+    what a monitor knows of its machine when it starts: the machine description (JSON
+    of the TOML mapping the reference carries), the CUSUM and per-cycle thresholds and
+    the PLC steps' names; the dashboard draws the schematic and the score chart from it.
+``acknowledgements`` (version 3)
+    who acknowledged which alarm, and when.
+``pending_estimates`` (version 4)
     a location and sizing run decided with a committed cycle and not yet finished
     (it runs beside the ingestion, :mod:`pneufdd.monitor.estimates`): its input, so
     that a restart redoes it; deleted in the transaction that stores its result.
-``alarm_outbox`` (version 3)
+``alarm_outbox`` (version 4)
     each alarm's payload per output (alarm log, webhook) and when it was delivered:
     written with the alarm, marked once delivered; what a killed monitor had not
     delivered is delivered, oldest first, at the next start.
@@ -61,6 +67,7 @@ from pneufdd.errors import InputError, describe
 from pneufdd.monitor.schema import (
     MIGRATIONS,
     SCHEMA_VERSION,
+    acknowledgements,
     alarm_outbox,
     alarms,
     cycles,
@@ -68,6 +75,7 @@ from pneufdd.monitor.schema import (
     gaps,
     leak_sizes,
     leaks,
+    machine_info,
     machines,
     monitor_state,
     pending_estimates,
@@ -80,10 +88,24 @@ __all__ = [
     "SCHEMA_VERSION",
     "HistoryDatabase",
     "LeakRow",
+    "acknowledgements",
+    "alarm_outbox",
+    "alarms",
+    "cycles",
+    "diagnoses",
+    "gaps",
+    "leak_sizes",
+    "leaks",
+    "machine_info",
+    "machines",
     "masked_url",
+    "monitor_state",
     "open_history",
+    "pending_estimates",
+    "schema_info",
     "sqlite_path",
 ]
+"""The tables (defined in :mod:`pneufdd.monitor.schema`) are re-exported here."""
 
 DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
 SCHEMA_LOCK = 0x706E_6575_6664_6431
@@ -146,7 +168,7 @@ class HistoryDatabase:
     ...         again = db.add_cycle(conn, m, 100.0, 14.8, 0.5, 0.0, 0.01, 6e5)
     ...     (first, again, db.cycle_count(m), db.schema_version())
     ...     db.close()
-    (True, False, 1, 3)
+    (True, False, 1, 4)
     """
 
     def __init__(self, url: str) -> None:

@@ -61,6 +61,8 @@ class CycleOutcome:
     cusum: float
     recorded: bool
     alarms: tuple[Alarm, ...] = ()
+    """Alarms raised with this cycle, after those of the estimates stored since the
+    previous cycle (a located leak's alarm comes once its estimate is stored)."""
     gap_s: float = 0.0
     """Time without a cycle before this one (0: it follows the previous cycle) [s]."""
     cycles_lost: int = 0
@@ -136,7 +138,11 @@ class MachineMonitor:
         What the cycles come from (a gap's ``source`` in the history; no password).
     estimates : str
         Where locating and sizing run (:data:`pneufdd.monitor.estimates.MODES`):
-        ``thread`` beside the ingestion, ``inline`` on the caller's thread.
+        ``process`` (a worker process) or ``thread`` beside the ingestion, ``inline``
+        on the caller's thread when the next cycle needs the result.
+    publish : callable, optional
+        Called with the monitor and each cycle's :class:`CycleOutcome` after the cycle
+        is committed (:class:`pneufdd.monitor.publish.Publishers`: OPC UA, MQTT, metrics).
     """
 
     def __init__(
@@ -148,8 +154,10 @@ class MachineMonitor:
         cost: CostSettings | None = None,
         alarm: Callable[[Alarm], None] | None = None,
         source: str = "",
-        estimates: str = "thread",
+        estimates: str = "process",
+        publish: Callable[[MachineMonitor, CycleOutcome], None] | None = None,
     ) -> None:
+        self.publish = publish
         self.model = model
         self.source = source
         self.history = history
@@ -201,6 +209,7 @@ class MachineMonitor:
         # order; a killed monitor's are in the history and run again now
         self._running: deque[_Running] = deque()
         self._decided: list[EstimateJob] = []
+        self._stored_alarms: list[Alarm] = []  # of estimates, for the next cycle's outcome
         for pending_id, data in history.pending_estimate_rows(self.machine_id):
             job = replace(decode_job(data), pending_id=pending_id)
             self._running.append(_Running(job, self.worker.start(job)))
@@ -230,6 +239,8 @@ class MachineMonitor:
             self._recall(memory)
             raise
         self._start_decided()
+        if self.publish is not None:  # the one publish hook: after the commit
+            self.publish(self, outcome)
         return outcome
 
     def skip_incomplete(
@@ -338,12 +349,13 @@ class MachineMonitor:
             gap_s, lost = 0.0, 0
             self._decided.clear()
         self._raise(pending)
+        alarms, self._stored_alarms = (*self._stored_alarms, *pending), []
         return CycleOutcome(
             cycle.start,
             score,
             self.state.up,
             recorded,
-            tuple(pending),
+            alarms,
             gap_s,
             lost,
             declared=recorded and decision.event == "leak",
@@ -523,6 +535,7 @@ class MachineMonitor:
             raise
         self.stats.diagnoses += 1
         self._raise(pending)
+        self._stored_alarms += pending
 
     def _track(self, conn: Any, result: Diagnosis, time: float) -> list[str]:
         new = []

@@ -2,10 +2,11 @@
 
 ``MIGRATIONS[k]`` takes a database from version ``k`` to ``k + 1``;
 :class:`~pneufdd.monitor.database.HistoryDatabase` applies them in order on open.
-Version 2 adds ``gaps``; version 3 adds ``pending_estimates`` (a location and sizing
-run decided with a committed cycle and not yet finished: its input, so that a restart
-redoes it) and ``alarm_outbox`` (each alarm's delivery to each output: an alarm
-committed but not yet delivered when the process died is delivered at the next start).
+Version 2 adds ``gaps``; version 3 ``machine_info`` and ``acknowledgements`` (the
+dashboard's); version 4 ``pending_estimates`` (a location and sizing run decided with a
+committed cycle and not yet finished: its input, so that a restart redoes it) and
+``alarm_outbox`` (each alarm's delivery to each output: an alarm committed but not yet
+delivered when the process died is delivered at the next start).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from sqlalchemy.engine import Connection
 __all__ = [
     "MIGRATIONS",
     "SCHEMA_VERSION",
+    "acknowledgements",
     "alarm_outbox",
     "alarms",
     "cycles",
@@ -25,6 +27,7 @@ __all__ = [
     "gaps",
     "leak_sizes",
     "leaks",
+    "machine_info",
     "machines",
     "metadata",
     "monitor_state",
@@ -127,6 +130,23 @@ def _add_gaps_v2(conn: Connection) -> None:
     metadata.create_all(conn, tables=[gaps])
 
 
+machine_info = sa.Table(
+    "machine_info",
+    metadata,
+    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), primary_key=True),
+    sa.Column("time", sa.Float, nullable=False),
+    sa.Column("description", sa.Text, nullable=False),
+    sa.Column("cusum_threshold", sa.Float),
+    sa.Column("cycle_threshold", sa.Float),
+    sa.Column("steps", sa.Text, nullable=False),
+)
+acknowledgements = sa.Table(
+    "acknowledgements",
+    metadata,
+    sa.Column("alarm_id", sa.Integer, sa.ForeignKey("alarms.id"), primary_key=True),
+    sa.Column("time", sa.Float, nullable=False),
+    sa.Column("user", sa.String(200), nullable=False),
+)
 pending_estimates = sa.Table(
     "pending_estimates",
     metadata,
@@ -146,14 +166,19 @@ alarm_outbox = sa.Table(
 sa.Index("ix_alarm_outbox_output", alarm_outbox.c.output, alarm_outbox.c.delivered_at)
 
 
-def _add_estimates_and_outbox_v3(conn: Connection) -> None:
+def _add_machine_info_v3(conn: Connection) -> None:
+    metadata.create_all(conn, tables=[machine_info, acknowledgements])
+
+
+def _add_estimates_and_outbox_v4(conn: Connection) -> None:
     metadata.create_all(conn, tables=[pending_estimates, alarm_outbox])
 
 
 MIGRATIONS: tuple[Callable[[Connection], None], ...] = (
     _create_v1,
     _add_gaps_v2,
-    _add_estimates_and_outbox_v3,
+    _add_machine_info_v3,
+    _add_estimates_and_outbox_v4,
 )
 """``MIGRATIONS[k]`` takes a database from version ``k`` to ``k + 1``."""
 

@@ -63,7 +63,13 @@ from pneufdd.recording.model import Channel, Recording
 if TYPE_CHECKING:
     import pyarrow as pa
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "read_parquet", "write_parquet"]
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "read_parquet",
+    "recording_start_time",
+    "write_parquet",
+]
 
 FORMAT_NAME = "pneufdd.recording"
 """Value of the ``pneufdd.format`` key in the file's key-value metadata."""
@@ -514,3 +520,20 @@ def read_parquet(path: str | Path) -> Recording:
         raise _with_file(path, exc) from exc
     except UnicodeError as exc:
         raise FileFormatError(f"{label} is corrupted: a text cell is not UTF-8 ({exc})") from exc
+
+
+def recording_start_time(path: str | Path) -> datetime | None:
+    """The start time a pneufdd Parquet file records, read from its footer only.
+
+    None when the file is no pneufdd recording or its start time cannot be read (the
+    caller shows no date rather than a wrong one); reading the data checks the file.
+    """
+    import pyarrow.parquet as pq
+
+    try:
+        kv = pq.read_metadata(str(path)).metadata or {}
+        info = json.loads(kv[_KEY_RECORDING].decode("utf-8"))
+        start = datetime.fromisoformat(str(info["start_time"]))
+    except (OSError, KeyError, ValueError, TypeError, AttributeError):
+        return None
+    return start if start.tzinfo is not None else None

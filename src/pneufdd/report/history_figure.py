@@ -1,4 +1,10 @@
-"""Figure of the fault history: each leak's size and cost over time."""
+"""Figure of the fault history: each leak's size and cost over time, on honest axes.
+
+Leak flow and cost are ratio quantities: both axes start at zero and reach the larger
+of 1.15 x the largest value and a physical floor (:func:`pneufdd.report.axes.ratio_range`),
+so a leak that drifts by 3 % is drawn as a 3 % change, never auto-scaled into a steep
+fall. Repairs are vertical lines; the machines and the time span head the figure.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +13,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from pneufdd.report.axes import COST_FLOOR, FLOW_FLOOR_SLPM, ratio_range
 from pneufdd.report.plain_text import plain_text
 
 __all__ = ["history_figure"]
@@ -23,8 +30,10 @@ def history_figure(report: Sequence[dict[str, Any]], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_flow, ax_cost) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    drawn = 0
+    from pneufdd.report.figures import WIDTH_IN, save_figure
+
+    fig, (ax_flow, ax_cost) = plt.subplots(2, 1, figsize=(WIDTH_IN, 7), sharex=True)
+    drawn, flows, costs, times_all = 0, [], [], []
     for entry in report:
         for leak in entry["leaks"]:
             points = [s for s in leak["sizes"] if s["flow_slpm"] is not None]
@@ -32,21 +41,40 @@ def history_figure(report: Sequence[dict[str, Any]], path: Path) -> Path:
                 continue
             times = [datetime.fromisoformat(s["time"]) for s in points]
             label = f"{entry['machine']} {leak['location']} ({leak['state']})"
-            ax_flow.plot(times, [s["flow_slpm"] for s in points], "o-", label=label)
-            ax_cost.plot(times, [s["annual_cost"] or 0.0 for s in points], "o-", label=label)
+            flow = [s["flow_slpm"] for s in points]
+            cost = [s["annual_cost"] or 0.0 for s in points]
+            (line,) = ax_flow.plot(times, flow, "o-", label=label)
+            ax_cost.plot(times, cost, "o-", color=line.get_color())
             if leak.get("repaired_at"):
-                ax_flow.axvline(datetime.fromisoformat(leak["repaired_at"]), ls=":", c="grey")
+                when = datetime.fromisoformat(leak["repaired_at"])
+                for ax in (ax_flow, ax_cost):
+                    ax.axvline(when, ls=":", color=line.get_color())
+                times_all.append(when)
+            flows += flow
+            costs += cost
+            times_all += times
             drawn += 1
-    ax_flow.set_ylabel("leak flow [SLPM]")
+    ax_flow.set_ylim(*ratio_range(flows, FLOW_FLOOR_SLPM))
+    ax_cost.set_ylim(*ratio_range(costs, COST_FLOOR))
+    ax_flow.set_ylabel("leak flow while pressurised [SLPM]")
     ax_cost.set_ylabel("annual cost [$/yr]")
-    ax_cost.set_xlabel("time (UTC)")
+    ax_cost.set_xlabel("time (UTC); dotted: repaired")
     if drawn:
-        ax_flow.legend(fontsize=8)
+        ax_flow.legend(
+            loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=3, frameon=False, fontsize=8
+        )
     else:
         ax_flow.text(0.5, 0.5, "no leaks recorded", transform=ax_flow.transAxes, ha="center")
+    names = ", ".join(str(e["machine"]) for e in report) or "no machine"
+    span = (
+        f"{min(times_all):%Y-%m-%d %H:%M} .. {max(times_all):%Y-%m-%d %H:%M} UTC"
+        if times_all
+        else "no size estimates"
+    )
+    fig.suptitle(
+        f"Leak sizes and costs over time (axes from zero)\n{names} | {span}", fontsize="medium"
+    )
     fig.autofmt_xdate()
     fig.tight_layout()
-    from pneufdd.report.figures import save_figure
-
     save_figure(fig, path, dpi=fig.dpi)  # atomically: a link is replaced, not written through
     return path

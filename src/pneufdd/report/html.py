@@ -30,17 +30,20 @@ from pneufdd.report.figures import (
     step_trace_figure,
     to_png,
 )
+from pneufdd.report.steps import step_labels
 
 __all__ = ["render_report", "write_report"]
 
 _STYLE = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em;
-max-width:1100px;color:#222}
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em 2em;
+color:#222}header.run{color:#555;font-size:.95em;border-bottom:1px solid #ddd;padding:.2em 0}
 h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:.3em .6em;
 text-align:right}th{background:#f0f0f0}td.l,th.l{text-align:left}
 .verdict{font-size:1.2em;font-weight:bold;padding:.5em;border-radius:4px}
-.leak{background:#fde2e1}.ok{background:#e1f5e4}img{max-width:100%}
+.leak{background:#fde2e1}.ok{background:#e1f5e4}figure{margin:1em 0}img{width:100%;height:auto}
+@media print{header.run{position:fixed;top:0;left:0;right:0;background:#fff}
+body{margin-top:2.5em}figure{break-inside:avoid}}
 .note{color:#7a4b00}
 """
 
@@ -80,8 +83,18 @@ def _band_channel(reference: ReferenceModel) -> str | None:
     return None
 
 
-def _figures(reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis) -> list[str]:
+def labels_of(reference: ReferenceModel) -> list[str]:
+    """Step labels of the reference: number and the actuators each step moves."""
+    description = reference.description
+    names = [s.name for s in description.steps] if description is not None else []
+    return step_labels(reference.sequence, names, reference.n_steps)
+
+
+def _figures(
+    reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis, context: str
+) -> list[str]:
     out: list[str] = []
+    labels = labels_of(reference)
     if diagnosis.cycle_scores.size:
         out.append(
             _img(
@@ -91,6 +104,7 @@ def _figures(reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis) ->
                         diagnosis.cycle_threshold,
                         diagnosis.run_score,
                         diagnosis.run_threshold,
+                        context=context,
                     )
                 ),
                 "per-cycle statistic",
@@ -104,7 +118,9 @@ def _figures(reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis) ->
         start = n + c * 3 * n  # the channel's step means in the feature vector
         ref_means = reference.detector.mean_[start : start + n]
         run_means = np.mean(run.features()[:, start : start + n], axis=0)
-        out.append(_img(to_png(step_flow_figure(flow, unit, ref_means, run_means)), flow))
+        spread = reference.detector.scale_[start : start + n]
+        figure = step_flow_figure(flow, unit, ref_means, run_means, labels, spread, context)
+        out.append(_img(to_png(figure), flow))
         if (
             reference.band_mean is not None
             and reference.trace_offsets is not None
@@ -129,6 +145,8 @@ def _figures(reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis) ->
                             ref_tr,
                             run_tr,
                             reference.trace_rate_hz,
+                            labels,
+                            context,
                         )
                     ),
                     f"{flow} traces of the most affected steps",
@@ -158,6 +176,7 @@ def _figures(reference: ReferenceModel, run: StepTable, diagnosis: Diagnosis) ->
                         run.traces[:, c, :],
                         reference.trace_rate_hz,
                         reference.trace_offsets,
+                        context,
                     )
                 ),
                 f"threshold band of {band}",
@@ -235,6 +254,7 @@ def render_report(
     diagnosis: Diagnosis,
     title: str = "pneufdd leak report",
     run_name: str = "run",
+    run_time: datetime | None = None,
 ) -> str:
     """Render the self-contained HTML report of one diagnosis.
 
@@ -250,6 +270,9 @@ def render_report(
         Page title.
     run_name : str
         Name of the run (e.g. its file), shown on the page.
+    run_time : datetime, optional
+        When the run was recorded (its start); with the machine and the run's name it
+        heads the page and every figure (and every printed page).
 
     Returns
     -------
@@ -323,11 +346,18 @@ def render_report(
         f"{_e(signature_locations)}"
         "</td></tr></table>"
     )
-    figures = "".join(_figures(reference, run, diagnosis))
     stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    recorded = (
+        run_time.astimezone(UTC).strftime("%Y-%m-%d %H:%M UTC")
+        if run_time is not None
+        else "date not recorded"
+    )
+    context = f"machine {reference.machine} | run {run_name} | recorded {recorded}"
+    figures = "".join(_figures(reference, run, diagnosis, context))
     return (
         "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
         f"<title>{_e(title)}</title><style>{_STYLE}</style></head><body>"
+        f"<header class='run'>{_e(context)} | report {_e(stamp)}</header>"
         f"<h1>{_e(title)}</h1>{verdict}{notes}"
         f"<h2>Leaks, ranked by annual cost</h2>{_leak_table(diagnosis)}"
         f"<h2>Ambiguity groups</h2>{ambiguity}"
@@ -347,8 +377,9 @@ def write_report(
     title: str = "pneufdd leak report",
     run_name: str = "run",
     overwrite: bool = True,
+    run_time: datetime | None = None,
 ) -> Path:
     """Render the report and write it to ``path`` atomically."""
     return write_text_atomic(
-        Path(path), render_report(reference, run, diagnosis, title, run_name), overwrite
+        Path(path), render_report(reference, run, diagnosis, title, run_name, run_time), overwrite
     )
