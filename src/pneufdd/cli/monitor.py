@@ -83,7 +83,7 @@ def monitor_command(
     from pneufdd.monitor.alarms import AlarmSinks, check_webhook
     from pneufdd.monitor.cycles import needed_channels
     from pneufdd.monitor.database import masked_url, open_history, sqlite_path
-    from pneufdd.monitor.live import CycleOutcome, MachineMonitor
+    from pneufdd.monitor.live import MachineMonitor
     from pneufdd.monitor.sequential import check_arl0
     from pneufdd.monitor.sources import open_source
     from pneufdd.monitor.stream import run_stream
@@ -120,29 +120,7 @@ def monitor_command(
         f"alarm log {alarm_log if alarm_log is not None else 'none (--alarm-log PATH)'}"
     )
 
-    def show(outcome: CycleOutcome) -> None:
-        sinks.retry()  # alarms held by a failing output, when their retry is due
-        if outcome.declared:
-            err.print(
-                f"cycle at {outcome.start:.3f}: leak declared (CUSUM {outcome.cusum:.2f} >= "
-                f"{mon.cusum.decision_threshold:.2f}); locating and sizing beside the "
-                "ingestion, the alarm follows"
-            )
-        if outcome.incomplete:
-            shares = ", ".join(f"{c} {100 * s:.0f} % of samples" for c, s in outcome.incomplete)
-            err.print(
-                f"cycle {mon.stats.cycles} at {outcome.start:.3f} skipped: {shares} "
-                "(the source lost samples; not scored)"
-            )
-        if outcome.cycles_lost:
-            err.print(
-                f"gap: {outcome.gap_s:.1f} s without a cycle before the cycle at "
-                f"{outcome.start:.3f}, about {outcome.cycles_lost} cycle(s) lost (recorded)"
-            )
-        if verbose and outcome.recorded:
-            err.print(
-                f"cycle {outcome.start:.3f}: score {outcome.score:.3f} CUSUM {outcome.cusum:.2f}"
-            )
+    show = _show(err, mon, sinks, verbose)
 
     try:
         stats = run_stream(
@@ -172,6 +150,36 @@ def monitor_command(
         mon.worker.close()
         db.close()
     raise typer.Exit(_finish(err, mon, src, stats, held))
+
+
+def _show(err: Any, mon: Any, sinks: Any, verbose: bool) -> Callable[[Any], None]:
+    """What is said live about each cycle (and the alarm outputs' due retries)."""
+
+    def show(outcome: Any) -> None:
+        sinks.retry()  # alarms held by a failing output, when their retry is due
+        if outcome.declared:
+            err.print(
+                f"cycle at {outcome.start:.3f}: leak declared (CUSUM {outcome.cusum:.2f} >= "
+                f"{mon.cusum.decision_threshold:.2f}); locating and sizing beside the "
+                "ingestion, the alarm follows"
+            )
+        if outcome.incomplete:
+            shares = ", ".join(f"{c} {100 * s:.0f} % of samples" for c, s in outcome.incomplete)
+            err.print(
+                f"cycle {mon.stats.cycles} at {outcome.start:.3f} skipped: {shares} "
+                "(the source lost samples; not scored)"
+            )
+        if outcome.cycles_lost:
+            err.print(
+                f"gap: {outcome.gap_s:.1f} s without a cycle before the cycle at "
+                f"{outcome.start:.3f}, about {outcome.cycles_lost} cycle(s) lost (recorded)"
+            )
+        if verbose and outcome.recorded:
+            err.print(
+                f"cycle {outcome.start:.3f}: score {outcome.score:.3f} CUSUM {outcome.cusum:.2f}"
+            )
+
+    return show
 
 
 def _finish(err: Any, mon: Any, src: Any, stats: Any, held: int) -> ExitCode:
