@@ -9,6 +9,7 @@ cycles): it says nothing about leaks, and says so.
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -98,6 +99,8 @@ def monitor_command(
         check_webhook(webhook)  # before any work: a bad URL never waits for the first alarm
     # names and values in messages are plain text (a machine named "cell[/]" is no markup)
     err = Console(stderr=True, highlight=False, markup=False)
+    if not verbose:  # asyncua's own tracebacks of a lost server: the monitor says it in a line
+        logging.getLogger("asyncua").addHandler(logging.NullHandler())
     model = load_reference(reference)
     analog, digital = needed_channels(model)
     src = open_source(source, analog, digital, tags, log=lambda m: err.print(m))
