@@ -20,7 +20,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pneufdd.monitor.completeness import ClockOffsets, LossLedger, iso_time
-from pneufdd.monitor.opcua import SubscriptionRefusedError, grant_problems, needed_queue, subscribe
+from pneufdd.monitor.opcua import (
+    ItemRefusedError,
+    SubscriptionRefusedError,
+    grant_problems,
+    needed_queue,
+    subscribe,
+)
 from pneufdd.monitor.samples import SampleBatch
 
 if TYPE_CHECKING:
@@ -245,6 +251,15 @@ class OpcUaSource:
                 with contextlib.suppress(Exception):
                     await client.disconnect()
                 raise
+            except ItemRefusedError as exc:
+                with contextlib.suppress(Exception):
+                    await client.disconnect()
+                if not checked:  # at the first connection: the tag map names a wrong node
+                    raise
+                # after a reconnection: a server that restarted may not have all its
+                # nodes yet (the monitor had them before)
+                self.log(f"{exc} after the reconnection; trying again")
+                await asyncio.sleep(1.0)
             except (TimeoutError, OSError, ConnectionError, UaError) as exc:
                 self.log(f"OPC UA connection to {self.url} lost ({exc}); reconnecting")
                 if self._outage_from is None and math.isfinite(self._newest_t):
