@@ -7,8 +7,9 @@
 
 Seeds: ``--seed`` + k (default 96_200_000, issue 11's; issue 32's runs used 740_000_000).
 The reference is built from two leak-free festo-dsd runs of 12 cycles (seeds N, N + 1)
-with the default signatures; the o6 runs use a reference of the same runs as a PLC
-publishes them (analog tags at 50 Hz). Every figure printed names what it counts.
+with the default signatures; the o6 runs use a reference of four leak-free runs of 25
+cycles (seeds N .. N + 3) as a PLC publishes them (analog tags at 50 Hz). Every figure
+printed names what it counts.
 """
 
 from __future__ import annotations

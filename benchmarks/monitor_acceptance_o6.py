@@ -29,6 +29,7 @@ import subprocess
 import sys
 import threading
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -36,16 +37,25 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 
 
+REFERENCE_RECORDINGS = 4
+REFERENCE_CYCLES = 25
+"""The o6 runs' reference: 4 leak-free recordings of 25 cycles (the issue 9 campaign
+design; with three or more recordings the detector cross-validates by recording)."""
+
+
 def o6_reference(out: Path, seed: int) -> Path:
-    """festo-dsd reference of two 12-cycle leak-free runs as a PLC publishes them."""
+    """festo-dsd reference of leak-free runs as a PLC publishes them (seeds seed + i)."""
     from monitor_data import as_plc_tags
     from pneufdd.diagnosis.recordings import build_reference_from_recordings
     from pneufdd.diagnosis.reference.file import save_reference
     from pneufdd.sim import simulate
 
-    path = out / "o6-ref.pnref"
+    path = out / f"o6-ref-{REFERENCE_RECORDINGS}x{REFERENCE_CYCLES}.pnref"
     if not path.exists():
-        refs = [as_plc_tags(simulate("festo-dsd", cycles=12, seed=seed + i)) for i in range(2)]
+        refs = [
+            as_plc_tags(simulate("festo-dsd", cycles=REFERENCE_CYCLES, seed=seed + i))
+            for i in range(REFERENCE_RECORDINGS)
+        ]
         save_reference(build_reference_from_recordings(refs, workers=1), path)
     return path
 
@@ -84,7 +94,7 @@ class _Server:
 
 
 def o6_run(out: Path, seed: int, leak: bool, minutes: float, speed: float, port: int) -> None:
-    from monitor_data import as_plc_tags
+    from monitor_data import as_plc_tags, started
     from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.monitor.cycles import needed_channels
     from pneufdd.monitor.database import HistoryDatabase
@@ -99,9 +109,10 @@ def o6_run(out: Path, seed: int, leak: bool, minutes: float, speed: float, port:
     cycles = math.ceil(duration / 14.75) + 1
     onset = duration / 2.0
     schedule = LeakSchedule([ScheduledLeak("DNC_B", 4.0, start_s=onset)]) if leak else None
-    rec = as_plc_tags(
-        simulate("festo-dsd", cycles=cycles, seed=seed + 10 + int(leak), schedule=schedule)
-    )
+    simulated = simulate("festo-dsd", cycles=cycles, seed=seed + 10 + int(leak), schedule=schedule)
+    origin = time.time() + 60.0  # the machine's time 0: the monitor is connected by then
+    # source time stamps on the wall clock, as a PLC's (the recording starts at origin)
+    rec = started(as_plc_tags(simulated), datetime.fromtimestamp(origin, UTC))
     run = out / f"{name}.parquet"
     rec.write(run, overwrite=True)
     db = out / f"{name}.db"
@@ -109,7 +120,6 @@ def o6_run(out: Path, seed: int, leak: bool, minutes: float, speed: float, port:
         Path(f"{db}{suffix}").unlink(missing_ok=True)
     (out / f"{name}-alarms.jsonl").unlink(missing_ok=True)
     tags = _tags(out / f"{name}-tags.toml", analog, digital)
-    origin = time.time() + 30.0  # the machine's time 0: the monitor is connected by then
     settings = {
         "recording": str(run),
         "channels": [*analog, *digital],
@@ -178,6 +188,7 @@ def o6_run(out: Path, seed: int, leak: bool, minutes: float, speed: float, port:
     }
     accounted = len(rows) + summary["incomplete_skipped"] + report["cycles_lost_in_gaps"]
     report["cycles_accounted"] = accounted
+    report |= _faithful(model, rec, rows, out / f"{name}-file.db")
     if leak:
         first = next(i for i, t in enumerate(starts) if t >= onset - 1e-9)
         leak_alarm = next((a for a in alarms if a["kind"] == "leak"), None)
@@ -196,6 +207,43 @@ def o6_run(out: Path, seed: int, leak: bool, minutes: float, speed: float, port:
             }
         report["diagnosis_groups"] = _groups(db)
     print(json.dumps(report), flush=True)
+
+
+def _faithful(model: Any, rec: Any, rows: list[dict[str, Any]], db: Path) -> dict[str, Any]:
+    """The live run's recorded cycles against the same recording replayed from its file:
+    every cycle the server delivered whole scores exactly as the file's."""
+    from pneufdd.monitor.database import HistoryDatabase
+    from pneufdd.monitor.live import MachineMonitor
+    from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.monitor.stream import run_stream
+
+    for suffix in ("", "-wal", "-shm"):
+        Path(f"{db}{suffix}").unlink(missing_ok=True)
+    history = HistoryDatabase(f"sqlite:///{db}")
+    monitor = MachineMonitor(model, history, estimates="inline")
+    scores: dict[int, float] = {}
+    source = ReplaySource(rec, math.inf, 1.0)
+    run_stream(
+        monitor,
+        source,
+        source.rates_hz,
+        0.0,
+        on_cycle=lambda o: scores.__setitem__(round(o.start * 100), o.score),
+    )
+    monitor.close()
+    history.close()
+    same, differ = 0, []
+    for row in rows:
+        file_score = scores.get(round(row["start"] * 100))
+        if file_score is None or row["score"] is None:
+            continue
+        if abs(row["score"] - file_score) <= 1e-9 * max(1.0, abs(file_score)):
+            same += 1
+        else:
+            differ.append(
+                (round(row["start"] - rec.start_time.timestamp(), 2), row["score"], file_score)
+            )
+    return {"cycles_scored_as_the_file": same, "cycles_scored_otherwise": differ}
 
 
 def _groups(db: Path) -> list[list[str]]:

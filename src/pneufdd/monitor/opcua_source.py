@@ -182,7 +182,8 @@ class OpcUaSource:
                     continue
         finally:
             self._stop.set()
-            thread.join(timeout=5.0)
+            if thread is not threading.current_thread():  # closed by the garbage collector
+                thread.join(timeout=5.0)
 
     def _thread(self) -> None:
         try:
