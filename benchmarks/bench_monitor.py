@@ -71,7 +71,8 @@ def _looped(rec: Recording, loops: int, chunk_s: float = 1.0) -> Iterator[object
 def run() -> list[BenchResult]:
     from pneufdd.diagnosis.recordings import build_reference_from_recordings
     from pneufdd.monitor.database import HistoryDatabase
-    from pneufdd.monitor.live import MachineMonitor, run_stream
+    from pneufdd.monitor.live import MachineMonitor
+    from pneufdd.monitor.stream import run_stream
     from pneufdd.sim import simulate
 
     total = int(os.environ.get("PNEUFDD_BENCH_MONITOR_CYCLES", "1000"))

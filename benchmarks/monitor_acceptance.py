@@ -1,10 +1,15 @@
-"""Acceptance measurements of ``pneufdd monitor`` (issue 11); not part of ``make bench``.
+"""Acceptance measurements of ``pneufdd monitor`` (issues 11 and 32); not part of ``make bench``.
 
-    python benchmarks/monitor_acceptance.py OUT_DIR [delay|false-alarms|life|kill|all]
+    python benchmarks/monitor_acceptance.py OUT_DIR [delay|false-alarms|life|kill|all] [--seed N]
+    python benchmarks/monitor_acceptance.py OUT_DIR o6 [--leak] [--minutes 30] [--speed 1]
+        [--port P] [--seed N]
+    python benchmarks/monitor_acceptance.py OUT_DIR offpath [--seed N]
 
-Seeds: 96_200_000 + k (never used while developing). The reference is built from two
-leak-free festo-dsd runs of 12 cycles (seeds 96_200_000, 96_200_001) with the default
-signatures; every figure printed names what it counts.
+Seeds: ``--seed`` + k (default 96_200_000, issue 11's; issue 32's runs used 740_000_000).
+The reference is built from two leak-free festo-dsd runs of 12 cycles (seeds N, N + 1)
+with the default signatures; the o6 runs use a reference of four leak-free runs of 25
+cycles (seeds N .. N + 3) as a PLC publishes them (analog tags at 50 Hz). Every figure
+printed names what it counts.
 """
 
 from __future__ import annotations
@@ -59,8 +64,8 @@ def delay(out: Path) -> None:
     from pneufdd.diagnosis.engine import diagnose
     from pneufdd.diagnosis.recordings import run_table
     from pneufdd.diagnosis.reference.file import load_reference
-    from pneufdd.monitor.live import run_stream
     from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.monitor.stream import run_stream
     from pneufdd.sim import simulate
     from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
 
@@ -87,7 +92,7 @@ def delay(out: Path) -> None:
 
         def seen(outcome, mon=mon):  # type: ignore[no-untyped-def]
             nonlocal declared_at, position
-            if declared_at is None and any(a.kind == "leak" for a in outcome.alarms):
+            if declared_at is None and outcome.declared:
                 declared_at = position
             position += 1
 
@@ -147,8 +152,8 @@ def delay(out: Path) -> None:
 def false_alarms(out: Path, cycles: int = 2000, per_run: int = 200) -> None:
     """Alarms over ``cycles`` leak-free cycles streamed as one machine's history."""
     from pneufdd.diagnosis.reference.file import load_reference
-    from pneufdd.monitor.live import run_stream
     from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.monitor.stream import run_stream
     from pneufdd.sim import simulate
 
     model = load_reference(reference(out))
@@ -201,8 +206,8 @@ def false_alarms(out: Path, cycles: int = 2000, per_run: int = 200) -> None:
 def life(out: Path) -> None:
     """A leak appears, grows and is repaired: what the history shows."""
     from pneufdd.diagnosis.reference.file import load_reference
-    from pneufdd.monitor.live import run_stream
     from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.monitor.stream import run_stream
     from pneufdd.sim import simulate
     from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
 
@@ -256,10 +261,26 @@ def history_dump(url: str) -> dict[str, object]:
                 ]
             found["cycles"] = rows(database.cycles, database.cycles.c.start_ms)
             found["state"] = rows(database.monitor_state, database.monitor_state.c.machine_id)
+            found["pending_estimates"] = rows(
+                database.pending_estimates, database.pending_estimates.c.id
+            )
             found["integrity"] = history.integrity_ok()
             return found
     finally:
         history.close()
+
+
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` (Linux /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
 
 
 def kill(out: Path, kills: int = 20, cycles: int = 40, ref: Path | None = None) -> None:
@@ -268,7 +289,11 @@ def kill(out: Path, kills: int = 20, cycles: int = 40, ref: Path | None = None) 
 
     A restart is *stuck* when it ends (not killed) with exit code 2 or 3, or records
     nothing although cycles are missing; the final history must equal an uninterrupted
-    run's (cycles, scores, CUSUM, state, alarms, diagnoses, leaks, sizes, costs).
+    run's (cycles, scores, CUSUM, state, alarms, diagnoses, leaks, sizes, costs, no
+    estimate left pending). The alarm log beside the history must hold every alarm of
+    the clean run's (the outbox delivers what a killed monitor had not; a kill between
+    the log's write and its mark repeats a line: counted). Worker processes of a killed
+    monitor still alive 5 s later are counted as orphans.
     """
     from pneufdd.sim import simulate
     from pneufdd.sim.schedule import LeakSchedule, ScheduledLeak
@@ -303,7 +328,7 @@ def kill(out: Path, kills: int = 20, cycles: int = 40, ref: Path | None = None) 
     subprocess.run(command(clean), check=False, capture_output=True)
     full = time.perf_counter() - began
     rng = random.Random(SEED + 3001)
-    moments, codes, stuck = [], [], 0
+    moments, codes, stuck, orphans = [], [], 0, 0
     for _ in range(kills):
         proc = subprocess.Popen(
             command(killed), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
@@ -311,16 +336,31 @@ def kill(out: Path, kills: int = 20, cycles: int = 40, ref: Path | None = None) 
         moment = rng.uniform(0.5, full)
         moments.append(round(moment, 2))
         time.sleep(moment)
+        children = _children(proc.pid)
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGKILL)
         code = proc.wait()
         codes.append(code)
         stuck += code in (2, 3)
+        time.sleep(5.0)
+        orphans += sum(Path(f"/proc/{c}").exists() for c in children)
     done = subprocess.run(command(killed), check=False, capture_output=True)
     stuck += done.returncode in (2, 3)
     expected = history_dump(f"sqlite:///{clean}")
     got = history_dump(f"sqlite:///{killed}")
     differ = [k for k in expected if k != "integrity" and expected[k] != got[k]]
+
+    def logged(db: Path) -> list[tuple[object, ...]]:
+        path = db.parent / f"{db.stem}-alarms.jsonl"
+        lines = path.read_text().splitlines() if path.exists() else []
+        return [
+            (x["id"], x["kind"], x["timestamp"], tuple(x["locations"]))
+            for x in map(json.loads, lines)
+        ]
+
+    clean_log, killed_log = logged(clean), logged(killed)
+    log_missing = [a for a in clean_log if a not in killed_log]
+    log_repeats = len(killed_log) - len(set(killed_log))
     print(
         json.dumps(
             {
@@ -336,6 +376,11 @@ def kill(out: Path, kills: int = 20, cycles: int = 40, ref: Path | None = None) 
                 "histories_identical": not differ,
                 "tables_that_differ": differ,
                 "integrity_check_ok": got["integrity"],
+                "alarm_log_lines_clean": len(clean_log),
+                "alarm_log_lines_killed": len(killed_log),
+                "alarm_log_missing": len(log_missing),
+                "alarm_log_repeated_lines": log_repeats,
+                "orphan_worker_processes": orphans,
             }
         ),
         flush=True,
@@ -343,16 +388,38 @@ def kill(out: Path, kills: int = 20, cycles: int = 40, ref: Path | None = None) 
 
 
 def main() -> int:
-    out = Path(sys.argv[1])
+    import argparse
+
+    global SEED
+    parser = argparse.ArgumentParser()
+    parser.add_argument("out", type=Path)
+    parser.add_argument("what", nargs="?", default="all")
+    parser.add_argument("--seed", type=int, default=SEED)
+    parser.add_argument("--leak", action="store_true")
+    parser.add_argument("--minutes", type=float, default=30.0)
+    parser.add_argument("--speed", type=float, default=1.0)
+    parser.add_argument("--port", type=int, default=48_400)
+    args = parser.parse_args()
+    SEED = args.seed
+    out = args.out
     out.mkdir(parents=True, exist_ok=True)
-    what = sys.argv[2] if len(sys.argv) > 2 else "all"
+    if args.what == "o6":
+        from monitor_acceptance_o6 import o6_run
+
+        o6_run(out, SEED, args.leak, args.minutes, args.speed, args.port)
+        return 0
+    if args.what == "offpath":
+        from monitor_acceptance_o6 import offpath
+
+        offpath(out, SEED)
+        return 0
     for name, func in (
         ("delay", delay),
         ("false-alarms", false_alarms),
         ("life", life),
         ("kill", kill),
     ):
-        if what in (name, "all"):
+        if args.what in (name, "all"):
             print(f"== {name}", flush=True)
             func(out)
     return 0

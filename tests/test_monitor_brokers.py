@@ -30,9 +30,10 @@ from pneufdd.errors import InputError
 from pneufdd.monitor.alarms import AlarmSinks
 from pneufdd.monitor.cycles import needed_channels
 from pneufdd.monitor.database import HistoryDatabase
-from pneufdd.monitor.live import MachineMonitor, run_stream
+from pneufdd.monitor.live import MachineMonitor
 from pneufdd.monitor.samples import SampleBatch
 from pneufdd.monitor.sources import ChannelTags, MqttSource, OpcUaSource
+from pneufdd.monitor.stream import run_stream
 from pneufdd.physics.units import kg_s_to_l_min_anr, pa_to_bar_gauge
 from pneufdd.recording.model import ANALOG, Recording
 
@@ -421,8 +422,8 @@ def test_monitor_as_an_opc_ua_client_of_a_plc(tmp_path):
         thread.join(rec.duration / SPEED + 600)
         assert not thread.is_alive(), log
         assert "error" not in result, result.get("error")
-        # a busy monitor (diagnosing in this process) is not a lost server
-        assert not any("lost" in m for m in log), log
+        # a busy monitor (estimating beside the ingestion) is not a lost server
+        assert not any("lost" in m for m in log), [m for m in log if "lost" in m]
         assert any("sampling interval 50 ms granted" in m for m in log), log
         _check_history(db, rec, sinks)
         loop.loop.call_soon_threadsafe(finish.set)

@@ -132,7 +132,7 @@ def test_a_version_1_history_gains_the_gaps_table_and_keeps_its_rows(tmp_path):
     engine.dispose()
     history = HistoryDatabase(url)
     try:
-        assert history.schema_version() == SCHEMA_VERSION == 3
+        assert history.schema_version() == SCHEMA_VERSION == 4
         assert history.machines() == [(1, "festo-dsd")]
         with history.begin() as conn:
             history.add_gap(conn, 1, 100.0, 130.0, "mqtt://b/x", 2)

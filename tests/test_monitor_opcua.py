@@ -11,89 +11,41 @@ alarm, no skipped cycle.
 
 from __future__ import annotations
 
+import dataclasses
+import importlib.util
 import threading
 import time
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from monitor_data import PLC_ANALOG_HZ, as_plc_tags, free_port, free_run, plc_reference
+from monitor_data import PLC_ANALOG_HZ, as_plc_tags, free_port, free_run, leak_run, plc_reference
+from o6_plc import O6Plc
 from pneufdd.monitor.alarms import AlarmSinks
 from pneufdd.monitor.cycles import needed_channels
 from pneufdd.monitor.database import HistoryDatabase
-from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
+from pneufdd.monitor.live import CycleOutcome, MachineMonitor
 from pneufdd.monitor.opcua import SubscriptionRefusedError
 from pneufdd.monitor.sources import open_source
-from pneufdd.recording.model import ANALOG, Recording
+from pneufdd.monitor.stream import run_stream
+from pneufdd.recording.model import Recording
 
-o6 = pytest.importorskip("o6")
+if importlib.util.find_spec("o6") is None:
+    pytest.skip("o6 (open62541 for Python) is not installed", allow_module_level=True)
 
 SPEED = 8.0  # the replay runs 8x real time (400 values/s per analog tag: the server
 # carries 100 values per 100 ms publish)
 
 
-class _Plc:
-    """An open62541 server holding the channels' tags (``ns=1;s=<channel>``)."""
-
-    def __init__(self, rec: Recording, channels: list[str]) -> None:
-        self.port = free_port()
-        self.rec = rec
-        self.server = o6.Server(port=self.port)
-        self.server.start()
-        self.t0 = rec.start_time.timestamp()
-        self.nodes = {}
-        for name in channels:
-            node = self.server.addVariable(
-                name, self.server.objectsNode, 0.0, nodeId=f"ns=1;s={name}"
-            )
-            node(self._value(float(rec.info(name).values[0]), 0.0))
-            self.nodes[name] = node
-        self.done = self.server.addVariable(
-            "ReplayDone", self.server.objectsNode, False, nodeId="ns=1;s=ReplayDone"
-        )
-        self.url = f"opcua://127.0.0.1:{self.port}"
-
-    def _value(self, v: object, t: float, status: object = None) -> object:
-        stamp = o6.DateTime(datetime.fromtimestamp(self.t0 + t, UTC))
-        if status is None:
-            return o6.DataValue(value=v, sourceTimestamp=stamp)
-        return o6.DataValue(value=v, status=status, sourceTimestamp=stamp)
-
-    def play(self, burst: tuple[str, float, float] | None, bad: tuple[str, float, float] | None):
-        """Write every analog sample and digital change in time order at SPEED x real time.
-
-        ``burst`` (channel, from, to [s]): that channel's samples in the span are written
-        at once (more than the server's queue holds: it overflows). ``bad``: that
-        channel's samples in the span carry status Bad (a failed sensor).
-        """
-        events = []
-        for name in self.nodes:
-            info = self.rec.info(name)
-            v = np.asarray(info.values, dtype=np.float64)
-            k = np.arange(1, v.size) if info.kind == ANALOG else np.flatnonzero(np.diff(v)) + 1
-            for i in k:
-                t = info.t0 + i / info.rate_hz
-                due = t
-                if burst is not None and name == burst[0] and burst[1] <= t <= burst[2]:
-                    due = burst[1]
-                events.append((due, t, name, float(v[i])))
-        events.sort()
-        began = time.monotonic()
-        for due, t, name, v in events:
-            wait = began + due / SPEED - time.monotonic()
-            if wait > 0:
-                time.sleep(wait)
-            status = None
-            if bad is not None and name == bad[0] and bad[1] <= t <= bad[2]:
-                status = o6.StatusCode.BAD_SENSOR_FAILURE
-            self.nodes[name](self._value(v, t, status))
-        time.sleep(0.5)
-        self.done(True)
-
-    def stop(self) -> None:
-        self.server.stop()
+def _plc(tmp_path: Path, rec: Recording, channels: list[str], **settings) -> O6Plc:
+    """An open62541 server in a process of its own serving ``rec`` (``tests/o6_plc.py``)."""
+    path = tmp_path / "plc.parquet"
+    rec.write(path, overwrite=True)
+    return O6Plc(
+        {"recording": str(path), "channels": channels, "port": free_port(), "speed": SPEED}
+        | settings
+    )
 
 
 def _tag_map(tmp_path: Path, analog, digital, rates: dict[str, float] | None = None) -> Path:
@@ -106,14 +58,16 @@ def _tag_map(tmp_path: Path, analog, digital, rates: dict[str, float] | None = N
     return path
 
 
-def _monitor(tmp_path, model, plc: _Plc, tags: Path, **play):
-    """Run the monitor over ``plc`` while it plays; the outcomes, log, alarms, history."""
+def _monitor(tmp_path, model, plc: O6Plc, tags: Path, feed=None, estimates="process"):
+    """Run the monitor over ``plc`` while it plays; the outcomes, log, alarms, history.
+
+    ``feed`` wraps the source's items on their way to the stream (to watch them)."""
     analog, digital = needed_channels(model)
     log: list[str] = []
     source = open_source(plc.url, analog, digital, tags, log=log.append)
     db = HistoryDatabase(f"sqlite:///{tmp_path / 'opcua.db'}")
     sinks = AlarmSinks()
-    monitor = MachineMonitor(model, db, alarm=sinks)
+    monitor = MachineMonitor(model, db, alarm=sinks, estimates=estimates)
     outcomes: list[CycleOutcome] = []
     result: dict[str, object] = {}
 
@@ -121,11 +75,12 @@ def _monitor(tmp_path, model, plc: _Plc, tags: Path, **play):
         try:
             result["stats"] = run_stream(
                 monitor,
-                source,
+                source if feed is None else feed(source),
                 source.rates_hz,
                 source.lateness_s,
                 on_cycle=outcomes.append,
                 losses=getattr(source, "losses", None),
+                say=log.append,
             )
         except BaseException as exc:  # pragma: no cover - reported below
             result["error"] = exc
@@ -137,10 +92,12 @@ def _monitor(tmp_path, model, plc: _Plc, tags: Path, **play):
         assert time.monotonic() < deadline, log
         time.sleep(0.05)
     time.sleep(1.0)  # the subscription delivers the initial values
-    plc.play(**play)
+    plc.play()
     thread.join(120)
     assert not thread.is_alive(), log
     assert "error" not in result, result.get("error")
+    monitor.close()
+    _monitor.spans = monitor.worker.spans  # type: ignore[attr-defined]
     return outcomes, log, sinks, db, source
 
 
@@ -150,7 +107,7 @@ def test_a_rate_the_server_cannot_carry_is_refused_at_start(tmp_path, capsys):
 
     model = plc_reference()
     analog, digital = needed_channels(model)
-    plc = _Plc(as_plc_tags(free_run()), [*analog, *digital])
+    plc = _plc(tmp_path, as_plc_tags(free_run()), [*analog, *digital])
     try:
         # P_In at 1 kHz needs 200 queued values per 100 ms publish; open62541 grants 100
         tags = _tag_map(tmp_path, analog, digital, {"P_In": 1000.0})
@@ -187,16 +144,14 @@ def test_overflow_and_bad_values_skip_their_cycles_and_never_alarm(tmp_path):
     analog, digital = needed_channels(model)
     rec = as_plc_tags(free_run())
     starts = rec.metadata["cycle_start_s"]
-    plc = _Plc(rec, [*analog, *digital])
+    # 5 s of P_In (250 values) written at once in cycle 2: the server's queue of 100
+    # overflows; Q_In's sensor reports Bad for 3 s in cycle 4
+    burst = ("P_In", starts[1] + 2.0, starts[1] + 7.0)
+    bad = ("Q_In", starts[3] + 2.0, starts[3] + 5.0)
+    plc = _plc(tmp_path, rec, [*analog, *digital], burst=burst, bad=bad)
     try:
-        # 5 s of P_In (250 values) written at once in cycle 2: the server's queue of 100
-        # overflows; Q_In's sensor reports Bad for 3 s in cycle 4
-        burst = ("P_In", starts[1] + 2.0, starts[1] + 7.0)
-        bad = ("Q_In", starts[3] + 2.0, starts[3] + 5.0)
         tags = _tag_map(tmp_path, analog, digital)
-        outcomes, _log, sinks, db, source = _monitor(
-            tmp_path, model, plc, tags, burst=burst, bad=bad
-        )
+        outcomes, _log, sinks, db, source = _monitor(tmp_path, model, plc, tags)
     finally:
         plc.stop()
     t0 = rec.start_time.timestamp()
@@ -221,22 +176,86 @@ def test_overflow_and_bad_values_skip_their_cycles_and_never_alarm(tmp_path):
 
 
 def test_a_leak_free_run_over_open62541_has_no_alarm_and_no_skipped_cycle(tmp_path):
+    """Also: the end tag is still true from an earlier run when the monitor connects (it
+    exited 3 before issue 32): said, and the run ends when the tag becomes true again."""
     model = plc_reference()
     analog, digital = needed_channels(model)
     rec = as_plc_tags(free_run())
-    plc = _Plc(rec, [*analog, *digital])
+    plc = _plc(tmp_path, rec, [*analog, *digital], done=True)
     try:
         tags = _tag_map(tmp_path, analog, digital)
-        outcomes, log, sinks, db, source = _monitor(
-            tmp_path, model, plc, tags, burst=None, bad=None
-        )
+        outcomes, log, sinks, db, source = _monitor(tmp_path, model, plc, tags)
     finally:
         plc.stop()
     assert not [o for o in outcomes if o.incomplete]
     assert not source.losses.counts
     assert not any("OPC UA channel" in m for m in log), log
+    assert sum("is already true at the connection" in m for m in log) == 1, log
     assert not sinks.sent
     machine = db.machine_id("festo-dsd")
     assert len(db.cycle_starts(machine)) >= len(rec.metadata["cycle_start_s"]) - 1
     assert not [o for o in outcomes if o.cycles_lost]
+    db.close()
+
+
+def test_a_slow_estimate_runs_beside_the_ingestion_and_loses_no_sample(tmp_path):
+    """Issue 32, item 2: locating and sizing do not stop the ingestion.
+
+    A supply leak appears mid-run on an open62541 server whose queue holds 100 values
+    per tag (0.25 s of them at this pace: a client that stalls longer loses samples,
+    and the server marks the next value Overflow). The reference's localisation
+    settings check every explanation by simulation at every location (``misfit_ratio``
+    0, ``probes`` 0): a real, slow estimate, run in the monitor's worker process. While
+    it runs, batches keep being taken and more than a cycle of samples is assembled; no
+    sample of that time is lost (no Overflow, no late sample) and every cycle of it is
+    scored and recorded once the result is stored. Every cycle of the run is recorded
+    or skipped and reported (a loaded machine may starve the client at other times:
+    such cycles are skipped, never scored).
+    """
+    base = plc_reference()
+    slow = dataclasses.replace(
+        base.localisation, misfit_ratio=0.0, severe_misfit_ratio=0.0, probes=0
+    )
+    model = dataclasses.replace(base, localisation=slow)
+    analog, digital = needed_channels(model)
+    rec = as_plc_tags(leak_run(cycles=10))
+    starts = np.asarray(rec.metadata["cycle_start_s"])
+    taken: list[tuple[float, float]] = []  # (wall time, newest sample time) of each batch
+
+    def feed(source):
+        for item in source:
+            if item is not None:
+                taken.append((time.time(), float(np.max(item.sample_times()))))
+            yield item
+
+    plc = _plc(tmp_path, rec, [*analog, *digital])
+    try:
+        tags = _tag_map(tmp_path, analog, digital)
+        outcomes, _log, sinks, db, source = _monitor(
+            tmp_path, model, plc, tags, feed=feed, estimates="process"
+        )
+    finally:
+        plc.stop()
+    (leak,) = [a for a in sinks.sent if a.kind == "leak"]
+    assert "supply" in leak.locations
+    assert sum(o.declared for o in outcomes) == 1
+    a, b = _monitor.spans[0]  # the declaration's estimate [wall clock]
+    cycle_s = float(np.median(np.diff(starts)))
+    assert b - a > cycle_s / SPEED, "the estimate is not slower than a cycle of the replay"
+    during = [(w, t) for w, t in taken if a <= w <= b]
+    gaps = np.diff([a, *(w for w, _ in during), min(b, taken[-1][0])])
+    assert gaps.max() < 1.0  # batches kept being taken while the engine ran
+    first, last = during[0][1], during[-1][1]  # the samples assembled meanwhile [data time]
+    assert last - first > cycle_s
+    for channel in source.rates_hz:  # no Overflow, no late sample in that time
+        assert source.losses.received_share(channel, first, last) == 1.0, channel
+    meanwhile = [o for o in outcomes if first <= o.start and o.start + 10.0 <= last]
+    assert meanwhile
+    assert all(o.recorded and np.isfinite(o.score) for o in meanwhile)
+    recorded = [o for o in outcomes if o.recorded]
+    assert len(recorded) + sum(bool(o.incomplete) for o in outcomes) == len(starts)
+    machine = db.machine_id("festo-dsd")
+    rows = db.cycle_rows(machine)
+    assert [r["start"] for r in rows] == [o.start for o in recorded]
+    assert all(np.isfinite(r["score"]) for r in rows)
     db.close()

@@ -192,3 +192,63 @@ def test_the_monitor_runs_on_through_a_failing_webhook(files, tmp_path, capsys, 
     assert "webhook works again" in err
     assert len(_Flaky.received) == summary["alarms"]
     assert len(log.read_text().splitlines()) == summary["alarms"]
+
+
+class _Killed(BaseException):
+    """The process dies here."""
+
+
+def test_an_alarm_committed_but_not_delivered_when_killed_is_delivered_at_the_next_start(
+    files, tmp_path, monkeypatch
+):
+    """Issue 32: the alarm outbox. The monitor dies between an alarm's commit and its
+    delivery to the alarm log: the alarm is in the history, queued for the log, the log
+    has nothing. The next start delivers it (oldest first) before anything else, marks
+    it delivered, and a replay fed again delivers nothing twice."""
+    import math
+
+    from pneufdd.monitor.database import HistoryDatabase
+    from pneufdd.monitor.live import MachineMonitor
+    from pneufdd.monitor.sources import ReplaySource
+    from pneufdd.monitor.stream import run_stream
+
+    url = f"sqlite:///{tmp_path / 'h.db'}"
+    log = tmp_path / "alarms.jsonl"
+    monkeypatch.setattr(AlarmSinks, "retry", lambda self, force=False: _raise_killed())
+    history = HistoryDatabase(url)
+    monitor = MachineMonitor(
+        reference(), history, alarm=AlarmSinks(log_path=log), estimates="thread"
+    )
+    source = ReplaySource(leak_run(), speed=math.inf)
+    with pytest.raises(_Killed):
+        run_stream(monitor, source, source.rates_hz, source.lateness_s)
+    monitor.worker.close()
+    history.close()
+    monkeypatch.undo()
+    history = HistoryDatabase(url)
+    machine = history.machine_id("festo-dsd")
+    (stored,) = history.alarm_rows(machine)
+    assert stored["locations"] == ["supply"]
+    (key,) = AlarmSinks(log_path=log).keys.values()
+    assert len(history.undelivered(machine, key)) == 1
+    assert not log.exists()  # killed before the delivery
+    warnings: list[str] = []
+    restarted = MachineMonitor(
+        reference(), history, alarm=AlarmSinks(log_path=log, warn=warnings.append)
+    )
+    (line,) = [json.loads(x) for x in log.read_text().splitlines()]  # delivered at start
+    assert "left from an earlier run" in warnings[0]
+    assert line["locations"] == ["supply"]
+    assert line["timestamp"] == stored["timestamp"]
+    assert line["id"] is not None
+    assert history.undelivered(machine, key) == []
+    source = ReplaySource(leak_run(), speed=math.inf)
+    run_stream(restarted, source, source.rates_hz, source.lateness_s)
+    restarted.close()
+    assert len(log.read_text().splitlines()) == 1  # nothing twice
+    assert len(history.alarm_rows(machine)) == 1
+    history.close()
+
+
+def _raise_killed() -> int:
+    raise _Killed("between the commit and the delivery")

@@ -30,12 +30,13 @@ from monitor_data import free_port, leak_run, reference, running_mosquitto
 from pneufdd.errors import InputError
 from pneufdd.monitor.credentials import hash_password
 from pneufdd.monitor.database import HistoryDatabase
-from pneufdd.monitor.live import MachineMonitor, run_stream
+from pneufdd.monitor.live import MachineMonitor
 from pneufdd.monitor.metrics import MonitorMetrics
 from pneufdd.monitor.publish import Publishers
 from pneufdd.monitor.publish_mqtt import MqttPublisher
 from pneufdd.monitor.publish_opcua import OpcUaPublisher, ensure_certificate
 from pneufdd.monitor.sources import ReplaySource
+from pneufdd.monitor.stream import run_stream
 
 PASSWORD = "correct horse battery"
 BASIC256SHA256 = "http://opcfoundation.org/UA/SecurityPolicy#Basic256Sha256"

@@ -121,6 +121,7 @@ def history_command(
                         {**g, "start": _iso(g["start"]), "end": _iso(g["end"])}
                         for g in db.gap_rows(machine_id, start)
                     ],
+                    "undelivered_alarms": db.undelivered_counts(machine_id),
                 }
             )
     finally:
@@ -139,6 +140,12 @@ def history_command(
                 f"({cyc['first']} .. {cyc['last']}), {len(entry['alarms'])} alarms, "
                 f"{len(gaps)} gaps ({sum(g['cycles_lost'] for g in gaps)} cycles lost)"
             )
+            for output, count in entry["undelivered_alarms"].items():
+                out.print(
+                    f"  {count} alarm(s) not yet delivered to {output} (the monitor delivers "
+                    "them when it runs and the output works)",
+                    markup=False,
+                )
             for gap in gaps:
                 out.print(
                     f"  gap {gap['start']} .. {gap['end']}: {gap['cycles_lost']} cycle(s) "

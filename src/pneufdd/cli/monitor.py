@@ -1,12 +1,15 @@
 """``pneufdd monitor``: watch a running machine (OPC UA, MQTT or a replay) and keep its history.
 
-Exit codes: 0 the run ended without an active leak, 1 a leak was declared and is still
-active at the end (``--once``), 2 bad input.
+Exit codes: 0 the run judged cycles and ended without an active leak, 1 a leak was
+declared and is still active at the end, 2 bad input, and also a run that judged no
+cycle at all (no complete cycle, every one skipped for lost samples, or only start-up
+cycles): it says nothing about leaks, and says so.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -81,9 +84,10 @@ def monitor_command(
     from pneufdd.monitor.alarms import AlarmSinks, check_webhook
     from pneufdd.monitor.cycles import needed_channels
     from pneufdd.monitor.database import masked_url, open_history, sqlite_path
-    from pneufdd.monitor.live import CycleOutcome, MachineMonitor, run_stream
+    from pneufdd.monitor.live import MachineMonitor
     from pneufdd.monitor.sequential import check_arl0
     from pneufdd.monitor.sources import open_source
+    from pneufdd.monitor.stream import run_stream
 
     check_arl0(arl0)  # every option is checked before the history is created
     if alarm_log is None:  # beside the history, never silently into the working folder
@@ -95,6 +99,8 @@ def monitor_command(
         check_webhook(webhook)  # before any work: a bad URL never waits for the first alarm
     # names and values in messages are plain text (a machine named "cell[/]" is no markup)
     err = Console(stderr=True, highlight=False, markup=False)
+    if not verbose:  # asyncua's own tracebacks of a lost server: the monitor says it in a line
+        logging.getLogger("asyncua").addHandler(logging.NullHandler())
     model = load_reference(reference)
     analog, digital = needed_channels(model)
     src = open_source(source, analog, digital, tags, log=lambda m: err.print(m))
@@ -117,8 +123,49 @@ def monitor_command(
         f"alarm log {alarm_log if alarm_log is not None else 'none (--alarm-log PATH)'}"
     )
 
-    def show(outcome: CycleOutcome) -> None:
+    show = _show(err, mon, sinks, verbose)
+
+    try:
+        stats = run_stream(
+            mon,
+            src,
+            src.rates_hz,
+            src.lateness_s,
+            on_cycle=show,
+            max_cycles=max_cycles,
+            flush=once,
+            losses=getattr(src, "losses", None),
+            say=lambda m: err.print(m),
+        )
+        if not once and (max_cycles is None or stats.cycles < max_cycles):
+            err.print("the source ended; waiting for more (Ctrl-C stops; --once exits here)")
+            while True:
+                time.sleep(3600)
+    except KeyboardInterrupt:
+        stats = mon.stats
+        err.print("stopped")
+        if mon.busy:
+            mon.worker.abandon()
+            err.print("an estimate was running: it runs again at the next start")
+    finally:
+        publishers.close()
+        held = sinks.retry(force=True)
+        mon.worker.close()
+        db.close()
+    raise typer.Exit(_finish(err, mon, src, stats, held))
+
+
+def _show(err: Any, mon: Any, sinks: Any, verbose: bool) -> Callable[[Any], None]:
+    """What is said live about each cycle (and the alarm outputs' due retries)."""
+
+    def show(outcome: Any) -> None:
         sinks.retry()  # alarms held by a failing output, when their retry is due
+        if outcome.declared:
+            err.print(
+                f"cycle at {outcome.start:.3f}: leak declared (CUSUM {outcome.cusum:.2f} >= "
+                f"{mon.cusum.decision_threshold:.2f}); locating and sizing beside the "
+                "ingestion, the alarm follows"
+            )
         if outcome.incomplete:
             shares = ", ".join(f"{c} {100 * s:.0f} % of samples" for c, s in outcome.incomplete)
             err.print(
@@ -135,34 +182,38 @@ def monitor_command(
                 f"cycle {outcome.start:.3f}: score {outcome.score:.3f} CUSUM {outcome.cusum:.2f}"
             )
 
-    try:
-        stats = run_stream(
-            mon,
-            src,
-            src.rates_hz,
-            src.lateness_s,
-            on_cycle=show,
-            max_cycles=max_cycles,
-            flush=once,
-            losses=getattr(src, "losses", None),
-        )
-        if not once and (max_cycles is None or stats.cycles < max_cycles):
-            err.print("the source ended; waiting for more (Ctrl-C stops; --once exits here)")
-            while True:
-                time.sleep(3600)
-    except KeyboardInterrupt:
-        stats = mon.stats
-        err.print("stopped")
-    finally:
-        publishers.close()
-        db.close()
-        held = sinks.retry(force=True)
+    return show
+
+
+def _finish(err: Any, mon: Any, src: Any, stats: Any, held: int) -> ExitCode:
+    """Print the notes and the summary; the exit code.
+
+    1 while a leak is active; 2 when no cycle was judged, now or by an earlier run
+    (already recorded): such a run says nothing about leaks, and says so; else 0.
+    """
     if held:
-        err.print(f"warning: {held} alarm(s) not delivered (their outputs still fail; see above)")
-    for note in stats.notes:
+        err.print(
+            f"warning: {held} alarm delivery(ies) still held (their outputs fail; see above); "
+            "they are kept in the history and delivered at the next start"
+        )
+    notes = getattr(src, "notes", None)
+    for note in [*stats.notes, *(notes() if notes is not None else [])]:
         err.print(f"note: {note}")
-    err.print(json.dumps(_summary(stats, mon.state.in_alarm)))
-    raise typer.Exit(ExitCode.LEAK_FOUND if mon.state.in_alarm else ExitCode.OK)
+    summary = _summary(stats, mon.state.in_alarm)
+    clocks = getattr(src, "clocks", None)
+    if clocks is not None and clocks.to_dict():
+        summary["clock_offsets"] = clocks.to_dict()
+    err.print(json.dumps(summary))
+    if mon.state.in_alarm:
+        return ExitCode.LEAK_FOUND
+    if stats.judged + stats.skipped == 0:
+        err.print(
+            f"no cycle was judged ({stats.cycles} complete cycle(s): {stats.startup} start-up, "
+            f"{stats.incomplete} skipped for lost samples; see the notes above): this run "
+            "says nothing about leaks"
+        )
+        return ExitCode.INPUT_ERROR
+    return ExitCode.OK
 
 
 def _summary(stats: Any, leak_active: bool) -> dict[str, Any]:
@@ -171,6 +222,8 @@ def _summary(stats: Any, leak_active: bool) -> dict[str, Any]:
         "cycles": stats.cycles,
         "recorded": stats.recorded,
         "already_recorded": stats.skipped,
+        "judged": stats.judged,
+        "startup": stats.startup,
         "alarms": stats.alarms,
         "diagnoses": stats.diagnoses,
         "gaps": stats.gaps,

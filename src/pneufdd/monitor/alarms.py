@@ -13,6 +13,7 @@ through ``warn`` and its alarms are held and sent again later, oldest first
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
@@ -23,9 +24,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pneufdd.errors import InputError, describe
+
+if TYPE_CHECKING:
+    from pneufdd.monitor.database import HistoryDatabase
 
 __all__ = ["MAX_HELD_ALARMS", "Alarm", "AlarmSinks", "check_webhook"]
 
@@ -110,6 +114,8 @@ class Alarm:
         Cycles the estimate is based on.
     leaks : tuple of dict
         Per leak: location, flow_slpm, annual_cost, confidence.
+    id : int, optional
+        Its row in the history's ``alarms`` table (repeated deliveries carry the same).
     """
 
     machine: str
@@ -122,6 +128,7 @@ class Alarm:
     change_start: float | None = None
     cycles: int = 0
     leaks: tuple[dict[str, Any], ...] = field(default_factory=tuple)
+    id: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible form (the alarm log's line)."""
@@ -139,6 +146,7 @@ class Alarm:
             else datetime.fromtimestamp(self.change_start, UTC).isoformat(),
             "cycles": self.cycles,
             "leaks": [dict(x) for x in self.leaks],
+            "id": self.id,
         }
 
     def message(self) -> str:
@@ -154,7 +162,7 @@ class Alarm:
 
 
 class AlarmSinks:
-    """Where alarms go.
+    """Where alarms go: printed, and delivered to each output (alarm log, webhook).
 
     Parameters
     ----------
@@ -176,6 +184,17 @@ class AlarmSinks:
     ------
     InputError
         If ``webhook`` is not an http(s) URL with a host.
+
+    Notes
+    -----
+    Undelivered alarms wait in a queue per output, oldest first: in memory (at most
+    :data:`MAX_HELD_ALARMS` per output), or, once :meth:`attach` ties the sinks to a
+    history database, in its ``alarm_outbox`` table, where the monitor queues each
+    alarm in the transaction that commits it. An alarm is marked delivered per output
+    once the output took it; a monitor killed before that delivers it at its next
+    start (at least once: killed between an output taking it and the mark, that
+    output gets it again; the payload's ``id`` tells repeats apart). More outputs
+    (e.g. a publisher) join with :meth:`add_output`.
     """
 
     def __init__(
@@ -194,35 +213,73 @@ class AlarmSinks:
         self.timeout_s = timeout_s
         self.retry_after_s = retry_after_s
         self.sent: list[Alarm] = []
-        self.held: dict[str, deque[dict[str, Any]]] = {name: deque() for name in self._outputs()}
-        self._failures = dict.fromkeys(self.held, 0)
-        self._next_try = dict.fromkeys(self.held, 0.0)
-
-    def _outputs(self) -> list[str]:
-        names = []
-        if self.log_path is not None:
-            names.append("alarm log")
+        self._send: dict[str, Callable[[str], None]] = {}
+        self._where: dict[str, str] = {}
+        self.keys: dict[str, str] = {}
+        """Output name -> its key in the history's outbox."""
+        self._store: _Store = _MemoryStore()
+        self._failures: dict[str, int] = {}
+        self._next_try: dict[str, float] = {}
+        self._unsure: set[str] = set()  # outputs that may have alarms waiting
+        if log_path is not None:
+            key = f"alarm log {Path(log_path).resolve()}"
+            self.add_output("alarm log", key, self._append_log, str(log_path))
         if self.webhook:
-            names.append("webhook")
-        return names
+            parts = urllib.parse.urlsplit(self.webhook)
+            digest = hashlib.sha256(self.webhook.encode()).hexdigest()[:12]
+            # the key names the host, not the URL: a webhook's path or query may hold a token
+            key = f"webhook {parts.scheme}://{parts.hostname} #{digest}"
+            self.add_output("webhook", key, self._post, self.webhook)
+
+    def add_output(
+        self, name: str, key: str, send: Callable[[str], None], where: str | None = None
+    ) -> None:
+        """Deliver every alarm to one more output.
+
+        ``send`` takes the alarm's JSON line and raises when the output fails;
+        ``key`` names the output in the history's outbox (stable across restarts);
+        ``where`` names it in messages.
+        """
+        self._send[name] = send
+        self._where[name] = where or name
+        self.keys[name] = key
+        self._failures[name] = 0
+        self._next_try[name] = 0.0
+        self._unsure.add(name)
+
+    def attach(self, history: HistoryDatabase, machine_id: int) -> tuple[str, ...]:
+        """Keep the undelivered alarms in ``history``'s outbox; deliver what a killed
+        monitor left undelivered. Returns the output keys the monitor queues alarms for.
+        """
+        self._store = _HistoryStore(history, machine_id, self.keys)
+        self._unsure = set(self._send)
+        if self._store.count():
+            self._say(
+                f"{self._store.count()} alarm delivery(ies) left from an earlier run: "
+                "delivering them now, oldest first"
+            )
+            self.retry(force=True)
+        return tuple(self.keys.values())
 
     def __call__(self, alarm: Alarm) -> None:
         """Send one alarm everywhere; an output that fails keeps it for a retry."""
         self.sent.append(alarm)
         if self.echo is not None:
             self.echo(alarm.message())
-        payload = alarm.to_dict()
-        for name, queue in self.held.items():
-            if len(queue) >= MAX_HELD_ALARMS:
-                queue.popleft()
-                self._say(f"{name}: more than {MAX_HELD_ALARMS} alarms held; the oldest dropped")
-            queue.append(payload)
+        if isinstance(self._store, _MemoryStore):
+            self._store.put(list(self._send), json.dumps(alarm.to_dict(), allow_nan=False), self)
+        self._unsure = set(self._send)
         self.retry(force=True)
 
     @property
     def pending(self) -> int:
-        """Alarms held by failing outputs, not yet delivered (counted per output)."""
-        return sum(len(q) for q in self.held.values())
+        """Alarms not yet delivered (counted per output)."""
+        return self._store.count()
+
+    @property
+    def held(self) -> dict[str, int]:
+        """Alarms not yet delivered, per output."""
+        return {name: self._store.count(name) for name in self._send}
 
     def retry(self, force: bool = False) -> int:
         """Send the held alarms of every output whose retry is due (all with ``force``).
@@ -233,17 +290,22 @@ class AlarmSinks:
             Alarms still held.
         """
         now = time.monotonic()
-        for name, queue in self.held.items():
-            if not queue or (not force and now < self._next_try[name]):
+        for name, send in self._send.items():
+            if name not in self._unsure or (not force and now < self._next_try[name]):
                 continue
-            failures, delivered = self._failures[name], 0
-            while queue:
-                error = self._send(name, queue[0])
-                if error is not None:
-                    self._failed(name, error, len(queue))
+            failures, delivered, failed = self._failures[name], 0, False
+            for key, line in self._store.waiting(name):
+                try:
+                    send(line)
+                except Exception as exc:  # any failure of an output: reported, held, retried
+                    error = f"{self._where[name]}: {type(exc).__name__}: {exc}"
+                    self._failed(name, error, self._store.count(name))
+                    failed = True
                     break
-                queue.popleft()
+                self._store.done(name, key)
                 delivered += 1
+            if not failed and not self._store.count(name):
+                self._unsure.discard(name)
             if delivered and failures:
                 self._failures[name] = 0
                 self._say(f"{name} works again: {delivered} held alarm(s) delivered")
@@ -259,27 +321,79 @@ class AlarmSinks:
         if self.warn is not None:
             self.warn(message)
 
-    def _send(self, name: str, payload: dict[str, Any]) -> str | None:
-        """Deliver one alarm to one output; the error as text, or None when delivered."""
-        line = json.dumps(payload, allow_nan=False)
-        try:
-            if name == "alarm log":
-                assert self.log_path is not None
-                self.log_path.parent.mkdir(parents=True, exist_ok=True)
-                with open(self.log_path, "a", encoding="utf-8") as handle:
-                    handle.write(line + "\n")
-                    handle.flush()
-            else:
-                assert self.webhook is not None
-                request = urllib.request.Request(
-                    self.webhook,
-                    data=line.encode(),
-                    headers={"Content-Type": "application/json"},
-                    method="POST",
-                )
-                with urllib.request.urlopen(request, timeout=self.timeout_s) as response:
-                    response.read()
-        except Exception as exc:  # any failure of an output: reported, held, retried
-            where = self.log_path if name == "alarm log" else self.webhook
-            return f"{where}: {type(exc).__name__}: {exc}"
-        return None
+    def _append_log(self, line: str) -> None:
+        assert self.log_path is not None
+        self.log_path.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.log_path, "a", encoding="utf-8") as handle:
+            handle.write(line + "\n")
+            handle.flush()
+
+    def _post(self, line: str) -> None:
+        assert self.webhook is not None
+        request = urllib.request.Request(
+            self.webhook,
+            data=line.encode(),
+            headers={"Content-Type": "application/json"},
+            method="POST",
+        )
+        with urllib.request.urlopen(request, timeout=self.timeout_s) as response:
+            response.read()
+
+
+class _Store(Protocol):
+    """Undelivered alarms per output: (key, JSON line), oldest first."""
+
+    def waiting(self, name: str) -> list[tuple[int, str]]: ...
+
+    def done(self, name: str, key: int) -> None: ...
+
+    def count(self, name: str | None = None) -> int: ...
+
+
+class _MemoryStore:
+    """Held in memory, at most :data:`MAX_HELD_ALARMS` per output."""
+
+    def __init__(self) -> None:
+        self._held: dict[str, deque[tuple[int, str]]] = {}
+        self._serial = 0
+
+    def put(self, names: list[str], line: str, sinks: AlarmSinks) -> None:
+        self._serial += 1
+        for name in names:
+            queue = self._held.setdefault(name, deque())
+            if len(queue) >= MAX_HELD_ALARMS:
+                queue.popleft()
+                sinks._say(f"{name}: more than {MAX_HELD_ALARMS} alarms held; the oldest dropped")
+            queue.append((self._serial, line))
+
+    def waiting(self, name: str) -> list[tuple[int, str]]:
+        return list(self._held.get(name, ()))
+
+    def done(self, name: str, key: int) -> None:
+        queue = self._held[name]
+        if queue and queue[0][0] == key:
+            queue.popleft()
+
+    def count(self, name: str | None = None) -> int:
+        if name is not None:
+            return len(self._held.get(name, ()))
+        return sum(len(q) for q in self._held.values())
+
+
+class _HistoryStore:
+    """Held in the history's ``alarm_outbox`` (the monitor queues them with the alarm)."""
+
+    def __init__(self, history: HistoryDatabase, machine_id: int, keys: dict[str, str]) -> None:
+        self.history = history
+        self.machine_id = machine_id
+        self.keys = keys
+
+    def waiting(self, name: str) -> list[tuple[int, str]]:
+        return self.history.undelivered(self.machine_id, self.keys[name])
+
+    def done(self, name: str, key: int) -> None:
+        self.history.mark_delivered(key, self.keys[name], time.time())
+
+    def count(self, name: str | None = None) -> int:
+        names = [name] if name is not None else list(self.keys)
+        return sum(len(self.waiting(n)) for n in names)

@@ -32,10 +32,20 @@ Tables (schema version :data:`SCHEMA_VERSION`, migrations in :data:`MIGRATIONS`)
     the PLC steps' names; the dashboard draws the schematic and the score chart from it.
 ``acknowledgements`` (version 3)
     who acknowledged which alarm, and when.
+``pending_estimates`` (version 4)
+    a location and sizing run decided with a committed cycle and not yet finished
+    (it runs beside the ingestion, :mod:`pneufdd.monitor.estimates`): its input, so
+    that a restart redoes it; deleted in the transaction that stores its result.
+``alarm_outbox`` (version 4)
+    each alarm's payload per output (alarm log, webhook) and when it was delivered:
+    written with the alarm, marked once delivered; what a killed monitor had not
+    delivered is delivered, oldest first, at the next start.
 
-A cycle, the detector state, the cost accrued by the active leaks and any alarm or
-diagnosis the cycle triggered are one transaction: a crash (even SIGKILL) loses at most
-the cycle being processed and never duplicates one. SQLite runs in WAL mode with
+The tables and migrations are in :mod:`pneufdd.monitor.schema`. A cycle, the detector
+state, the cost accrued by the active leaks, any alarm the cycle raised and the input
+of any estimate it decided are one transaction; an estimate's result, its leaks, sizes
+and alarm are another. A crash (even SIGKILL) loses at most the cycle being processed
+and never duplicates one. SQLite runs in WAL mode with
 ``synchronous=NORMAL``, which survives a killed process (a power cut may lose the last
 transactions, never the file's integrity).
 """
@@ -45,7 +55,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,6 +64,23 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
 
 from pneufdd.errors import InputError, describe
+from pneufdd.monitor.schema import (
+    MIGRATIONS,
+    SCHEMA_VERSION,
+    acknowledgements,
+    alarm_outbox,
+    alarms,
+    cycles,
+    diagnoses,
+    gaps,
+    leak_sizes,
+    leaks,
+    machine_info,
+    machines,
+    monitor_state,
+    pending_estimates,
+    schema_info,
+)
 
 __all__ = [
     "DEFAULT_HISTORY_URL",
@@ -61,13 +88,26 @@ __all__ = [
     "SCHEMA_VERSION",
     "HistoryDatabase",
     "LeakRow",
+    "acknowledgements",
+    "alarm_outbox",
+    "alarms",
+    "cycles",
+    "diagnoses",
+    "gaps",
+    "leak_sizes",
+    "leaks",
+    "machine_info",
+    "machines",
     "masked_url",
+    "monitor_state",
     "open_history",
+    "pending_estimates",
+    "schema_info",
     "sqlite_path",
 ]
+"""The tables (defined in :mod:`pneufdd.monitor.schema`) are re-exported here."""
 
 DEFAULT_HISTORY_URL = "sqlite:///pneufdd-history.db"
-SCHEMA_VERSION = 3
 SCHEMA_LOCK = 0x706E_6575_6664_6431
 """PostgreSQL advisory lock key held while the schema is created or migrated."""
 SCHEMA_ATTEMPTS = 5
@@ -87,132 +127,6 @@ def masked_url(url: str) -> str:
     except (sa.exc.ArgumentError, ValueError):
         # not a URL SQLAlchemy reads: hide whatever sits between ':' and '@'
         return re.sub(r":[^:@/]*@", ":***@", url)
-
-
-metadata = sa.MetaData()
-
-schema_info = sa.Table("schema_info", metadata, sa.Column("version", sa.Integer, nullable=False))
-machines = sa.Table(
-    "machines",
-    metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("name", sa.String(200), nullable=False, unique=True),
-)
-cycles = sa.Table(
-    "cycles",
-    metadata,
-    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), primary_key=True),
-    sa.Column("start_ms", sa.BigInteger, primary_key=True, autoincrement=False),
-    sa.Column("start", sa.Float, nullable=False),
-    sa.Column("duration_s", sa.Float, nullable=False),
-    sa.Column("score", sa.Float),
-    sa.Column("cusum", sa.Float),
-    sa.Column("supply_air_kg", sa.Float),
-    sa.Column("supply_pressure_pa", sa.Float),
-)
-monitor_state = sa.Table(
-    "monitor_state",
-    metadata,
-    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), primary_key=True),
-    sa.Column("last_start_ms", sa.BigInteger, nullable=False),
-    sa.Column("state", sa.Text, nullable=False),
-)
-alarms = sa.Table(
-    "alarms",
-    metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
-    sa.Column("time", sa.Float, nullable=False),
-    sa.Column("kind", sa.String(20), nullable=False),
-    sa.Column("data", sa.Text, nullable=False),
-)
-diagnoses = sa.Table(
-    "diagnoses",
-    metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
-    sa.Column("time", sa.Float, nullable=False),
-    sa.Column("first_cycle", sa.Float, nullable=False),
-    sa.Column("n_cycles", sa.Integer, nullable=False),
-    sa.Column("data", sa.Text, nullable=False),
-)
-leaks = sa.Table(
-    "leaks",
-    metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
-    sa.Column("location", sa.String(100), nullable=False),
-    sa.Column("state", sa.String(20), nullable=False),
-    sa.Column("first_seen", sa.Float, nullable=False),
-    sa.Column("last_seen", sa.Float, nullable=False),
-    sa.Column("repaired_at", sa.Float),
-    sa.Column("flow_slpm", sa.Float),
-    sa.Column("annual_cost", sa.Float),
-    sa.Column("confidence", sa.Float),
-    sa.Column("cost_to_date", sa.Float, nullable=False, default=0.0),
-)
-leak_sizes = sa.Table(
-    "leak_sizes",
-    metadata,
-    sa.Column("leak_id", sa.Integer, sa.ForeignKey("leaks.id"), nullable=False),
-    sa.Column("time", sa.Float, nullable=False),
-    sa.Column("flow_slpm", sa.Float),
-    sa.Column("annual_cost", sa.Float),
-)
-sa.Index("ix_alarms_machine_time", alarms.c.machine_id, alarms.c.time)
-sa.Index("ix_leaks_machine", leaks.c.machine_id, leaks.c.state)
-sa.Index("ix_leak_sizes_leak", leak_sizes.c.leak_id, leak_sizes.c.time)
-_V1_TABLES = (schema_info, machines, cycles, monitor_state, alarms, diagnoses, leaks, leak_sizes)
-gaps = sa.Table(
-    "gaps",
-    metadata,
-    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), nullable=False),
-    sa.Column("start", sa.Float, nullable=False),
-    sa.Column("end", sa.Float, nullable=False),
-    sa.Column("source", sa.String(500), nullable=False),
-    sa.Column("cycles_lost", sa.Integer, nullable=False),
-)
-sa.Index("ix_gaps_machine_start", gaps.c.machine_id, gaps.c.start)
-
-
-machine_info = sa.Table(
-    "machine_info",
-    metadata,
-    sa.Column("machine_id", sa.Integer, sa.ForeignKey("machines.id"), primary_key=True),
-    sa.Column("time", sa.Float, nullable=False),
-    sa.Column("description", sa.Text, nullable=False),
-    sa.Column("cusum_threshold", sa.Float),
-    sa.Column("cycle_threshold", sa.Float),
-    sa.Column("steps", sa.Text, nullable=False),
-)
-acknowledgements = sa.Table(
-    "acknowledgements",
-    metadata,
-    sa.Column("alarm_id", sa.Integer, sa.ForeignKey("alarms.id"), primary_key=True),
-    sa.Column("time", sa.Float, nullable=False),
-    sa.Column("user", sa.String(200), nullable=False),
-)
-
-
-def _create_v1(conn: Connection) -> None:
-    metadata.create_all(conn, tables=list(_V1_TABLES))
-
-
-def _add_gaps_v2(conn: Connection) -> None:
-    metadata.create_all(conn, tables=[gaps])
-
-
-def _add_machine_info_v3(conn: Connection) -> None:
-    metadata.create_all(conn, tables=[machine_info, acknowledgements])
-
-
-MIGRATIONS: tuple[Callable[[Connection], None], ...] = (
-    _create_v1,
-    _add_gaps_v2,
-    _add_machine_info_v3,
-)
-"""``MIGRATIONS[k]`` takes a database from version ``k`` to ``k + 1``."""
 
 
 def _num(x: float | None) -> float | None:
@@ -254,7 +168,7 @@ class HistoryDatabase:
     ...         again = db.add_cycle(conn, m, 100.0, 14.8, 0.5, 0.0, 0.01, 6e5)
     ...     (first, again, db.cycle_count(m), db.schema_version())
     ...     db.close()
-    (True, False, 1, 3)
+    (True, False, 1, 4)
     """
 
     def __init__(self, url: str) -> None:
@@ -434,13 +348,100 @@ class HistoryDatabase:
 
     def add_alarm(
         self, conn: Connection, machine_id: int, time: float, kind: str, data: dict[str, Any]
-    ) -> None:
-        """Record an alarm (``kind``: ``leak`` or ``repaired``)."""
-        conn.execute(
-            sa.insert(alarms).values(
-                machine_id=machine_id, time=time, kind=kind, data=json.dumps(data, allow_nan=False)
-            )
+    ) -> int:
+        """Record an alarm (``kind``: ``leak`` or ``repaired``); its id."""
+        return int(
+            conn.execute(
+                sa.insert(alarms)
+                .values(
+                    machine_id=machine_id,
+                    time=time,
+                    kind=kind,
+                    data=json.dumps(data, allow_nan=False),
+                )
+                .returning(alarms.c.id)
+            ).scalar_one()
         )
+
+    def update_alarm(self, conn: Connection, alarm_id: int, data: dict[str, Any]) -> None:
+        """Replace an alarm's data (a declaration once its leak is located and sized)."""
+        text = json.dumps(data, allow_nan=False)
+        conn.execute(sa.update(alarms).where(alarms.c.id == alarm_id).values(data=text))
+
+    # ----------------------------------------------------------- alarm outbox
+    def add_outbox(
+        self, conn: Connection, alarm_id: int, outputs: Sequence[str], payload: str
+    ) -> None:
+        """Queue an alarm's ``payload`` for each of ``outputs`` (in the alarm's transaction)."""
+        for output in outputs:
+            conn.execute(
+                sa.insert(alarm_outbox).values(
+                    alarm_id=alarm_id, output=output[:500], payload=payload
+                )
+            )
+
+    def undelivered(self, machine_id: int, output: str, limit: int = 1000) -> list[tuple[int, str]]:
+        """Alarms of a machine not yet delivered to ``output``, oldest first: (id, payload)."""
+        query = (
+            sa.select(alarm_outbox.c.alarm_id, alarm_outbox.c.payload)
+            .join(alarms, alarms.c.id == alarm_outbox.c.alarm_id)
+            .where(
+                alarms.c.machine_id == machine_id,
+                alarm_outbox.c.output == output[:500],
+                alarm_outbox.c.delivered_at.is_(None),
+            )
+            .order_by(alarm_outbox.c.alarm_id)
+            .limit(limit)
+        )
+        with self.engine.connect() as conn:
+            return [(int(r[0]), str(r[1])) for r in conn.execute(query)]
+
+    def undelivered_counts(self, machine_id: int) -> dict[str, int]:
+        """Alarms of a machine not yet delivered, per output."""
+        query = (
+            sa.select(alarm_outbox.c.output, sa.func.count())
+            .join(alarms, alarms.c.id == alarm_outbox.c.alarm_id)
+            .where(alarms.c.machine_id == machine_id, alarm_outbox.c.delivered_at.is_(None))
+            .group_by(alarm_outbox.c.output)
+        )
+        with self.engine.connect() as conn:
+            return {str(r[0]): int(r[1]) for r in conn.execute(query)}
+
+    def mark_delivered(self, alarm_id: int, output: str, time: float) -> None:
+        """Note that alarm ``alarm_id`` reached ``output`` at ``time`` [s since 1970]."""
+        with self.engine.begin() as conn:
+            conn.execute(
+                sa.update(alarm_outbox)
+                .where(alarm_outbox.c.alarm_id == alarm_id, alarm_outbox.c.output == output[:500])
+                .values(delivered_at=time)
+            )
+
+    # ----------------------------------------------------------- estimates
+    def add_pending_estimate(
+        self, conn: Connection, machine_id: int, time: float, job: bytes
+    ) -> int:
+        """Store a location and sizing run's input until its result is stored; its id."""
+        return int(
+            conn.execute(
+                sa.insert(pending_estimates)
+                .values(machine_id=machine_id, time=time, job=job)
+                .returning(pending_estimates.c.id)
+            ).scalar_one()
+        )
+
+    def pending_estimate_rows(self, machine_id: int) -> list[tuple[int, bytes]]:
+        """Runs decided but not finished (a killed monitor's), oldest first: (id, input)."""
+        query = (
+            sa.select(pending_estimates.c.id, pending_estimates.c.job)
+            .where(pending_estimates.c.machine_id == machine_id)
+            .order_by(pending_estimates.c.id)
+        )
+        with self.engine.connect() as conn:
+            return [(int(r[0]), bytes(r[1])) for r in conn.execute(query)]
+
+    def remove_pending_estimate(self, conn: Connection, pending_id: int) -> None:
+        """Drop a run's input (in the transaction that stores its result)."""
+        conn.execute(sa.delete(pending_estimates).where(pending_estimates.c.id == pending_id))
 
     def add_diagnosis(
         self,

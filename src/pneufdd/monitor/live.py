@@ -21,26 +21,24 @@ live source) waits for them.
 
 from __future__ import annotations
 
+import json
 import math
-import time as wallclock
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pneufdd.diagnosis.cost import CostSettings
-from pneufdd.diagnosis.engine import diagnose
 from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.reference.model import ReferenceModel
-from pneufdd.errors import InputError, describe
-from pneufdd.monitor.alarms import Alarm
-from pneufdd.monitor.completeness import LossLedger
-from pneufdd.monitor.cycles import CompletedCycle, CycleStreamer, concatenate_rows, needed_channels
+from pneufdd.monitor.alarms import Alarm, AlarmSinks
+from pneufdd.monitor.cycles import CompletedCycle, concatenate_rows
 from pneufdd.monitor.database import HistoryDatabase
-from pneufdd.monitor.samples import SampleAssembler, SampleBatch
+from pneufdd.monitor.estimates import EstimateJob, EstimateWorker, Timed, decode_job, encode_job
 from pneufdd.monitor.sequential import CusumDecision, CusumDetector, CusumState
 
-__all__ = ["WINDOW", "CycleOutcome", "MachineMonitor", "MonitorStats", "run_stream"]
+__all__ = ["WINDOW", "CycleOutcome", "MachineMonitor", "MonitorStats"]
 
 WINDOW = 20
 """Cycles of summaries kept in memory for locating and sizing [-]."""
@@ -63,6 +61,8 @@ class CycleOutcome:
     cusum: float
     recorded: bool
     alarms: tuple[Alarm, ...] = ()
+    """Alarms raised with this cycle, after those of the estimates stored since the
+    previous cycle (a located leak's alarm comes once its estimate is stored)."""
     gap_s: float = 0.0
     """Time without a cycle before this one (0: it follows the previous cycle) [s]."""
     cycles_lost: int = 0
@@ -70,6 +70,9 @@ class CycleOutcome:
     incomplete: tuple[tuple[str, float], ...] = ()
     """Channels the source lost samples of in this cycle, with the share received [-]:
     the cycle was skipped (not scored, not recorded; :mod:`pneufdd.monitor.completeness`)."""
+    declared: bool = False
+    """The CUSUM declared a leak with this cycle; its location and size follow (the
+    estimate runs beside the ingestion, :mod:`pneufdd.monitor.estimates`)."""
 
 
 @dataclass
@@ -82,12 +85,25 @@ class _Tracked:
 
 
 @dataclass
+class _Running:
+    """An estimate decided and stored, its result not yet stored."""
+
+    job: EstimateJob
+    future: Future[Timed] | None
+
+
+@dataclass
 class MonitorStats:
     """Counters of a monitoring session."""
 
     cycles: int = 0
     recorded: int = 0
     skipped: int = 0
+    """Cycles already in the history (a replay fed again, a restart)."""
+    judged: int = 0
+    """Cycles scored into the CUSUM in this session (not start-up, not skipped)."""
+    startup: int = 0
+    """Start-up cycles: recorded, not judged."""
     alarms: int = 0
     diagnoses: int = 0
     gaps: int = 0
@@ -114,9 +130,16 @@ class MachineMonitor:
     cost : CostSettings, optional
         Economic inputs of eq. 1.1.
     alarm : callable, optional
-        Called with every :class:`Alarm` after it is committed.
+        Called with every :class:`Alarm` after it is committed. An
+        :class:`~pneufdd.monitor.alarms.AlarmSinks` is attached to the history: each
+        alarm is queued for each of its outputs in the alarm's transaction and marked
+        once delivered (the outbox; a restart delivers what was not).
     source : str
         What the cycles come from (a gap's ``source`` in the history; no password).
+    estimates : str
+        Where locating and sizing run (:data:`pneufdd.monitor.estimates.MODES`):
+        ``process`` (a worker process) or ``thread`` beside the ingestion, ``inline``
+        on the caller's thread when the next cycle needs the result.
     publish : callable, optional
         Called with the monitor and each cycle's :class:`CycleOutcome` after the cycle
         is committed (:class:`pneufdd.monitor.publish.Publishers`: OPC UA, MQTT, metrics).
@@ -131,6 +154,7 @@ class MachineMonitor:
         cost: CostSettings | None = None,
         alarm: Callable[[Alarm], None] | None = None,
         source: str = "",
+        estimates: str = "process",
         publish: Callable[[MachineMonitor, CycleOutcome], None] | None = None,
     ) -> None:
         self.publish = publish
@@ -142,6 +166,7 @@ class MachineMonitor:
         self.cusum = CusumDetector.from_reference(self.detector, arl0=arl0)
         self.cost = cost or CostSettings()
         self.alarm = alarm
+        self.worker = EstimateWorker(model, self.cost, estimates)
         self.machine_id = history.machine_id(self.machine)
         self.window: deque[CompletedCycle] = deque(maxlen=WINDOW)
         # the first complete cycles of a stream are start-up cycles, as in a file
@@ -180,22 +205,40 @@ class MachineMonitor:
         p_in = "P_In" in model.channels
         self._q = model.channels.index("Q_In") if q_in else None
         self._p = model.channels.index("P_In") if p_in else None
+        # estimates decided with a committed cycle whose result is not yet stored, in
+        # order; a killed monitor's are in the history and run again now
+        self._running: deque[_Running] = deque()
+        self._decided: list[EstimateJob] = []
+        self._stored_alarms: list[Alarm] = []  # of estimates, for the next cycle's outcome
+        for pending_id, data in history.pending_estimate_rows(self.machine_id):
+            job = replace(decode_job(data), pending_id=pending_id)
+            self._running.append(_Running(job, self.worker.start(job)))
+        # the alarm outbox: every alarm is queued for each output in its transaction
+        self.outputs: tuple[str, ...] = ()
+        if isinstance(alarm, AlarmSinks):
+            self.outputs = alarm.attach(history, self.machine_id)
 
     # ------------------------------------------------------------ per cycle
     def process(self, cycle: CompletedCycle) -> CycleOutcome:
         """Score, decide, record (one transaction), then raise the alarms.
 
-        The monitor's memory changes only with a committed transaction: an exception
-        inside it (a database error, an interruption) leaves the monitor as it was
-        before the cycle, which is also what a restart finds in the history.
+        A new cycle is taken only once the estimates decided before it are stored
+        (:meth:`settle`: waits for a running one), so the history does not depend on
+        how long an estimate took. The monitor's memory changes only with a committed
+        transaction: an exception inside it (a database error, an interruption) leaves
+        the monitor as it was before the cycle, which is also what a restart finds in
+        the history.
         """
         self.stats.cycles += 1
+        if cycle.start > self.last_start + 5e-4:
+            self.settle()
         memory = self._memory()
         try:
             outcome = self._process(cycle)
         except BaseException:
             self._recall(memory)
             raise
+        self._start_decided()
         if self.publish is not None:  # the one publish hook: after the commit
             self.publish(self, outcome)
         return outcome
@@ -211,6 +254,33 @@ class MachineMonitor:
         self.stats.cycles += 1
         self.stats.incomplete += 1
         return CycleOutcome(cycle.start, math.nan, self.state.up, False, incomplete=tuple(short))
+
+    @property
+    def busy(self) -> bool:
+        """An estimate runs beside the ingestion: new cycles should wait (:meth:`poll`)."""
+        return self.worker.concurrent and bool(self._running)
+
+    def poll(self) -> int:
+        """Store the results of the estimates that have finished, in order; how many."""
+        done = 0
+        while self._running and self._running[0].future is not None:
+            if not self._running[0].future.done():
+                break
+            self._store_estimate(self._running.popleft())
+            done += 1
+        return done
+
+    def settle(self) -> None:
+        """Store the result of every estimate decided so far (waiting for them)."""
+        while self._running:
+            self._store_estimate(self._running.popleft())
+
+    def close(self) -> None:
+        """Store what is still running and release the worker."""
+        try:
+            self.settle()
+        finally:
+            self.worker.close()
 
     def _process(self, cycle: CompletedCycle) -> CycleOutcome:
         startup = self._is_startup(cycle)
@@ -269,26 +339,41 @@ class MachineMonitor:
         self.last_end = cycle.start + cycle.duration_s
         if recorded:
             self.stats.recorded += 1
+            self.stats.startup += startup
+            self.stats.judged += not startup
             if lost:
                 self.stats.gaps += 1
                 self.stats.cycles_lost += lost
         else:
             self.stats.skipped += 1
             gap_s, lost = 0.0, 0
-        for item in pending:
-            self.stats.alarms += 1
-            if self.alarm is not None:
-                self.alarm(item)
+            self._decided.clear()
+        self._raise(pending)
+        alarms, self._stored_alarms = (*self._stored_alarms, *pending), []
         return CycleOutcome(
-            cycle.start, score, self.state.up, recorded, tuple(pending), gap_s, lost
+            cycle.start,
+            score,
+            self.state.up,
+            recorded,
+            alarms,
+            gap_s,
+            lost,
+            declared=recorded and decision.event == "leak",
         )
 
     def _decide(self, conn: Any, cycle: CompletedCycle, decision: CusumDecision) -> list[Alarm]:
-        """Alarms, estimates and cost of a recorded cycle (inside its transaction)."""
+        """Alarms, estimates and cost of a recorded cycle (inside its transaction).
+
+        An estimate is only decided here (its input stored, :meth:`_decide_estimate`);
+        it runs after the commit, and the cycle's cost accrues when its result is
+        stored, at the sizes it finds.
+        """
         pending: list[Alarm] = []
+        estimate = False
         if decision.event == "leak":
             self.alarm_cycles, self.estimate_pending = 1, False
-            pending += self._estimate(conn, cycle, declared=True)
+            self._decide_estimate(conn, cycle, declared=True)
+            estimate = True
         elif decision.event == "repaired":
             pending.append(self._repaired(conn, cycle))
             self.alarm_cycles, self.episode_start = 0, None
@@ -299,15 +384,20 @@ class MachineMonitor:
             # until the window holds enough cycles, instead of failing on none
             if len(self.window) >= REESTIMATE_MIN_CYCLES:
                 self.estimate_pending = False
-                pending += self._estimate(conn, cycle, declared=False)
+                self._decide_estimate(conn, cycle, declared=False)
+                estimate = True
             else:
                 self.estimate_pending = True
-        if self.tracked:
-            rate = cycle.duration_s / (self.cost.hours * 3600.0)
-            ids = [t.id for t in self.tracked.values()]
-            amounts = [t.annual_cost * rate for t in self.tracked.values()]
-            self.history.accrue_cost(conn, ids, amounts, cycle.start)
+        if self.tracked and not estimate:
+            self._accrue(conn, cycle.start, cycle.duration_s)
         return pending
+
+    def _accrue(self, conn: Any, time: float, duration_s: float) -> None:
+        """Add one cycle's cost to every tracked leak."""
+        rate = duration_s / (self.cost.hours * 3600.0)
+        ids = [t.id for t in self.tracked.values()]
+        amounts = [t.annual_cost * rate for t in self.tracked.values()]
+        self.history.accrue_cost(conn, ids, amounts, time)
 
     def _is_startup(self, cycle: CompletedCycle) -> bool:
         """Whether ``cycle`` is one of the stream's start-up cycles (counted down).
@@ -354,6 +444,7 @@ class MachineMonitor:
         ) = memory
         self.window.clear()
         self.window.extend(window)
+        self._decided.clear()
 
     def _since_change(self) -> list[CompletedCycle]:
         """Cycles since the change point of the current episode, at most the newest 10.
@@ -371,21 +462,80 @@ class MachineMonitor:
             rows = since if len(since) >= 2 else rows[-2:]
         return rows[-(WINDOW // 2) :]
 
-    def _estimate(self, conn: Any, cycle: CompletedCycle, declared: bool) -> list[Alarm]:
+    # ------------------------------------------------------------ estimates
+    def _decide_estimate(self, conn: Any, cycle: CompletedCycle, declared: bool) -> None:
+        """Store an estimate's input with its cycle (and a declaration's alarm row).
+
+        The declaration's alarm is recorded now, with its cycle, marked ``estimate:
+        running`` until the result replaces its data; it is delivered then. The job
+        starts once the cycle's transaction has committed (:meth:`_start_decided`).
+        """
         if declared:
             self.episode_start = self.state.change_start
         rows = self._since_change()
         table = concatenate_rows([c.table for c in rows])
-        result = diagnose(self.model, table, self.cost)
-        self.stats.diagnoses += 1
-        data = result.to_dict()
-        self.history.add_diagnosis(
-            conn, self.machine_id, cycle.start, rows[0].start, len(rows), data
+        alarm_id = None
+        if declared:
+            placeholder = Alarm(
+                self.machine,
+                cycle.start,
+                "leak",
+                (),
+                math.nan,
+                math.nan,
+                math.nan,
+                self.state.change_start,
+                len(rows),
+            )
+            data = _alarm_data(placeholder) | {"estimate": "running"}
+            alarm_id = self.history.add_alarm(conn, self.machine_id, cycle.start, "leak", data)
+        job = EstimateJob(
+            cycle.start,
+            cycle.duration_s,
+            declared,
+            rows[0].start,
+            table,
+            self.state.change_start,
+            alarm_id,
         )
-        new_locations = self._track(conn, result, cycle.start)
-        if not declared and not new_locations:
-            return []
-        return [self._alarm(conn, result, cycle, len(rows), "leak")]
+        pending_id = self.history.add_pending_estimate(
+            conn, self.machine_id, cycle.start, encode_job(job)
+        )
+        self._decided.append(replace(job, pending_id=pending_id))
+
+    def _start_decided(self) -> None:
+        """Start the estimates the committed cycle decided; store those already done."""
+        for job in self._decided:
+            self._running.append(_Running(job, self.worker.start(job)))
+        self._decided.clear()
+        if self.worker.concurrent:
+            self.poll()
+
+    def _store_estimate(self, running: _Running) -> None:
+        """Store an estimate's result in one transaction (the monitor's memory changes
+        only once it has committed), then raise its alarms."""
+        job = running.job
+        result = self.worker.result(job, running.future)
+        tracked = {k: replace(v) for k, v in self.tracked.items()}
+        pending: list[Alarm] = []
+        try:
+            with self.history.begin() as conn:
+                data = result.to_dict()
+                self.history.add_diagnosis(
+                    conn, self.machine_id, job.time, job.first_cycle, job.n_cycles, data
+                )
+                new_locations = self._track(conn, result, job.time)
+                if job.declared or new_locations:
+                    pending.append(self._located(conn, result, job))
+                if self.tracked:  # the deciding cycle's cost, at the sizes just found
+                    self._accrue(conn, job.time, job.duration_s)
+                self.history.remove_pending_estimate(conn, job.pending_id)
+        except BaseException:
+            self.tracked = tracked
+            raise
+        self.stats.diagnoses += 1
+        self._raise(pending)
+        self._stored_alarms += pending
 
     def _track(self, conn: Any, result: Diagnosis, time: float) -> list[str]:
         new = []
@@ -422,6 +572,7 @@ class MachineMonitor:
             )
         return new
 
+    # ------------------------------------------------------------ alarms
     def _repaired(self, conn: Any, cycle: CompletedCycle) -> Alarm:
         gone = list(self.tracked.values())
         for leak in gone:
@@ -438,12 +589,14 @@ class MachineMonitor:
             None,
             self.state.cycles,
         )
-        self.history.add_alarm(conn, self.machine_id, cycle.start, "repaired", _alarm_data(item))
-        return item
+        alarm_id = self.history.add_alarm(
+            conn, self.machine_id, cycle.start, "repaired", _alarm_data(item)
+        )
+        return self._queue(conn, item, alarm_id)
 
-    def _alarm(
-        self, conn: Any, result: Diagnosis, cycle: CompletedCycle, n: int, kind: str
-    ) -> Alarm:
+    def _located(self, conn: Any, result: Diagnosis, job: EstimateJob) -> Alarm:
+        """The alarm of a located estimate: the declaration's row filled in, or a new
+        row for a location a re-estimate found."""
         leaks = tuple(
             {
                 "location": str(x.location),
@@ -455,18 +608,38 @@ class MachineMonitor:
         )
         item = Alarm(
             self.machine,
-            cycle.start,
-            kind,
+            job.time,
+            "leak",
             tuple(str(x.location) for x in result.leaks) or ("unknown",),
             float(sum(x.flow_slpm for x in result.leaks)) if result.leaks else math.nan,
             float(result.total_annual_cost) if result.leaks else math.nan,
             float(min(x.confidence for x in result.leaks)) if result.leaks else math.nan,
-            self.state.change_start,
-            n,
+            job.change_start,
+            job.n_cycles,
             leaks,
         )
-        self.history.add_alarm(conn, self.machine_id, cycle.start, kind, _alarm_data(item))
+        if job.alarm_id is not None:
+            self.history.update_alarm(conn, job.alarm_id, _alarm_data(item))
+            return self._queue(conn, item, job.alarm_id)
+        alarm_id = self.history.add_alarm(
+            conn, self.machine_id, job.time, "leak", _alarm_data(item)
+        )
+        return self._queue(conn, item, alarm_id)
+
+    def _queue(self, conn: Any, item: Alarm, alarm_id: int) -> Alarm:
+        """Queue an alarm for every output in its transaction (the outbox)."""
+        item = replace(item, id=alarm_id)
+        if self.outputs:
+            payload = json.dumps(item.to_dict(), allow_nan=False)
+            self.history.add_outbox(conn, alarm_id, self.outputs, payload)
         return item
+
+    def _raise(self, pending: Sequence[Alarm]) -> None:
+        """After the commit: count the alarms and hand them to the outputs."""
+        for item in pending:
+            self.stats.alarms += 1
+            if self.alarm is not None:
+                self.alarm(item)
 
 
 def _num(x: float) -> float | None:
@@ -475,8 +648,8 @@ def _num(x: float) -> float | None:
 
 def _alarm_data(item: Alarm) -> dict[str, Any]:
     data = item.to_dict()
-    data.pop("kind")
-    data.pop("machine")
+    for key in ("kind", "machine", "id"):
+        data.pop(key, None)
     return data
 
 
@@ -484,98 +657,3 @@ def _due(cycles_in_alarm: int) -> bool:
     return cycles_in_alarm in REESTIMATE_AT or (
         cycles_in_alarm > REESTIMATE_AT[-1] and cycles_in_alarm % WINDOW == 0
     )
-
-
-def run_stream(
-    monitor: MachineMonitor,
-    batches: Iterable[SampleBatch | None],
-    rates_hz: dict[str, float],
-    lateness_s: float = 1.0,
-    on_cycle: Callable[[CycleOutcome], None] | None = None,
-    max_cycles: int | None = None,
-    flush: bool = True,
-    losses: LossLedger | None = None,
-) -> MonitorStats:
-    """Feed a source's batches through segmentation and the monitor until it ends.
-
-    ``None`` items are heartbeats (no data; the stream is alive). On a heartbeat the
-    assembled samples are released to the streamer once they reach the time from
-    which the next cycle can be complete (:attr:`CycleStreamer.due_s`), so a cycle is
-    segmented once and its samples are copied once or twice (memory: about one cycle
-    of samples waits in the assembler). ``rates_hz`` gives the grid rate of each
-    channel; channels the reference does not need are ignored.
-    ``flush``: at the end, close the last cycle as a file's last cycle is closed.
-    ``losses``: the source's record of lost samples; a cycle where a channel was
-    received for less than :data:`~pneufdd.monitor.completeness.MIN_COMPLETENESS` of
-    its duration is skipped (:meth:`MachineMonitor.skip_incomplete`), never scored.
-    """
-    analog, digital = needed_channels(monitor.model)
-    missing = [c for c in (*analog, *digital) if c not in rates_hz]
-    if missing:
-        raise InputError(
-            describe(
-                "channels of the source",
-                sorted(rates_hz),
-                f"also {missing} (the reference needs them)",
-            )
-        )
-    rates = {c: rates_hz[c] for c in (*analog, *digital)}
-    assembler = SampleAssembler(rates, lateness_s)
-    streamer: CycleStreamer | None = None
-    began = wallclock.perf_counter()
-    done = 0
-
-    def handle(found: list[CompletedCycle]) -> bool:
-        nonlocal done
-        for cycle in found:
-            short = (
-                losses.incomplete(cycle.start, cycle.start + cycle.duration_s, rates)
-                if losses is not None
-                else []
-            )
-            outcome = monitor.skip_incomplete(cycle, short) if short else monitor.process(cycle)
-            if losses is not None:
-                losses.forget(cycle.start)
-            done += 1
-            if on_cycle is not None:
-                on_cycle(outcome)
-            if max_cycles is not None and done >= max_cycles:
-                return True
-        return False
-
-    iterator: Iterator[SampleBatch | None] = iter(batches)
-    stop = False
-    for batch in iterator:
-        if batch is not None:
-            assembler.add(batch)
-            continue
-        if streamer is not None and assembler.watermark_s < streamer.due_s:
-            continue  # nothing the streamer could complete a cycle with: keep assembling
-        block = assembler.release()
-        if block is None:
-            continue
-        if streamer is None:
-            streamer = CycleStreamer(monitor.model, rates, assembler.origin or 0.0)
-        if handle(streamer.add(block)):
-            stop = True
-            break
-    if not stop and flush:
-        block = assembler.release(final=True)
-        if block is not None:
-            if streamer is None:
-                streamer = CycleStreamer(monitor.model, rates, assembler.origin or 0.0)
-            handle(streamer.flush(block))
-    if monitor.stats.incomplete:
-        monitor.stats.notes.append(
-            f"{monitor.stats.incomplete} cycle(s) skipped: the source lost samples in them"
-        )
-    if losses is not None and losses.summary():
-        monitor.stats.notes.append(f"values the source marked lost: {losses.summary()}")
-    if assembler.late_samples:
-        monitor.stats.notes.append(f"{assembler.late_samples} late samples dropped")
-    if streamer is not None and streamer.dropped_s > 0:
-        monitor.stats.notes.append(
-            f"{streamer.dropped_s:.1f} s of data held no complete cycle and were dropped"
-        )
-    monitor.stats.seconds += wallclock.perf_counter() - began
-    return monitor.stats

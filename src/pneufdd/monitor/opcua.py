@@ -24,7 +24,14 @@ from typing import Any
 
 from pneufdd.errors import InputError
 
-__all__ = ["GRANT_MARGIN", "Granted", "SubscriptionRefusedError", "grant_problems", "subscribe"]
+__all__ = [
+    "GRANT_MARGIN",
+    "Granted",
+    "ItemRefusedError",
+    "SubscriptionRefusedError",
+    "grant_problems",
+    "subscribe",
+]
 
 GRANT_MARGIN = 2.0
 """Headroom of a monitored item's queue over one publishing interval of samples [-]:
@@ -33,6 +40,10 @@ a publish that comes late (a busy client or server) must not overflow it."""
 
 class SubscriptionRefusedError(InputError):
     """The server grants subscription parameters that cannot carry the channels' rates."""
+
+
+class ItemRefusedError(InputError):
+    """The server refused to monitor a tag (e.g. an unknown node id)."""
 
 
 @dataclass(frozen=True)
@@ -150,7 +161,9 @@ async def subscribe(
     sizes: dict[str, int] = {}
     for name, result in zip(names, recorder.items, strict=True):
         if not result.StatusCode.is_good():
-            raise InputError(f"OPC UA server refused to monitor {name!r}: {result.StatusCode}")
+            raise ItemRefusedError(
+                f"OPC UA server refused to monitor {name!r}: {result.StatusCode}"
+            )
         sampling[name] = float(result.RevisedSamplingInterval)
         sizes[name] = int(result.RevisedQueueSize)
     return sub, Granted(float(created.RevisedPublishingInterval), sampling, sizes)

@@ -7,8 +7,14 @@ with a time stamp each (``times``: OPC UA data changes, reported by exception).
 origin) * rate)``) and releases the grid up to a **watermark**, the newest time seen
 minus an allowed lateness. A grid sample no batch wrote holds the channel's previous
 value (a PLC tag reports only its changes). Samples that arrive out of order but
-before the watermark passes them are sorted in; samples older than what was already
-released are counted as late and dropped (never crashed on). NaN values inside a uniform
+before the watermark passes them are sorted in (and counted); samples older than what
+was already released are counted as late, per channel, and dropped (never crashed
+on); the span from the oldest of them to what was released is reported
+(:attr:`SampleAssembler.late_spans`): the grid holds other values there, so the
+cycles it touches must not be scored. Before the first release, a sample older than
+the grid's origin is not late: it is the channel's value at the start (an OPC UA
+subscription's first notification carries the time the tag last changed, which may be
+long ago). NaN values inside a uniform
 block are kept (sensor gaps; the step summaries fill them as for files). Memory is what arrived
 since the last release.
 """
@@ -25,6 +31,7 @@ import numpy.typing as npt
 
 from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
+from pneufdd.monitor.completeness import iso_time
 
 __all__ = ["GridBlock", "SampleAssembler", "SampleBatch"]
 
@@ -123,6 +130,14 @@ class SampleAssembler:
         self.origin: float | None = None
         self.newest = -math.inf
         self.late_samples = 0
+        self.late_by_channel: dict[str, int] = {}
+        self.last_late_s = math.nan  # time stamp of the newest late sample [s since 1970]
+        self.late_spans: list[tuple[str, float, float]] = []
+        """(channel, from, to) [s since 1970] of late samples dropped, for the caller to
+        mark lost (:class:`~pneufdd.monitor.completeness.LossLedger`) and clear."""
+        self.out_of_order = 0
+        self._released = False
+        self._newest_of: dict[str, float] = {}
         self._next: dict[str, int] = dict.fromkeys(self.rates_hz, 0)
         self._last: dict[str, float] = {}
         self._pending: dict[str, _Pending] = {name: _Pending() for name in self.rates_hz}
@@ -155,13 +170,34 @@ class SampleAssembler:
             return
         if self.origin is None:
             self.origin = float(np.min(times))
-        self.newest = max(self.newest, float(np.max(times)))
+        channel = batch.channel
+        newest = float(np.max(times))
+        before = self._newest_of.get(channel, -math.inf)
+        if newest > before:
+            self._newest_of[channel] = newest
+        self.out_of_order += int(np.count_nonzero(times < before)) + int(
+            np.count_nonzero(np.diff(times) < 0)
+        )
+        self.newest = max(self.newest, newest)
         index = np.round((times - self.origin) * rate).astype(np.int64)
-        late = index < self._next[batch.channel]
+        late = index < self._next[channel]
         if np.any(late):
-            self.late_samples += int(np.sum(late))
+            if not self._released:
+                # before the first release: the value the channel had at the start
+                self._last[channel] = float(values[late][np.argmax(times[late])])
+            else:
+                count = int(np.sum(late))
+                self.late_samples += count
+                self.late_by_channel[channel] = self.late_by_channel.get(channel, 0) + count
+                self.last_late_s = float(np.max(times[late]))
+                # the grid already holds other values there (held ones): from the oldest
+                # late sample to what was released, the channel is not what was received
+                released = self.time_of(channel, self._next[channel] - 1)
+                self.late_spans.append((channel, float(np.min(times[late])), released))
             index, values = index[~late], values[~late]
-        pending = self._pending[batch.channel]
+            if index.size == 0:
+                return
+        pending = self._pending[channel]
         pending.spill()
         pending.index.append(index)
         pending.values.append(values)
@@ -184,6 +220,7 @@ class SampleAssembler:
         pending.dense_values.append(values)
         pending.dense_size += values.size
         last = t0 + (values.size - 1) / rate
+        self._newest_of[channel] = last
         if last > self.newest:
             self.newest = last
         return True
@@ -197,6 +234,16 @@ class SampleAssembler:
         if self.origin is None:
             return -math.inf
         return self.newest - self.lateness_s - self.origin
+
+    def late_message(self) -> str:
+        """One line about the late samples dropped so far (for the console)."""
+        parts = ", ".join(f"{c}: {n}" for c, n in sorted(self.late_by_channel.items()))
+        return (
+            f"{self.late_samples} late samples dropped ({parts}): their time stamps are "
+            f"older than the data already used (newest sample {iso_time(self.newest)}, newest "
+            f"late one {iso_time(self.last_late_s)}, lateness_s {self.lateness_s:g} s); a source "
+            "clock behind the others, or one that jumped back, loses its samples"
+        )
 
     def time_of(self, channel: str, index: int) -> float:
         """Time of grid sample ``index`` of ``channel`` [s since 1970-01-01 UTC]."""
@@ -219,6 +266,7 @@ class SampleAssembler:
                     self._last[name] = float(vals[int(np.argmin(idx))])
             if len(self._last) < len(self.rates_hz):
                 return None
+        self._released = True
         mark = self.newest - (0.0 if final else self.lateness_s)
         start: dict[str, int] = {}
         values: dict[str, FloatArray] = {}
