@@ -34,7 +34,12 @@ def campaign(
     ] = None,
     plants: Annotated[int, typer.Option(min=1, max=9, help="Plants per machine and scale.")] = 3,
     sensor_sets: Annotated[
-        str, typer.Option(help="Comma separated: full, supply-only, digital-only.")
+        str,
+        typer.Option(
+            help="Comma separated: full, line-flows (every analog channel but Q_In), "
+            "supply-only (P_In, Q_In), pressure-only (P_In), digital-only, or analog "
+            "channels joined by '+' (P_In+X_DNC). A set a machine lacks is skipped."
+        ),
     ] = "full,supply-only",
     sizes: Annotated[
         str,

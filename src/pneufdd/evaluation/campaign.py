@@ -43,6 +43,12 @@ from pneufdd.diagnosis.engine import diagnose
 from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
 from pneufdd.diagnosis.reference.file import load_reference, save_reference
 from pneufdd.diagnosis.reference.model import ReferenceModel
+from pneufdd.diagnosis.reference.sensor_sets import (
+    SENSOR_SETS,
+    SUPPLY_CHANNELS,
+    check_sensor_set_names,
+    sensor_set_channels,
+)
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
 from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.features.step_summaries import machine_sequence
@@ -81,12 +87,6 @@ __all__ = [
     "rescore",
     "run_campaign",
 ]
-
-SENSOR_SETS = ("full", "supply-only", "digital-only")
-"""Sensor sets a campaign can judge: every analog channel of the description; the
-supply meter (``P_In``, ``Q_In``); the PLC's digital signals only."""
-
-SUPPLY_CHANNELS = ("P_In", "Q_In")
 
 _COMMON_TARGETS = {
     "in_group": 0.98,
@@ -173,9 +173,7 @@ class CampaignDesign:
     def __post_init__(self) -> None:
         if not self.machines:
             raise InputError(describe("campaign machines", [], "at least one machine"))
-        unknown = [s for s in self.sensor_sets if s not in SENSOR_SETS]
-        if unknown or not self.sensor_sets:
-            raise InputError(describe("campaign sensor sets", unknown or [], list(SENSOR_SETS)))
+        check_sensor_set_names(self.sensor_sets, "campaign sensor sets")
         for name in ("plants", "reps", "run_cycles", "signature_cycles"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -287,17 +285,15 @@ def _seed(design: CampaignDesign, machine: int, scale: int, plant: int, k: int) 
 
 
 def channel_sets(machine: MachineDescription, names: Sequence[str]) -> dict[str, tuple[str, ...]]:
-    """Analog channels of each named sensor set the machine has."""
+    """Analog channels of each named sensor set the machine has
+    (:func:`~pneufdd.diagnosis.reference.sensor_sets.sensor_set_channels`); ``full`` is
+    left out when it is the supply meter alone."""
     full = tuple(s.channel for s in machine.sensors)
-    supply = tuple(c for c in SUPPLY_CHANNELS if c in full)
     sets: dict[str, tuple[str, ...]] = {}
     for name in names:
-        if name == "full" and full and full != supply:
-            sets[name] = full
-        elif name == "supply-only" and supply == SUPPLY_CHANNELS:
-            sets[name] = supply
-        elif name == "digital-only":
-            sets[name] = ()
+        channels = sensor_set_channels(name, full)
+        if channels is not None and not (name == "full" and set(channels) <= set(SUPPLY_CHANNELS)):
+            sets[name] = channels
     return sets
 
 
@@ -641,7 +637,10 @@ def _run_campaign(
                     "a set the machine has",
                 )
             )
-        all_channels = max(sets.values(), key=len)
+        # signatures of every channel any set uses, in the machine's order; each set's
+        # reference takes its own features from them
+        used = {c for channels in sets.values() for c in channels}
+        all_channels = tuple(s.channel for s in machine.sensors if s.channel in used)
         signatures: SignatureSet | None = None
         if not design.calibrate:
             t0 = time.perf_counter()
