@@ -260,7 +260,14 @@ def _diagnosed(
     with progress_bars() as progress:
         if pool:
             return diagnose_pooled(
-                model, list(runs), settings, progress, localisation, threads, startup_cycles
+                model,
+                list(runs),
+                settings,
+                progress,
+                localisation,
+                threads,
+                startup_cycles,
+                tag_map,
             )
         source = runs[0] if tag_map is None else read_recording(runs[0], tag_map)
         return diagnose_recording(
@@ -277,8 +284,6 @@ def _pooled_runs(
     if pool:
         from pneufdd.diagnosis.batch import expand_runs
 
-        if tag_map is not None:
-            raise InputError(describe("--map with --pool", str(tag_map), "import the files first"))
         return expand_runs(runs)
     if is_batch(runs):
         if startup_cycles is not None:

@@ -470,6 +470,7 @@ def diagnose_pooled(
     localisation: LocalisationSettings | None = None,
     threads: int | None = None,
     startup_cycles: int | None = None,
+    tag_map: Path | None = None,
 ) -> tuple[StepTable, Diagnosis]:
     """Diagnose many short recordings (triggered captures) of one run as one: cycles pooled.
 
@@ -477,13 +478,26 @@ def diagnose_pooled(
     reference's, 0 for a capture detected as starting at a cycle start of a running
     machine, :mod:`pneufdd.diagnosis.captures`); a recording with no more complete
     cycles than that keeps them (as in the reference build). The run is judged on all
-    the cycles together.
+    the cycles together. ``tag_map``: files are exports read through this tag map
+    (:mod:`pneufdd.recording.tag_map`).
     """
     advance = counter(progress, "reading and segmenting", len(sources))
     tables: list[StepTable] = []
     left_out = 0
+    parsed = None
+    if tag_map is not None:
+        from pneufdd.recording.tag_map import load_tag_map
+
+        parsed = load_tag_map(tag_map)
     for source in sources:
-        recording = source if isinstance(source, Recording) else Recording.read(Path(source))
+        if isinstance(source, Recording):
+            recording = source
+        elif parsed is not None:
+            from pneufdd.recording.tag_map import read_mapped
+
+            recording = read_mapped(Path(source), parsed)
+        else:
+            recording = Recording.read(Path(source))
         where = "run" if isinstance(source, Recording) else str(source)
         cycles = _run_cycles(model, recording, where)
         startup, _ = startup_of(recording, cycles[0], model.settings.startup_cycles, startup_cycles)
