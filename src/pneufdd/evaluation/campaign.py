@@ -40,16 +40,21 @@ from pneufdd.diagnosis.effects.twin import (
     signature_spread,
 )
 from pneufdd.diagnosis.engine import diagnose
-from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.recordings import build_reference_from_recordings
 from pneufdd.diagnosis.reference.file import load_reference, save_reference
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.diagnosis.reference.sensor_sets import (
     SENSOR_SETS,
-    SUPPLY_CHANNELS,
     check_sensor_set_names,
-    sensor_set_channels,
+    machine_sensor_sets,
 )
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
+from pneufdd.evaluation.captures import (
+    CaptureDesign,
+    reference_recordings,
+    run_recordings,
+    run_step_table,
+)
 from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.features.step_summaries import machine_sequence
 from pneufdd.features.step_table import feature_names
@@ -71,10 +76,8 @@ from pneufdd.recording.model import Recording
 from pneufdd.sim import (
     MachineDescription,
     MachineStalledError,
-    as_exported,
     load_machine,
     parse_leak_size,
-    simulate,
 )
 from pneufdd.sim.variation import machine_to_toml, vary_machine
 
@@ -152,6 +155,8 @@ class CampaignDesign:
         that plant's signatures from the calibrated description, as
         ``pneufdd reference build --calibrate`` does; otherwise the signatures come
         once per machine from the description as written.
+    capture : CaptureDesign, optional
+        Triggered captures instead of continuous recordings (:mod:`.captures`).
     """
 
     machines: tuple[str, ...]
@@ -169,6 +174,7 @@ class CampaignDesign:
     uncertainty_plants: int = UNCERTAINTY_PLANTS
     seed_offset: int = 100_000_000
     calibrate: bool = False
+    capture: CaptureDesign | None = None
 
     def __post_init__(self) -> None:
         if not self.machines:
@@ -251,6 +257,8 @@ class Job:
     run_cycles: int
     threads: int = 1
     """Threads of each diagnosis's check by simulation: the cores left to one worker."""
+    capture: CaptureDesign | None = None
+    """Triggered captures instead of one continuous recording per run."""
 
 
 @dataclass
@@ -286,15 +294,8 @@ def _seed(design: CampaignDesign, machine: int, scale: int, plant: int, k: int) 
 
 def channel_sets(machine: MachineDescription, names: Sequence[str]) -> dict[str, tuple[str, ...]]:
     """Analog channels of each named sensor set the machine has
-    (:func:`~pneufdd.diagnosis.reference.sensor_sets.sensor_set_channels`); ``full`` is
-    left out when it is the supply meter alone."""
-    full = tuple(s.channel for s in machine.sensors)
-    sets: dict[str, tuple[str, ...]] = {}
-    for name in names:
-        channels = sensor_set_channels(name, full)
-        if channels is not None and not (name == "full" and set(channels) <= set(SUPPLY_CHANNELS)):
-            sets[name] = channels
-    return sets
+    (:func:`~pneufdd.diagnosis.reference.sensor_sets.machine_sensor_sets`)."""
+    return machine_sensor_sets(tuple(s.channel for s in machine.sensors), names)
 
 
 def _signatures(
@@ -415,27 +416,31 @@ def run_job(job: Job) -> list[dict[str, Any]]:
         "leaks": job.leaks,
     }
     try:
-        recording = simulate(plant, cycles=job.run_cycles + 2, leaks=job.leaks, seed=job.seed)
+        recordings, leaks = run_recordings(job.capture, plant, job.run_cycles, job.leaks, job.seed)
     except MachineStalledError:
         return [{**base, "stalled": True}]
     truth = {
         leak["location"]: float(
             leak_mass_flow(job.nominal_pressure_pa, float(leak["effective_area_m2"]))
         )
-        for leak in recording.metadata["leaks"]
+        for leak in leaks
     }
-    recording = as_exported(recording)
     records = []
     for sensors, path in job.references.items():
         model = _cached_reference(path)
         try:
-            table = run_table(model, recording, f"campaign run seed {job.seed}")
+            table = run_step_table(
+                model,
+                recordings,
+                job.run_cycles,
+                f"campaign run seed {job.seed}",
+                pooled=job.capture is not None,
+            )
         except NoCompleteCycleError as exc:
             # the leaks keep the machine from completing its sequence as the PLC
             # expects (a vacuum switch that never falls): a plant failure like a stall,
             # not a run to judge
             return [{**base, "stalled": True, "reason": str(exc)}]
-        table = table.take(np.arange(min(job.run_cycles, table.n_cycles)))
         start = time.perf_counter()
         result = diagnose(model, table, threads=job.threads)
         seconds = time.perf_counter() - start
@@ -667,10 +672,7 @@ def _run_campaign(
                 ref_seeds = [
                     _seed(design, m, s, k, 1 + r) for r in range(design.reference_recordings)
                 ]
-                recordings = [
-                    as_exported(simulate(plant, cycles=per_recording + 2, seed=seed))
-                    for seed in ref_seeds
-                ]
+                recordings = reference_recordings(design.capture, plant, ref_seeds, per_recording)
                 twin, plant_signatures, calibration = machine, signatures, None
                 if plant_signatures is None:
                     twin, calibration = _calibrated_twin(
@@ -717,8 +719,9 @@ def _run_campaign(
                         str(plant_file),
                         references,
                         nominal,
-                        design.run_cycles,
+                        design.run_cycles if design.capture is None else design.capture.run_cycles,
                         threads,
+                        design.capture,
                     )
                     for kind, leaks, seed in runs
                 )

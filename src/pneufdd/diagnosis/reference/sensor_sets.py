@@ -36,6 +36,7 @@ __all__ = [
     "SensorSetReport",
     "check_sensor_set_names",
     "is_line_sensor",
+    "machine_sensor_sets",
     "sensor_set_channels",
     "sensor_set_kind",
     "sensor_set_report",
@@ -111,6 +112,25 @@ def sensor_set_channels(name: str, analog: Sequence[str]) -> tuple[str, ...] | N
     check_sensor_set_names([name])
     wanted = tuple(name.split("+"))
     return wanted if all(c in channels for c in wanted) else None
+
+
+def machine_sensor_sets(analog: Sequence[str], names: Sequence[str]) -> dict[str, tuple[str, ...]]:
+    """The analog channels of each named set a machine with channels ``analog`` has.
+
+    ``full`` is left out when it holds supply channels only (then it is
+    ``supply-only`` or ``pressure-only``).
+
+    Examples
+    --------
+    >>> machine_sensor_sets(("P_In", "Q_In"), ["full", "line-flows", "pressure-only"])
+    {'pressure-only': ('P_In',)}
+    """
+    sets: dict[str, tuple[str, ...]] = {}
+    for name in names:
+        channels = sensor_set_channels(name, analog)
+        if channels is not None and not (name == "full" and set(channels) <= set(SUPPLY_CHANNELS)):
+            sets[name] = channels
+    return sets
 
 
 def sensor_set_kind(channels: Sequence[str]) -> str:
