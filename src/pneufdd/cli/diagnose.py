@@ -239,6 +239,13 @@ def _print_result(console: Console, run: Path, result: Diagnosis) -> None:
             highlight=False,
             markup=False,
         )
+    if result.sensor_set is not None and (result.detected or result.sensor_set.kind != "full"):
+        console.print(
+            f"sensor set {result.sensor_set.kind}: it cannot {result.sensor_set.cannot} "
+            "(docs/sensor-sets.md)",
+            highlight=False,
+            markup=False,
+        )
     for note in result.notes:
         console.print(f"note: {note}", highlight=False, markup=False)
 
