@@ -168,7 +168,15 @@ def test_each_preset_imports_a_rig_capture_alike(
         args = ["import", str(folder / "cap.csv"), "--map", str(folder / "tags.toml")]
         assert main([*args, "--out", str(out)]) == 0, capsys.readouterr().err
         rec = Recording.read(out)
-        assert rec.channels == ("P_In", "Q_CYL_A", "X_CYL", "U_CYL_A", "U_CYL_B", "S_CYL_A", "S_CYL_B")
+        assert rec.channels == (
+            "P_In",
+            "Q_CYL_A",
+            "X_CYL",
+            "U_CYL_A",
+            "U_CYL_B",
+            "S_CYL_A",
+            "S_CYL_B",
+        )
         assert rec.start_time == capture.start_time
         assert {rec.rate(c) for c in rec.channels} == {1000.0}
         for name in ("U_CYL_A", "U_CYL_B", "S_CYL_A", "S_CYL_B"):  # bounce and all
