@@ -265,3 +265,12 @@ def test_a_campaign_on_triggered_captures_with_the_sensor_sets_without_a_supply_
     assert {r["sensors"] for r in judged} == {"line-flows", "pressure-only", "P_In+X_PRESS"}
     assert {r["cycles"] for r in judged} == {3}  # three captures pooled per run
     assert "sensor set line-flows ===" in out
+
+
+def test_evaluate_refuses_a_campaign_of_captures(tmp_path):
+    from pneufdd.evaluation.labelled import read_manifest
+
+    design = {"capture": {"captures_per_reference": 20}, "reps": 1}
+    (tmp_path / "manifest.json").write_text(json.dumps({"design": design, "machines": []}))
+    with pytest.raises(InputError, match="triggered captures"):
+        read_manifest(tmp_path)
