@@ -226,3 +226,51 @@ def test_a_run_whose_leaks_leave_no_complete_cycle_is_not_judged(tmp_path):
     assert record["stalled"] is True
     assert record["leaks"] == leaks
     assert "S_VAC did not fall" in record["reason"]
+
+
+def test_a_campaign_on_triggered_captures_with_the_sensor_sets_without_a_supply_meter(
+    tmp_path, capsys
+):
+    code = main(
+        [
+            "campaign", "--machine", "press-fit-cell", "--plants", "1", "--sizes", "80slpm",
+            "--leak-free-runs", "1", "--pairs", "0", "--reference-recordings", "2",
+            "--sensor-sets", "line-flows,pressure-only,P_In+X_PRESS",
+            "--capture", "triggered", "--captures-per-reference", "10",
+            "--captures-per-run", "3", "--pre-trigger-s", "0.2",
+            "--uncertainty-plants", "1", "--workers", "1",
+            "--seed-offset", "9300000", "--out", str(tmp_path / "c"),
+        ]
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0, out
+    manifest = json.loads((tmp_path / "c" / "manifest.json").read_text())
+    assert manifest["design"]["capture"] == {
+        "captures_per_reference": 10,
+        "captures_per_run": 3,
+        "cycles_per_file": 1,
+        "pre_trigger_s": 0.2,
+    }
+    (plant,) = manifest["machines"][0]["plants"]
+    line = load_reference(plant["references"]["line-flows"])
+    assert "Q_In" not in line.channels
+    assert "Q_PRESS_A" in line.channels
+    assert load_reference(plant["references"]["pressure-only"]).channels == ("P_In",)
+    assert load_reference(plant["references"]["P_In+X_PRESS"]).channels == ("P_In", "X_PRESS")
+    # 10 one-cycle captures, each a recording of its own, none left out as start-up
+    assert line.n_cycles == 10
+    assert len(set(line.sources)) == 10
+    runs = [json.loads(x) for x in (tmp_path / "c" / "runs.jsonl").read_text().splitlines()]
+    judged = [r for r in runs if not r.get("stalled")]
+    assert {r["sensors"] for r in judged} == {"line-flows", "pressure-only", "P_In+X_PRESS"}
+    assert {r["cycles"] for r in judged} == {3}  # three captures pooled per run
+    assert "sensor set line-flows ===" in out
+
+
+def test_evaluate_refuses_a_campaign_of_captures(tmp_path):
+    from pneufdd.evaluation.labelled import read_manifest
+
+    design = {"capture": {"captures_per_reference": 20}, "reps": 1}
+    (tmp_path / "manifest.json").write_text(json.dumps({"design": design, "machines": []}))
+    with pytest.raises(InputError, match="triggered captures"):
+        read_manifest(tmp_path)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import html
 import re
 from dataclasses import replace
 from html.parser import HTMLParser
@@ -90,6 +91,12 @@ def test_report_contains_table_values(case):
     assert "supply check, eq. 4.21" in text
     assert "leak (eq. 4.21 holds) (cycles: leak (eq. 4.21 holds): " in text
     assert "run statistic (median T) / threshold" in text
+    # what the sensor set can and cannot find (docs/sensor-sets.md)
+    report = result.sensor_set
+    assert report is not None
+    assert report.channels == ref.channels
+    assert f"<td class='l'>{report.kind}</td>" in text
+    assert html.escape(report.cannot, quote=True) in text
 
 
 def test_report_escapes_text(case):

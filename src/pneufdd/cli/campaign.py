@@ -34,7 +34,12 @@ def campaign(
     ] = None,
     plants: Annotated[int, typer.Option(min=1, max=9, help="Plants per machine and scale.")] = 3,
     sensor_sets: Annotated[
-        str, typer.Option(help="Comma separated: full, supply-only, digital-only.")
+        str,
+        typer.Option(
+            help="Comma separated: full, line-flows (every analog channel but Q_In), "
+            "supply-only (P_In, Q_In), pressure-only (P_In), digital-only, or analog "
+            "channels joined by '+' (P_In+X_DNC). A set a machine lacks is skipped."
+        ),
     ] = "full,supply-only",
     sizes: Annotated[
         str,
@@ -76,6 +81,26 @@ def campaign(
             "and take that plant's signatures from the calibrated twin.",
         ),
     ] = False,
+    capture: Annotated[
+        str,
+        typer.Option(
+            help="How plants are recorded: continuous (one file per reference recording "
+            "and run) or triggered (short captures from a trigger, pooled: "
+            "docs/captures.md)."
+        ),
+    ] = "continuous",
+    captures_per_reference: Annotated[
+        int, typer.Option(min=1, help="--capture triggered: captures per plant reference.")
+    ] = 20,
+    captures_per_run: Annotated[
+        int, typer.Option(min=1, help="--capture triggered: captures pooled into one run.")
+    ] = 10,
+    cycles_per_file: Annotated[
+        int, typer.Option(min=1, help="--capture triggered: cycles from each trigger.")
+    ] = 1,
+    pre_trigger_s: Annotated[
+        float, typer.Option(help="--capture triggered: span recorded before each trigger [s].")
+    ] = 0.3,
     workers: Annotated[
         int | None,
         typer.Option(
@@ -99,6 +124,15 @@ def campaign(
     from pneufdd.cli.progress_bar import progress_bars
     from pneufdd.evaluation import CampaignDesign, run_campaign
     from pneufdd.evaluation.campaign import campaign_files
+    from pneufdd.evaluation.captures import CAPTURE_KINDS, CaptureDesign
+
+    if capture not in CAPTURE_KINDS:
+        raise InputError(describe("--capture", capture, list(CAPTURE_KINDS)))
+    triggered = None
+    if capture == "triggered":
+        triggered = CaptureDesign(
+            captures_per_reference, captures_per_run, cycles_per_file, pre_trigger_s
+        )
 
     design = CampaignDesign(
         machines=tuple(machine),
@@ -115,6 +149,7 @@ def campaign(
         uncertainty_plants=uncertainty_plants,
         seed_offset=seed_offset,
         calibrate=calibrate,
+        capture=triggered,
     )
     # every file the campaign will write, checked before any work against its inputs
     inputs = {f"--machine {name}": Path(name) for name in machine}

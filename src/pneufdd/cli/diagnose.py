@@ -242,6 +242,13 @@ def _print_result(console: Console, run: Path, result: Diagnosis) -> None:
             highlight=False,
             markup=False,
         )
+    if result.sensor_set is not None and (result.detected or result.sensor_set.kind != "full"):
+        console.print(
+            f"sensor set {result.sensor_set.kind}: it cannot {result.sensor_set.cannot} "
+            "(docs/sensor-sets.md)",
+            highlight=False,
+            markup=False,
+        )
     for note in result.notes:
         console.print(f"note: {note}", highlight=False, markup=False)
 
@@ -263,7 +270,14 @@ def _diagnosed(
     with progress_bars() as progress:
         if pool:
             return diagnose_pooled(
-                model, list(runs), settings, progress, localisation, threads, startup_cycles
+                model,
+                list(runs),
+                settings,
+                progress,
+                localisation,
+                threads,
+                startup_cycles,
+                tag_map,
             )
         source = runs[0] if tag_map is None else read_recording(runs[0], tag_map)
         return diagnose_recording(
@@ -280,8 +294,6 @@ def _pooled_runs(
     if pool:
         from pneufdd.diagnosis.batch import expand_runs
 
-        if tag_map is not None:
-            raise InputError(describe("--map with --pool", str(tag_map), "import the files first"))
         return expand_runs(runs)
     if is_batch(runs):
         if startup_cycles is not None:

@@ -49,6 +49,15 @@ def import_data(
         markup=False,
         soft_wrap=True,
     )
+    for switch, how in (recording.metadata.get("derived_switches") or {}).items():
+        on, off = 1e3 * how["on_m"], 1e3 * how["off_m"]
+        Console(stderr=True).print(
+            f"{switch} derived from {how['position']} ({how['rule']}): on at "
+            f"{on:.3f} mm, off at {off:.3f} mm",
+            highlight=False,
+            markup=False,
+            soft_wrap=True,
+        )
 
 
 def register(app: typer.Typer) -> None:

@@ -109,6 +109,7 @@ def build(
     from pneufdd.diagnosis.recordings import build_reference, parse_channels
     from pneufdd.diagnosis.reference.file import save_reference
     from pneufdd.diagnosis.reference.honesty import reference_honesty
+    from pneufdd.diagnosis.reference.sensor_sets import sensor_set_report
     from pneufdd.physics.units import slpm_to_kg_s
 
     console = Console(stderr=True)
@@ -167,7 +168,7 @@ def build(
         markup=False,
     )
     honesty = reference_honesty(model)
-    for line in [*log, *honesty.lines()]:
+    for line in [*log, *sensor_set_report(model.channels).lines(), *honesty.lines()]:
         console.print(line, highlight=False, markup=False)
     for warning in honesty.warnings:
         console.print(f"warning: {warning}", highlight=False, markup=False)

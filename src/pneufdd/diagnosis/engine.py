@@ -36,6 +36,7 @@ from pneufdd.diagnosis.localisation.search import (
     locate,
 )
 from pneufdd.diagnosis.reference.model import ReferenceModel
+from pneufdd.diagnosis.reference.sensor_sets import sensor_set_report
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.features.step_table import StepTable
 from pneufdd.location import SUPPLY
@@ -546,4 +547,5 @@ def diagnose(
         cycles_skipped=tuple(run.skipped_cycles),
         gaps_repaired=int(run.repaired_gaps),
         supply=supply_check(reference.feature_names, reference.features, X),
+        sensor_set=sensor_set_report(reference.channels),
     )

@@ -22,6 +22,7 @@ import numpy as np
 from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.detection.residuals import SupplyCheck
 from pneufdd.diagnosis.localisation.search import Localisation
+from pneufdd.diagnosis.reference.sensor_sets import SensorSetReport
 from pneufdd.location import Location
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.signals.quality import MAX_REPAIR_S
@@ -156,6 +157,9 @@ class Diagnosis:
         The eq. 4.19-4.21 verdict on the supply flow and pressure against the
         reference (None without supply sensors):
         :func:`pneufdd.diagnosis.detection.residuals.supply_check`.
+    sensor_set : SensorSetReport, optional
+        What the reference's sensor set can and cannot locate or size
+        (:func:`pneufdd.diagnosis.reference.sensor_sets.sensor_set_report`).
     """
 
     detected: bool
@@ -178,6 +182,7 @@ class Diagnosis:
     cycles_skipped: tuple[tuple[int, str], ...] = ()
     gaps_repaired: int = 0
     supply: SupplyCheck | None = None
+    sensor_set: SensorSetReport | None = None
 
     def to_pandas(self) -> pd.DataFrame:
         """The leaks as a table, one row per leak, largest annual cost first.
@@ -260,6 +265,7 @@ class Diagnosis:
             ],
             "total_annual_cost": num(self.total_annual_cost),
             "supply_check": None if self.supply is None else self.supply.to_dict(),
+            "sensor_set": None if self.sensor_set is None else self.sensor_set.to_dict(),
             "detection": {
                 "statistic": "supply-fluctuation-projected standardised step distance",
                 "run_score": num(self.run_score),

@@ -8,7 +8,7 @@ channel, too few complete cycles.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -66,6 +66,7 @@ __all__ = [
     "diagnose_pooled",
     "diagnose_recording",
     "parse_channels",
+    "pooled_table",
     "run_table",
     "signature_ladder_slpm",
 ]
@@ -470,6 +471,7 @@ def diagnose_pooled(
     localisation: LocalisationSettings | None = None,
     threads: int | None = None,
     startup_cycles: int | None = None,
+    tag_map: Path | None = None,
 ) -> tuple[StepTable, Diagnosis]:
     """Diagnose many short recordings (triggered captures) of one run as one: cycles pooled.
 
@@ -477,25 +479,60 @@ def diagnose_pooled(
     reference's, 0 for a capture detected as starting at a cycle start of a running
     machine, :mod:`pneufdd.diagnosis.captures`); a recording with no more complete
     cycles than that keeps them (as in the reference build). The run is judged on all
-    the cycles together.
+    the cycles together. ``tag_map``: files are exports read through this tag map
+    (:mod:`pneufdd.recording.tag_map`).
     """
-    advance = counter(progress, "reading and segmenting", len(sources))
+    parsed = None
+    if tag_map is not None:
+        from pneufdd.recording.tag_map import load_tag_map
+
+        parsed = load_tag_map(tag_map)
+
+    def read(source: Path | Recording) -> Recording:
+        if isinstance(source, Recording):
+            return source
+        if parsed is not None:
+            from pneufdd.recording.tag_map import read_mapped
+
+            return read_mapped(Path(source), parsed)
+        return Recording.read(Path(source))
+
+    names = ["run" if isinstance(s, Recording) else str(s) for s in sources]
+    left: list[int] = []
+    table = pooled_table(model, (read(s) for s in sources), names, startup_cycles, progress, left)
+    result = diagnose(model, table, settings, localisation, threads)
+    return table, replace(result, startup_cycles=sum(left))
+
+
+def pooled_table(
+    model: ReferenceModel,
+    recordings: Iterable[Recording],
+    names: Sequence[str],
+    startup_cycles: int | None = None,
+    progress: Progress | None = None,
+    left_out: list[int] | None = None,
+) -> StepTable:
+    """The cycles of many short recordings (triggered captures) of one run, pooled.
+
+    Each recording, segmented as the reference was, leaves out its start-up cycles
+    (``startup_cycles``, else the reference's, 0 for a capture detected as starting at
+    a cycle start of a running machine); one with no more complete cycles than that
+    keeps them. ``left_out`` receives each recording's number of cycles left out.
+    ``recordings`` may be a generator: each is read when its turn comes.
+    """
+    advance = counter(progress, "reading and segmenting", len(names))
     tables: list[StepTable] = []
-    left_out = 0
-    for source in sources:
-        recording = source if isinstance(source, Recording) else Recording.read(Path(source))
-        where = "run" if isinstance(source, Recording) else str(source)
+    for recording, where in zip(recordings, names, strict=True):
         cycles = _run_cycles(model, recording, where)
         startup, _ = startup_of(recording, cycles[0], model.settings.startup_cycles, startup_cycles)
         running = running_cycles(cycles, startup)
-        left_out += len(cycles) - len(running)
+        if left_out is not None:
+            left_out.append(len(cycles) - len(running))
         tables.append(_table(model, recording, running, where))
         advance()
     if not tables:
         raise InputError(describe("recordings to pool", 0, "at least one"))
-    table = StepTable.concatenate(tables)
-    result = diagnose(model, table, settings, localisation, threads)
-    return table, replace(result, startup_cycles=left_out)
+    return StepTable.concatenate(tables)
 
 
 def diagnose_recording(

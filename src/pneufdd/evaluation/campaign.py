@@ -40,10 +40,21 @@ from pneufdd.diagnosis.effects.twin import (
     signature_spread,
 )
 from pneufdd.diagnosis.engine import diagnose
-from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
+from pneufdd.diagnosis.recordings import build_reference_from_recordings
 from pneufdd.diagnosis.reference.file import load_reference, save_reference
 from pneufdd.diagnosis.reference.model import ReferenceModel
+from pneufdd.diagnosis.reference.sensor_sets import (
+    SENSOR_SETS,
+    check_sensor_set_names,
+    machine_sensor_sets,
+)
 from pneufdd.errors import InputError, NoCompleteCycleError, describe
+from pneufdd.evaluation.captures import (
+    CaptureDesign,
+    reference_recordings,
+    run_recordings,
+    run_step_table,
+)
 from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.features.step_summaries import machine_sequence
 from pneufdd.features.step_table import feature_names
@@ -65,10 +76,8 @@ from pneufdd.recording.model import Recording
 from pneufdd.sim import (
     MachineDescription,
     MachineStalledError,
-    as_exported,
     load_machine,
     parse_leak_size,
-    simulate,
 )
 from pneufdd.sim.variation import machine_to_toml, vary_machine
 
@@ -81,12 +90,6 @@ __all__ = [
     "rescore",
     "run_campaign",
 ]
-
-SENSOR_SETS = ("full", "supply-only", "digital-only")
-"""Sensor sets a campaign can judge: every analog channel of the description; the
-supply meter (``P_In``, ``Q_In``); the PLC's digital signals only."""
-
-SUPPLY_CHANNELS = ("P_In", "Q_In")
 
 _COMMON_TARGETS = {
     "in_group": 0.98,
@@ -152,6 +155,8 @@ class CampaignDesign:
         that plant's signatures from the calibrated description, as
         ``pneufdd reference build --calibrate`` does; otherwise the signatures come
         once per machine from the description as written.
+    capture : CaptureDesign, optional
+        Triggered captures instead of continuous recordings (:mod:`.captures`).
     """
 
     machines: tuple[str, ...]
@@ -169,13 +174,12 @@ class CampaignDesign:
     uncertainty_plants: int = UNCERTAINTY_PLANTS
     seed_offset: int = 100_000_000
     calibrate: bool = False
+    capture: CaptureDesign | None = None
 
     def __post_init__(self) -> None:
         if not self.machines:
             raise InputError(describe("campaign machines", [], "at least one machine"))
-        unknown = [s for s in self.sensor_sets if s not in SENSOR_SETS]
-        if unknown or not self.sensor_sets:
-            raise InputError(describe("campaign sensor sets", unknown or [], list(SENSOR_SETS)))
+        check_sensor_set_names(self.sensor_sets, "campaign sensor sets")
         for name in ("plants", "reps", "run_cycles", "signature_cycles"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -253,6 +257,8 @@ class Job:
     run_cycles: int
     threads: int = 1
     """Threads of each diagnosis's check by simulation: the cores left to one worker."""
+    capture: CaptureDesign | None = None
+    """Triggered captures instead of one continuous recording per run."""
 
 
 @dataclass
@@ -287,18 +293,9 @@ def _seed(design: CampaignDesign, machine: int, scale: int, plant: int, k: int) 
 
 
 def channel_sets(machine: MachineDescription, names: Sequence[str]) -> dict[str, tuple[str, ...]]:
-    """Analog channels of each named sensor set the machine has."""
-    full = tuple(s.channel for s in machine.sensors)
-    supply = tuple(c for c in SUPPLY_CHANNELS if c in full)
-    sets: dict[str, tuple[str, ...]] = {}
-    for name in names:
-        if name == "full" and full and full != supply:
-            sets[name] = full
-        elif name == "supply-only" and supply == SUPPLY_CHANNELS:
-            sets[name] = supply
-        elif name == "digital-only":
-            sets[name] = ()
-    return sets
+    """Analog channels of each named sensor set the machine has
+    (:func:`~pneufdd.diagnosis.reference.sensor_sets.machine_sensor_sets`)."""
+    return machine_sensor_sets(tuple(s.channel for s in machine.sensors), names)
 
 
 def _signatures(
@@ -419,27 +416,31 @@ def run_job(job: Job) -> list[dict[str, Any]]:
         "leaks": job.leaks,
     }
     try:
-        recording = simulate(plant, cycles=job.run_cycles + 2, leaks=job.leaks, seed=job.seed)
+        recordings, leaks = run_recordings(job.capture, plant, job.run_cycles, job.leaks, job.seed)
     except MachineStalledError:
         return [{**base, "stalled": True}]
     truth = {
         leak["location"]: float(
             leak_mass_flow(job.nominal_pressure_pa, float(leak["effective_area_m2"]))
         )
-        for leak in recording.metadata["leaks"]
+        for leak in leaks
     }
-    recording = as_exported(recording)
     records = []
     for sensors, path in job.references.items():
         model = _cached_reference(path)
         try:
-            table = run_table(model, recording, f"campaign run seed {job.seed}")
+            table = run_step_table(
+                model,
+                recordings,
+                job.run_cycles,
+                f"campaign run seed {job.seed}",
+                pooled=job.capture is not None,
+            )
         except NoCompleteCycleError as exc:
             # the leaks keep the machine from completing its sequence as the PLC
             # expects (a vacuum switch that never falls): a plant failure like a stall,
             # not a run to judge
             return [{**base, "stalled": True, "reason": str(exc)}]
-        table = table.take(np.arange(min(job.run_cycles, table.n_cycles)))
         start = time.perf_counter()
         result = diagnose(model, table, threads=job.threads)
         seconds = time.perf_counter() - start
@@ -641,7 +642,10 @@ def _run_campaign(
                     "a set the machine has",
                 )
             )
-        all_channels = max(sets.values(), key=len)
+        # signatures of every channel any set uses, in the machine's order; each set's
+        # reference takes its own features from them
+        used = {c for channels in sets.values() for c in channels}
+        all_channels = tuple(s.channel for s in machine.sensors if s.channel in used)
         signatures: SignatureSet | None = None
         if not design.calibrate:
             t0 = time.perf_counter()
@@ -668,10 +672,7 @@ def _run_campaign(
                 ref_seeds = [
                     _seed(design, m, s, k, 1 + r) for r in range(design.reference_recordings)
                 ]
-                recordings = [
-                    as_exported(simulate(plant, cycles=per_recording + 2, seed=seed))
-                    for seed in ref_seeds
-                ]
+                recordings = reference_recordings(design.capture, plant, ref_seeds, per_recording)
                 twin, plant_signatures, calibration = machine, signatures, None
                 if plant_signatures is None:
                     twin, calibration = _calibrated_twin(
@@ -718,8 +719,9 @@ def _run_campaign(
                         str(plant_file),
                         references,
                         nominal,
-                        design.run_cycles,
+                        design.run_cycles if design.capture is None else design.capture.run_cycles,
                         threads,
+                        design.capture,
                     )
                     for kind, leaks, seed in runs
                 )

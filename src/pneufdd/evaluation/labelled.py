@@ -90,6 +90,14 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
                 'an object with "design" (an object) and "machines" (a list)',
             )
         )
+    if out["design"].get("capture"):  # its runs are pooled captures, not what this re-simulates
+        raise InputError(
+            describe(
+                f"campaign {str(path.parent)!r}",
+                "recorded as triggered captures (--capture triggered)",
+                "a campaign of continuous recordings (the comparison re-simulates its runs so)",
+            )
+        )
     return out
 
 

@@ -9,6 +9,7 @@ the step's end).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -49,9 +50,17 @@ def sequence_to_records(sequence: Sequence[StepSpec]) -> list[dict[str, Any]]:
         {
             "valves": sorted(spec.valves),
             "switches": [[name, int(state)] for name, state in sorted(spec.switches)],
+            **({} if spec.end_gap_s is None else {"end_gap_s": float(spec.end_gap_s)}),
         }
         for spec in sequence
     ]
+
+
+def _end_gap(value: Any) -> float | None:
+    """A stored ``end_gap_s``: a finite number >= 0, else unknown."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value) if math.isfinite(value) and value >= 0 else None
 
 
 def sequence_from_records(records: Sequence[Mapping[str, Any]]) -> tuple[StepSpec, ...]:
@@ -60,6 +69,7 @@ def sequence_from_records(records: Sequence[Mapping[str, Any]]) -> tuple[StepSpe
         StepSpec(
             frozenset(str(v) for v in rec["valves"]),
             frozenset((str(name), int(state)) for name, state in rec.get("switches", [])),
+            _end_gap(rec.get("end_gap_s")),
         )
         for rec in records
     )

@@ -56,6 +56,14 @@ from pneufdd.recording.csv_layout import (
     parse_layout,
     parse_time_spec,
 )
+from pneufdd.recording.derived import (
+    FLOW_DIRECTIONS,
+    SwitchSpec,
+    combine_flow_parts,
+    derive_switches,
+    flow_part_role,
+    parse_switches,
+)
 from pneufdd.recording.model import DIGITAL, Channel, Recording
 
 __all__ = [
@@ -150,6 +158,7 @@ class TagMap:
     lateness_s: float = 1.0
     end: str | None = None
     layout: CsvLayout = field(default_factory=lambda: CsvLayout(times={"time": TimeSpec()}))
+    switches: tuple[SwitchSpec, ...] = ()
 
     @property
     def time_column(self) -> str | None:
@@ -209,7 +218,7 @@ def _unit(source: str, column: str, role: str, entry: Mapping[str, Any]) -> str:
 
 _LIVE_KEYS = ("node", "rate_hz")
 _LAYOUT_COLUMN_KEYS = ("format", "timezone", "time")
-_COLUMN_KEYS = ("role", "unit", "basis", *_LIVE_KEYS, *_LAYOUT_COLUMN_KEYS)
+_COLUMN_KEYS = ("role", "unit", "basis", "direction", *_LIVE_KEYS, *_LAYOUT_COLUMN_KEYS)
 
 
 def _node(where: str, entry: Mapping[str, Any]) -> str | None:
@@ -340,7 +349,7 @@ def parse_tag_map(
                 "one form: [columns] keyed by PLC tag, or [channels] keyed by channel",
             )
         )
-    known = {"columns", "ignore", "rate_hz", "lateness_s", "end", *LAYOUT_KEYS}
+    known = {"columns", "ignore", "rate_hz", "lateness_s", "end", "switches", *LAYOUT_KEYS}
     unknown = sorted(set(data) - known)
     if unknown:
         raise InputError(describe(f"{source}: unknown top-level key", unknown[0], sorted(known)))
@@ -372,6 +381,7 @@ def parse_tag_map(
                     "P_<ACT>_A/B, Q_<ACT>_A/B, X_<ACT> (ACT: upper-case letters, digits, _)",
                 )
             )
+        role = _flow_part(where, role, entry, live)
         if role in seen and role != "time":  # several time columns: one per sample time
             raise ChannelError(
                 describe(
@@ -406,7 +416,14 @@ def parse_tag_map(
         raise InputError(
             describe(f"{source}: rate_hz", rate, f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g} Hz")
         )
+    _check_flow_parts(source, seen)
     layout = parse_layout(data, source, layout_parts["times"], layout_parts["channel_time"], preset)
+    switches = parse_switches(
+        data.get("switches", {}),
+        source,
+        {r.role: r.unit for r in roles if r.role.startswith("X_")},
+        set(seen),
+    )
     lateness, end = _live_options(data, source)
     return TagMap(
         columns=tuple(roles),
@@ -419,7 +436,39 @@ def parse_tag_map(
         lateness_s=lateness,
         end=end,
         layout=layout,
+        switches=switches,
     )
+
+
+def _flow_part(where: str, role: str, entry: Mapping[str, Any], live: bool) -> str:
+    """The role a column is read under: ``<role>.in``/``.out`` for one flow direction."""
+    direction = entry.get("direction")
+    if direction is None:
+        return role
+    if direction not in FLOW_DIRECTIONS or not role.startswith("Q_") or live:
+        raise InputError(
+            describe(
+                f"{where}.direction (role {role})",
+                direction,
+                "'in' or 'out' on a flow role (Q_...), in a map read from files",
+            )
+        )
+    return flow_part_role(role, str(direction))
+
+
+def _check_flow_parts(source: str, seen: Mapping[str, str]) -> None:
+    """A flow given both whole and by direction is refused."""
+    for role in seen:
+        base, dot, direction = role.rpartition(".")
+        if dot and direction in FLOW_DIRECTIONS and base in seen:
+            raise ChannelError(
+                describe(
+                    f"{source}: role {base!r} is given to column {seen[base]!r} and, by "
+                    f"direction, to {seen[role]!r}",
+                    base,
+                    "one signed column, or an in and an out column",
+                )
+            )
 
 
 def load_tag_map(path: str | Path, *, live: bool = False, preset: str | None = None) -> TagMap:
@@ -609,5 +658,7 @@ def read_mapped(path: str | Path, tag_map: TagMap) -> Recording:
         rec = Recording(
             channels, start_time=stored.start_time, metadata={**stored.metadata, **meta}
         )
+    rec = combine_flow_parts(rec, label)
+    rec = derive_switches(rec, tag_map.switches, label)
     _check_rates(label, tag_map, rec)
     return rec

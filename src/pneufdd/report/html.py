@@ -341,7 +341,8 @@ def render_report(
         f"from {_e(sources)}</td></tr>"
         f"<tr><th class='l'>sensor set</th><td class='l'>"
         f"{_e(', '.join(reference.channels) or 'none')} + PLC digital signals</td></tr>"
-        f"<tr><th class='l'>steps per cycle</th><td class='l'>{reference.n_steps}</td></tr>"
+        + _sensor_set_rows(diagnosis)
+        + f"<tr><th class='l'>steps per cycle</th><td class='l'>{reference.n_steps}</td></tr>"
         f"<tr><th class='l'>leak signatures</th><td class='l'>"
         f"{_e(signature_locations)}"
         "</td></tr></table>"
@@ -382,4 +383,16 @@ def write_report(
     """Render the report and write it to ``path`` atomically."""
     return write_text_atomic(
         Path(path), render_report(reference, run, diagnosis, title, run_name, run_time), overwrite
+    )
+
+
+def _sensor_set_rows(diagnosis: Diagnosis) -> str:
+    """What the sensor set can and cannot find (docs/sensor-sets.md), as table rows."""
+    report = diagnosis.sensor_set
+    if report is None:
+        return ""
+    return (
+        f"<tr><th class='l'>sensor set kind</th><td class='l'>{_e(report.kind)}</td></tr>"
+        f"<tr><th class='l'>it can</th><td class='l'>{_e(report.can)}</td></tr>"
+        f"<tr><th class='l'>it cannot</th><td class='l'>{_e(report.cannot)}</td></tr>"
     )

@@ -106,10 +106,17 @@ class StepSpec:
         Switch edges the step awaits: ``(channel, new_state)``, e.g.
         ``("S_DNC_A", 1)`` for DNC arriving home. Empty: derive from the naming
         convention (``U_X_A`` awaits ``S_X_B`` rising, ``U_X_B`` awaits ``S_X_A``).
+    end_gap_s : float, optional
+        Time from the step's settling (its awaited switches satisfied) to the next
+        step's start when the recording shows no next step: the description's dwell
+        timer plus half a PLC scan [s]. Ends the last step of a one-cycle capture
+        (:mod:`pneufdd.signals.final_step`); None when unknown (a learned sequence). Not
+        part of the step's identity (equality and hash).
     """
 
     valves: frozenset[str]
     switches: frozenset[tuple[str, int]] = field(default_factory=frozenset)
+    end_gap_s: float | None = field(default=None, compare=False)
 
     def describe_valves(self) -> str:
         """The valves as a sorted, readable list."""

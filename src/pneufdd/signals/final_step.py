@@ -14,9 +14,14 @@ step, step duration, anything integrated over the step). Instead:
   step's start of the same step (same position in the cycle, same valves) in the
   other cycles of the recording; the median keeps the dwell timers of the machine
   and the typical scan delay;
+* when no other cycle of the recording has the step (a triggered capture of one
+  cycle, followed by the machine idling until the next part), the gap is the step's
+  ``end_gap_s`` from the machine description (its dwell timer plus half a PLC scan,
+  :class:`~pneufdd.signals.events.StepSpec`): the step then ends where the twin's
+  would, whatever idle time the capture holds after it;
 * it never lies beyond the end of the data. When an awaited switch never changes
-  (truncated recording) or no other cycle has the step, the end of the data stays
-  the end.
+  (truncated recording), or no other cycle has the step and the sequence knows no
+  ``end_gap_s`` (a learned sequence), the end of the data stays the end.
 """
 
 from __future__ import annotations
@@ -118,9 +123,10 @@ def close_final_step(
         t = settled_at(spec, other.start_s, other.end_s, rise, fall)
         if t is not None:
             gaps.append(other.end_s - t)
-    if not gaps:
+    if not gaps and spec.end_gap_s is None:
         return out
-    end = min(settled + float(np.median(gaps)), data_end_s)
+    gap = float(np.median(gaps)) if gaps else float(spec.end_gap_s or 0.0)
+    end = min(settled + gap, data_end_s)
     steps = (*last.steps[:j], replace(step, end_s=max(end, settled)))
     out[-1] = replace(last, steps=steps)
     return out

@@ -59,13 +59,35 @@ def _convention_switches(
 
 # ------------------------------------------------------------ machine sequence
 def _spec_from_actions(
-    actions: Iterable[tuple[str, str, str]], wait: Iterable[str], wait_off: Iterable[str]
+    actions: Iterable[tuple[str, str, str]],
+    wait: Iterable[str],
+    wait_off: Iterable[str],
+    end_gap_s: float | None = None,
 ) -> StepSpec:
     valves = set()
     for solenoid, mode, _switch in actions:
         valves.add(solenoid + RELEASE if mode == "reset" else solenoid)
     switches = {(w, 1) for w in wait} | {(w, 0) for w in wait_off}
-    return StepSpec(frozenset(valves), frozenset(switches))
+    return StepSpec(frozenset(valves), frozenset(switches), end_gap_s)
+
+
+def _number(value: object, default: float) -> float | None:
+    """A raw TOML number (None when it is not one: the description's parser says why)."""
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value)
+
+
+def _raw_end_gap(machine: Mapping[str, Any], step: object) -> float | None:
+    """A raw step's dwell plus half the machine's PLC scan [s] (its ``end_gap_s``)."""
+    table = machine.get("machine")
+    scan = _number(table.get("scan_time_s") if isinstance(table, Mapping) else None, 0.005)
+    dwell = _number(step.get("dwell_s") if isinstance(step, Mapping) else None, 0.0)
+    if scan is None or dwell is None:
+        return None
+    return dwell + 0.5 * scan
 
 
 def sequence_from_machine(machine: Any) -> tuple[StepSpec, ...]:
@@ -77,7 +99,9 @@ def sequence_from_machine(machine: Any) -> tuple[StepSpec, ...]:
     {"reset": ...}], "wait": [...], "wait_off": [...]}]}``). Each step's valve
     events are its ``set`` solenoids and the releases (``":off"``) of its
     ``reset`` solenoids; it awaits its ``wait`` switches rising (by default its
-    ``until`` switches) and its ``wait_off`` switches falling.
+    ``until`` switches) and its ``wait_off`` switches falling. Its ``end_gap_s``
+    is its ``dwell_s`` plus half the machine's ``scan_time_s`` (the PLC fires the next
+    step at its next scan after the dwell).
 
     Examples
     --------
@@ -95,16 +119,19 @@ def sequence_from_machine(machine: Any) -> tuple[StepSpec, ...]:
             raise InputError(describe("machine description 'step'", steps, "a list of steps"))
         for k, step in enumerate(steps, start=1):
             actions, wait, wait_off = _raw_step(step, f"machine description step {k}")
-            specs.append(_spec_from_actions(actions, wait, wait_off))
+            gap = _raw_end_gap(machine, step)
+            specs.append(_spec_from_actions(actions, wait, wait_off, gap))
         return tuple(specs)
     steps = getattr(machine, "steps", None)
     if steps is None:
         raise InputError(
             describe("machine", type(machine).__name__, "a MachineDescription or its TOML mapping")
         )
+    scan = float(getattr(machine, "scan_time_s", 0.005))
     for step in steps:
         actions = [(a.solenoid, a.mode, a.switch) for a in step.actions]
-        specs.append(_spec_from_actions(actions, step.wait, step.wait_off))
+        gap = float(step.dwell_s) + 0.5 * scan
+        specs.append(_spec_from_actions(actions, step.wait, step.wait_off, gap))
     return tuple(specs)
 
 
