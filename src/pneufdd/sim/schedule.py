@@ -23,12 +23,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from pneufdd.errors import InputError, describe
+from pneufdd.sim import layout as lay
+from pneufdd.sim.compile import Plant
 from pneufdd.sim.description import MachineDescription
 from pneufdd.sim.leaks import MAX_TURNS, Leak, LeakSpec, parse_leak_size, resolve_leaks
 
 __all__ = [
     "LeakSchedule",
     "ScheduledLeak",
+    "apply_leak_schedule",
     "parse_duration",
     "parse_rate",
     "parse_scheduled_leak",
@@ -258,3 +261,31 @@ def schedule_from_options(
             )
         )
     return LeakSchedule(leaks) if leaks else None
+
+
+def apply_leak_schedule(
+    plant: Plant,
+    desc: MachineDescription,
+    static: list[LeakSpec],
+    schedule: LeakSchedule,
+    time_s: float,
+    cycle: int,
+) -> list[dict[str, Any]]:
+    """Set the plant's leak areas for the cycle starting at ``time_s``; its ground truth."""
+    present = schedule.resolve(desc, time_s)
+    areas = {spec.location: spec.area_m2 for spec in [*static, *present]}
+    plant.sp[lay.SP_SUPPLY_LEAK] = areas.get("supply", 0.0)
+    for i, a in enumerate(desc.actuators):
+        for side in (0, 1):
+            plant.cp[2 * i + side, lay.CP_LEAK] = areas.get(f"{a.id}_{'AB'[side]}", 0.0)
+    return [
+        {
+            "cycle": cycle,
+            "cycle_start_s": time_s,
+            "location": spec.location,
+            "size": spec.size,
+            "unit": spec.unit,
+            "slpm": spec.nominal_slpm,
+        }
+        for spec in present
+    ]

@@ -18,14 +18,17 @@ from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
 from pneufdd.sim.buffers import POOL, BufferShape, OutputBuffers
 from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
+from pneufdd.sim.conditions import RunConditions, check_conditions
 from pneufdd.sim.description import MachineDescription, Sensor, solenoid_slots
+from pneufdd.sim.faults import Fault, FaultSchedule
 from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import MachineLike, load_machine
+from pneufdd.sim.nuisances import Nuisances
 from pneufdd.sim.prebuilt import compiled_twin
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulatedStroke, SimulationResult
-from pneufdd.sim.schedule import LeakSchedule
+from pneufdd.sim.schedule import LeakSchedule, apply_leak_schedule
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor, first_order_recursion
 
 __all__ = [
@@ -53,6 +56,7 @@ mode and the DAQ runs on briefly, as on the rig, so the last cycle's final switc
 edges are in the recording and it segments as complete."""
 
 LeaksLike = Mapping[str, Any] | Iterable[Leak] | None
+FaultsLike = FaultSchedule | Iterable[Fault | str] | None
 
 
 class MachineStalledError(PneufddError):
@@ -126,11 +130,18 @@ def _ou_grid(rng: np.random.Generator, start: float, std: float, tau: float, n: 
 
 
 def _stall_message(
-    machine: MachineDescription, cycle: int, step: int, leaks: int = 0, max_cycle_s: float = 120.0
+    machine: MachineDescription,
+    cycle: int,
+    step: int,
+    leaks: int = 0,
+    max_cycle_s: float = 120.0,
+    faults: str = "",
 ) -> str:
     st = machine.steps[min(step, len(machine.steps) - 1)]
     cause = (
-        "a leak this large keeps an actuator from reaching its switch"
+        f"the faults {faults} keep an actuator or a switch from reaching its end"
+        if faults
+        else "a leak this large keeps an actuator from reaching its switch"
         if leaks
         else "no leak is simulated: the description's supply, valves or loads cannot move "
         "the actuator to its switch"
@@ -172,8 +183,10 @@ class _CycleLoop:
         rng: np.random.Generator,
         cycles: int,
         max_cycle_s: float,
+        conditions: RunConditions | None = None,
     ) -> None:
         self.desc, self.plant, self.state, self.rng = desc, plant, state, rng
+        self.conditions = conditions
         self.cycles, self.max_cycle_s = cycles, max_cycle_s
         na = len(desc.actuators)
         nsteps = len(desc.steps)
@@ -263,17 +276,27 @@ class _CycleLoop:
             If the cycle does not end within ``max_cycle_s``.
         """
         state = self.state
-        draws = self._draws(cyc)
+        draws = kernel_draws = self._draws(cyc)
         t_start = float(state["ss"][lay.SS_TIME])
         k_start = int(state["istate"][lay.IS_SAMPLE])
         if schedule is not None:
-            self.timeline += _apply_schedule(self.plant, self.desc, specs, schedule, t_start, cyc)
-        n, status, n_ev, nsub = self._run_kernel(draws)
+            self.timeline += apply_leak_schedule(
+                self.plant, self.desc, specs, schedule, t_start, cyc
+            )
+        faults = ""
+        if self.conditions is not None:
+            self.conditions.apply(cyc, t_start, state)
+            dips = self.conditions.dip_grid(t_start, self.n_ou, 0.1)
+            if dips is not None:  # the house pressure dips; the drift carried on is the OU's
+                kernel_draws = draws._replace(ou=draws.ou + dips)
+            rows = [r for r in self.conditions.fault_timeline if r["cycle"] == cyc]
+            faults = ", ".join(f"{r['location']}={r['kind']}" for r in rows)
+        n, status, n_ev, nsub = self._run_kernel(kernel_draws)
         self.total_sub += nsub
         if status != 0:
             step_now = int(state["istate"][lay.IS_STEP])
             raise MachineStalledError(
-                _stall_message(self.desc, cyc, step_now, len(specs), self.max_cycle_s)
+                _stall_message(self.desc, cyc, step_now, len(specs), self.max_cycle_s, faults)
             )
         elapsed = float(state["ss"][lay.SS_TIME]) - t_start
         self.ou_now = float(np.interp(elapsed / 0.1, np.arange(self.n_ou), draws.ou))
@@ -303,16 +326,6 @@ def _check_run_memory(cycles: int, samples: int, n_sensors: int, n_recorded: int
     )
 
 
-def _with_schedule(
-    result: SimulationResult, schedule: LeakSchedule, timeline: list[dict[str, Any]]
-) -> SimulationResult:
-    """``result`` with the leak schedule and its timeline in the metadata."""
-    meta = dict(result.recording.metadata)
-    meta["leak_schedule"] = schedule.as_metadata()
-    meta["leak_timeline"] = timeline
-    return replace(result, recording=result.recording.with_metadata(meta))
-
-
 def run_simulation(
     machine: MachineLike,
     cycles: int = 1,
@@ -324,6 +337,8 @@ def run_simulation(
     resolution: Resolution = DEFAULT_RESOLUTION,
     schedule: LeakSchedule | None = None,
     channels: Sequence[str] | None = None,
+    faults: FaultsLike = None,
+    nuisances: Nuisances | None = None,
 ) -> SimulationResult:
     """Simulate ``cycles`` machine cycles and return true states plus the recording.
 
@@ -358,6 +373,13 @@ def run_simulation(
         a channel left out before a recorded one still draws its noise, and channels
         after the last recorded one cost nothing (the twin's check of a diagnosis
         needs only its sensor set's channels).
+    faults : FaultSchedule or iterable of Fault or str, optional
+        Faults other than leaks (:mod:`pneufdd.sim.faults`, ``docs/faults.md``), e.g.
+        ``["DNC=friction:+50%@2min", "DNC_A=throttle:-40%"]``; scheduled like leaks,
+        recorded in the metadata (``fault_schedule``, ``fault_timeline``).
+    nuisances : Nuisances, optional
+        Ambient temperature, payloads, header dips (:mod:`pneufdd.sim.nuisances`);
+        recorded in the metadata (``nuisances``, ``nuisance_timeline``, ``header_dips``).
 
     Returns
     -------
@@ -370,10 +392,11 @@ def run_simulation(
     plant = compile_plant(desc, specs, resolution)
     if schedule is not None:
         schedule.check(desc, specs)
+    conditions = _conditions(desc, plant, faults, nuisances, seed)
     rng = np.random.default_rng(seed)
     state = initial_state(desc, plant)
     plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
-    run = _CycleLoop(desc, plant, state, sensors, rng, cycles, max_cycle_s)
+    run = _CycleLoop(desc, plant, state, sensors, rng, cycles, max_cycle_s, conditions)
     try:
         for cyc in range(cycles):
             run.cycle(cyc, specs, schedule, keep_outputs)
@@ -396,35 +419,43 @@ def run_simulation(
         )
     finally:
         run.release()
-    return result if schedule is None else _with_schedule(result, schedule, run.timeline)
+    meta: dict[str, Any] = {}
+    if schedule is not None:
+        meta = {"leak_schedule": schedule.as_metadata(), "leak_timeline": run.timeline}
+    if conditions is not None:
+        meta.update(conditions.metadata(float(result.time.size * SAMPLE_DT)))
+    if not meta:
+        return result
+    recording = result.recording.with_metadata({**result.recording.metadata, **meta})
+    return replace(result, recording=recording)
 
 
-def _apply_schedule(
-    plant: Plant,
+def _conditions(
     desc: MachineDescription,
-    static: list[LeakSpec],
-    schedule: LeakSchedule,
-    time_s: float,
-    cycle: int,
-) -> list[dict[str, Any]]:
-    """Set the plant's leak areas for the cycle starting at ``time_s``; its ground truth."""
-    present = schedule.resolve(desc, time_s)
-    areas = {spec.location: spec.area_m2 for spec in [*static, *present]}
-    plant.sp[lay.SP_SUPPLY_LEAK] = areas.get("supply", 0.0)
-    for i, a in enumerate(desc.actuators):
-        for side in (0, 1):
-            plant.cp[2 * i + side, lay.CP_LEAK] = areas.get(f"{a.id}_{'AB'[side]}", 0.0)
-    return [
-        {
-            "cycle": cycle,
-            "cycle_start_s": time_s,
-            "location": spec.location,
-            "size": spec.size,
-            "unit": spec.unit,
-            "slpm": spec.nominal_slpm,
-        }
-        for spec in present
-    ]
+    plant: Plant,
+    faults: FaultsLike,
+    nuisances: Nuisances | None,
+    seed: int | None,
+) -> RunConditions | None:
+    """The run's faults and nuisances, checked and applied for its start (None: none).
+
+    The ambient temperature and a regulator drift at t = 0 set the initial state's
+    temperature and pressures (:func:`pneufdd.sim.compile.initial_state`).
+    """
+    schedule = faults if isinstance(faults, FaultSchedule) or faults is None else None
+    if schedule is None and faults is not None:
+        schedule = FaultSchedule(faults)  # type: ignore[arg-type]
+    if schedule is not None and not schedule.faults:
+        schedule = None
+    if nuisances is not None and not isinstance(nuisances, Nuisances):
+        raise InputError(describe("nuisances", nuisances, "a pneufdd.sim.nuisances.Nuisances"))
+    if schedule is None and nuisances is None:
+        return None
+    check_conditions(desc, schedule, nuisances)
+    conditions = RunConditions(desc, plant, schedule, nuisances, seed)
+    conditions.apply(0, 0.0, None)
+    plant.t_wall = float(plant.sp[lay.SP_T_WALL])
+    return conditions
 
 
 def _records(
@@ -507,7 +538,7 @@ def _take(
     chunk["cmd"] = buf.cmd[first:n:_DIGITAL_EVERY].copy()
     chunk["sw"] = buf.sw[first:n:_DIGITAL_EVERY].copy()
     if keep:
-        for k in ("p", "x", "fch", "fexh", "fr", "vac", "fleak", "cum", "mass", "step"):
+        for k in ("p", "x", "fch", "fexh", "fr", "vac", "fleak", "cum", "mass", "step", "fpl"):
             chunk[k] = getattr(buf, k)[:n].copy()
     return chunk
 
@@ -644,8 +675,10 @@ def _outputs(
         "p_manifold": p[:, 1],
     }
     fleak = _cat(chunks, "fleak")
+    fpl = _cat(chunks, "fpl")
     for i, a in enumerate(desc.actuators):
         out[f"x_{a.id}"] = x[:, i]
+        out[f"mdot_piston_leak_{a.id}"] = fpl[:, i]
         for s, side in enumerate("AB"):
             c = 2 * i + s
             out[f"p_{a.id}_{side}"] = p[:, 2 + c]
@@ -676,6 +709,8 @@ def simulate(
     progress: Callable[[int, int], None] | None = None,
     max_cycle_s: float = 120.0,
     schedule: LeakSchedule | None = None,
+    faults: FaultsLike = None,
+    nuisances: Nuisances | None = None,
 ) -> Recording:
     """Simulate the machine and return what its sensors and PLC I/O record.
 
@@ -696,6 +731,10 @@ def simulate(
         A cycle longer than this is a stalled machine [s].
     schedule : LeakSchedule, optional
         Leaks that appear, grow and are repaired during the run.
+    faults : FaultSchedule or iterable of Fault or str, optional
+        Faults other than leaks, e.g. ``["DNC=friction:+50%"]`` (``docs/faults.md``).
+    nuisances : Nuisances, optional
+        Ambient temperature, payloads and header dips over the run.
 
     Returns
     -------
@@ -719,6 +758,8 @@ def simulate(
         keep_outputs=False,
         max_cycle_s=max_cycle_s,
         schedule=schedule,
+        faults=faults,
+        nuisances=nuisances,
     ).recording
 
 
