@@ -325,6 +325,8 @@ def _condition_options(
     nuisance_options: tuple[str | None, str | None, list[str], str | None],
 ) -> tuple[FaultSchedule | None, Nuisances | None]:
     """The faults and nuisances of the options, checked against ``desc`` before any run."""
+    if not any(fault_options) and not any(nuisance_options):
+        return None, None  # a plain run imports none of them (they load numba)
     from pneufdd.sim.conditions import check_conditions
     from pneufdd.sim.faults import fault_schedule_from_options
     from pneufdd.sim.nuisances import nuisances_from_options

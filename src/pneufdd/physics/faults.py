@@ -60,7 +60,8 @@ from pneufdd.physics._jit import (
     scalar_or_array,
 )
 from pneufdd.physics.constants import KELVIN_OFFSET, T_ROOM
-from pneufdd.physics.flow import orifice_mass_flow, series_cv
+from pneufdd.physics.flow import orifice_mass_flow
+from pneufdd.physics.restrictions import series_cv
 
 __all__ = [
     "BASE_OIL_NU40",

@@ -58,7 +58,6 @@ __all__ = [
     "iso6358_mass_flow_kernel",
     "orifice_mass_flow",
     "orifice_mass_flow_kernel",
-    "series_cv",
     "sonic_conductance_from_catalogue",
 ]
 
@@ -517,31 +516,3 @@ def isa_mass_flow(
     xt = as_float_array(xT, "xT")
     require(xt, (xt >= 0.01) & (xt <= 1.0), "xT", "pressure ratio factor in [0.01, 1]")
     return scalar_or_array(_isa_ufunc(p1, p2, cv, xt, _temperature(T)))
-
-
-def series_cv(*cvs: float) -> float:
-    """Flow coefficient of restrictions in series, the incompressible series rule.
-
-    .. math:: \\frac{1}{C_v^2} = \\sum_i \\frac{1}{C_{v,i}^2}
-
-    Each restriction passes ``Q = Cv sqrt(dp_i)`` for the same flow ``Q``; the pressure
-    drops add up, so ``dp = Q^2 sum 1/Cv_i^2``. The twin lumps a valve, its tube and
-    (on the exhaust) the meter-out throttle and the end-position cushion into one path
-    this way (``docs/twin.md``, series restrictions; Crane TP-410).
-
-    Parameters
-    ----------
-    *cvs : float
-        Flow coefficients of the restrictions, each > 0 [US gal/(min psi^0.5)].
-
-    Returns
-    -------
-    float
-        Flow coefficient of the path [US gal/(min psi^0.5)].
-
-    Examples
-    --------
-    >>> round(series_cv(0.4, 0.3), 3)
-    0.24
-    """
-    return 1.0 / math.sqrt(sum(1.0 / c**2 for c in cvs))

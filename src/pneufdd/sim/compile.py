@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.physics.constants import KELVIN_OFFSET, PSI, R_AIR
-from pneufdd.physics.flow import series_cv
+from pneufdd.physics.restrictions import series_cv
 from pneufdd.physics.units import psig_to_pa
 from pneufdd.sim import layout as lay
 from pneufdd.sim.description import Actuator, MachineDescription, solenoid_slots

@@ -26,7 +26,7 @@ from pneufdd.physics.faults import (
     throttled_cv,
     worn_friction,
 )
-from pneufdd.physics.flow import series_cv
+from pneufdd.physics.restrictions import series_cv
 from pneufdd.physics.units import kg_s_to_slpm, psig_to_pa
 from pneufdd.sim import layout as lay
 from pneufdd.sim.compile import Plant, switch_edge_times, tube_cv

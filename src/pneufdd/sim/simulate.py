@@ -6,7 +6,7 @@ import math
 import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -18,18 +18,22 @@ from pneufdd.recording import Recording
 from pneufdd.sim import layout as lay
 from pneufdd.sim.buffers import POOL, BufferShape, OutputBuffers
 from pneufdd.sim.compile import DEFAULT_RESOLUTION, Plant, Resolution, compile_plant, initial_state
-from pneufdd.sim.conditions import RunConditions, check_conditions
 from pneufdd.sim.description import MachineDescription, Sensor, solenoid_slots
-from pneufdd.sim.faults import Fault, FaultSchedule
 from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.leaks import Leak, LeakSpec, resolve_leaks
 from pneufdd.sim.loading import MachineLike, load_machine
-from pneufdd.sim.nuisances import Nuisances
 from pneufdd.sim.prebuilt import compiled_twin
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulatedStroke, SimulationResult
 from pneufdd.sim.schedule import LeakSchedule, apply_leak_schedule
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor, first_order_recursion
+
+if TYPE_CHECKING:  # imported when a run has faults or nuisances (they load numba)
+    from pneufdd.sim.conditions import RunConditions
+    from pneufdd.sim.faults import Fault, FaultSchedule
+    from pneufdd.sim.nuisances import Nuisances
+
+    FaultsLike = FaultSchedule | Iterable[Fault | str] | None
 
 __all__ = [
     "SIMULATOR_VERSION",
@@ -56,7 +60,6 @@ mode and the DAQ runs on briefly, as on the rig, so the last cycle's final switc
 edges are in the recording and it segments as complete."""
 
 LeaksLike = Mapping[str, Any] | Iterable[Leak] | None
-FaultsLike = FaultSchedule | Iterable[Fault | str] | None
 
 
 class MachineStalledError(PneufddError):
@@ -442,6 +445,12 @@ def _conditions(
     The ambient temperature and a regulator drift at t = 0 set the initial state's
     temperature and pressures (:func:`pneufdd.sim.compile.initial_state`).
     """
+    if faults is None and nuisances is None:
+        return None  # a plain run does not import them (nor numba, on the prebuilt twin)
+    from pneufdd.sim.conditions import RunConditions, check_conditions
+    from pneufdd.sim.faults import FaultSchedule
+    from pneufdd.sim.nuisances import Nuisances
+
     schedule = faults if isinstance(faults, FaultSchedule) or faults is None else None
     if schedule is None and faults is not None:
         schedule = FaultSchedule(faults)  # type: ignore[arg-type]
