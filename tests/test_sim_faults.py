@@ -394,3 +394,32 @@ def test_mass_balance_with_every_internal_fault(rig: MachineDescription) -> None
     )
     assert out["mass_regulator"][-1] > 1e-3  # about 1 g of air went in
     assert np.abs(balance - balance[0]).max() < 1e-15
+
+
+def test_simulate_command_records_faults_and_nuisances(tmp_path: Any, capsys: Any) -> None:
+    from pneufdd.cli.app import main
+    from pneufdd.recording import Recording
+    from pneufdd.sim.faults import FAULT_KINDS
+
+    out = tmp_path / "run.parquet"
+    argv = [
+        "simulate", "--machine", "press-fit-cell", "--cycles", "2", "--seed", "4",
+        "--fault", "PRESS_B=throttle:-30%@3s", "--fault-growth", "PRESS_B=throttle:-36%/h",
+        "--fault", "S_FEED_B=late:20ms", "--ambient", "15C..35C/1h",
+        "--payload", "PRESS=+1.5kg@2s", "--header-dips", "depth=0.5bar,duration=1s,rate=60/h",
+        "--out", str(out),
+    ]  # fmt: skip
+    assert main(argv) == 0
+    meta = Recording.read(out).metadata
+    assert {f["kind"] for f in meta["fault_schedule"]} == {"throttle", "late"}
+    throttle = [r for r in meta["fault_timeline"] if r["kind"] == "throttle"]
+    start = meta["cycle_start_s"][1]
+    assert [r["cycle"] for r in throttle] == [1]  # appears in the cycle starting after 3 s
+    assert throttle[0]["size"] == pytest.approx(-30.0 - 0.01 * (start - 3.0))
+    rows = meta["nuisance_timeline"]
+    assert [r["ambient_c"] for r in rows] == pytest.approx([15.0, 15.0 + 20.0 * start / 3600])
+    assert rows[1]["payload_kg"] == {"PRESS": 1.5}
+    assert meta["nuisances"]["header_dips"]["rate_per_h"] == pytest.approx(60.0)
+    assert main(["faults"]) == 0
+    listing = capsys.readouterr().out
+    assert all(kind in listing for kind in FAULT_KINDS)
