@@ -25,8 +25,9 @@ catalogue that names them, their units and scales is :mod:`pneufdd.sim.faults`
   valve). :func:`cushion_engaged_kernel`, :func:`cushioned_exhaust_cv`.
 * **Regulator set-point drift**: :func:`regulator_outlet_pressure_kernel`.
 * **Ambient temperature** (nuisance): the gas laws take the temperature as it is; the
-  seal friction changes with it, :func:`lubricant_viscosity_ratio` (ASTM D341) for
-  the viscous term and :func:`seal_friction_temperature_factors` for all three.
+  seal friction changes with it, :func:`seal_friction_temperature_factors` (the
+  viscous term through the grease's viscosity, ASTM D341, and the seal film's
+  inverse hydrodynamics).
 * **Supply header dips** from other consumers (nuisance): :func:`header_dip_kernel`.
 
 References
@@ -275,9 +276,8 @@ def lubricant_viscosity_ratio(
         \\log_{10}\\log_{10}(\\nu + 0.7) = A - B \\log_{10} T
 
     (the Walther equation, :math:`\\nu` in mm^2/s, T in K) through the oil's
-    viscosities at 40 and 100 degC. The viscous term of eq. 4.14, ``C_vf v``, is the
-    shear of the grease film between seal and barrel, proportional to the viscosity
-    of the grease's base oil (Newton's law of viscosity).
+    viscosities at 40 and 100 degC: the base oil of the grease in the seal's film
+    (:func:`seal_friction_temperature_factors`).
 
     Parameters
     ----------
@@ -332,13 +332,17 @@ def seal_friction_temperature_factors(
 
         \\frac{F_{sf}(T)}{F_{sf}(T_r)} = \\frac{F_{cf}(T)}{F_{cf}(T_r)}
             = e^{\\alpha (T - T_r)}, \\qquad
-        \\frac{C_{vf}(T)}{C_{vf}(T_r)} = \\frac{\\nu(T)}{\\nu(T_r)}
+        \\frac{C_{vf}(T)}{C_{vf}(T_r)} = \\sqrt{\\frac{\\nu(T)}{\\nu(T_r)}}
 
     The breakaway and Coulomb terms follow the exponential law with coefficient
-    ``alpha`` (:data:`COULOMB_TEMPERATURE_COEFFICIENT`, an assumption); the viscous
-    term follows the base oil's viscosity (:func:`lubricant_viscosity_ratio`).
-    ``T_ref`` is the temperature at which the description's friction holds (its
-    ``temperature_c``).
+    ``alpha`` (:data:`COULOMB_TEMPERATURE_COEFFICIENT`, an assumption). The viscous
+    term is the shear of the grease film under the reciprocating seal: by the
+    inverse hydrodynamic theory of such seals (Blok 1963; Mueller and Nau, *Fluid
+    Sealing Technology*, 1998) the film is ``h ~ sqrt(eta U / (dp/dx)_max)`` thick, so
+    its shear force ``eta U / h`` grows as ``sqrt(eta U)``: at a given speed with the
+    square root of the base oil's viscosity (:func:`lubricant_viscosity_ratio`; the
+    twin keeps eq. 4.14's term linear in the speed). ``T_ref`` is the temperature at
+    which the description's friction holds (its ``temperature_c``).
 
     Parameters
     ----------
@@ -360,14 +364,14 @@ def seal_friction_temperature_factors(
     At 35 degC a seal described at 20 degC:
 
     >>> [round(f, 3) for f in seal_friction_temperature_factors(308.15, 293.15)]
-    [0.928, 0.465]
+    [0.928, 0.682]
     """
     if not (math.isfinite(coulomb_per_k) and abs(coulomb_per_k) <= 0.05):
         raise InputError(
             describe("friction change per kelvin", coulomb_per_k, "-0.05 to 0.05 [1/K]")
         )
     coulomb = math.exp(coulomb_per_k * (T - T_ref))
-    return coulomb, float(lubricant_viscosity_ratio(T, T_ref))
+    return coulomb, math.sqrt(float(lubricant_viscosity_ratio(T, T_ref)))
 
 
 @njit_inline
