@@ -50,6 +50,16 @@ The kernel releases the GIL (``nogil``): the diagnosis's simulation checks run
 independent explanations on several threads of one process
 (:mod:`pneufdd.diagnosis.localisation.check`).
 
+Faults beyond leaks (issue 34, ``docs/faults.md``; the laws in
+:mod:`pneufdd.physics.faults`) enter as parameters the caller sets between cycles
+(:mod:`pneufdd.sim.conditions`) and a few branches, each behind a flag computed once per
+cycle, so a run without them computes what it did before, bit for bit: a leaking piston
+seal couples the two chambers' implicit balances (solved as a pair, still linear in the
+manifold pressure), spool leaks add conductances beside the valve paths, a cushion
+throttles a chamber's exhaust over its zone, a valve's pilot lengthens its on-delay,
+faulty switches change what the PLC reads, the regulator takes a set-point offset and
+the supply air its own temperature.
+
 The PLC (section 3.2.3) runs every millisecond: a step starts by applying its
 valve commands, ends when all awaited switches (and its dwell timer) are
 satisfied, plus a random part of a scan time. Solenoids with an ``until``
@@ -407,6 +417,7 @@ def run_cycle(
             out_p[n_out, j] = p[j]
         for i in range(na):
             out_x[n_out, i] = x[i]
+            out_fpl[n_out, i] = 0.0  # summed over the sub-steps below
         out_vac[n_out] = ss[lay.SS_VAC]
         for s in range(ns):
             out_cmd[n_out, s] = cmd[s]
@@ -466,8 +477,6 @@ def run_cycle(
             out_fleak[n_out, c] = 0.0
         for q in range(4):
             out_fr[n_out, q] = 0.0
-        for i in range(na):
-            out_fpl[n_out, i] = 0.0
         p_start_m = p[1]
         dp_max = 0.0
         for sub in range(nsub):
