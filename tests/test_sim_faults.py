@@ -423,3 +423,18 @@ def test_simulate_command_records_faults_and_nuisances(tmp_path: Any, capsys: An
     assert main(["faults"]) == 0
     listing = capsys.readouterr().out
     assert all(kind in listing for kind in FAULT_KINDS)
+
+
+def test_docs_list_every_fault_kind_and_their_example_runs() -> None:
+    from pathlib import Path
+
+    from pneufdd.sim.faults import FAULT_KINDS
+
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "faults.md").read_text("utf-8")
+    for kind in FAULT_KINDS:
+        assert f"| `{kind}` |" in docs  # its row of the catalogue table
+    (example,) = docs.split("```python\n")[1:]
+    code = example.split("```")[0].replace("cycles=20", "cycles=2")
+    namespace: dict[str, Any] = {}
+    exec(compile(code, "docs/faults.md", "exec"), namespace)
+    assert namespace["rec"].metadata["fault_timeline"][0]["kind"] in FAULT_KINDS
