@@ -26,7 +26,7 @@ from typing import Any
 
 from pneufdd.errors import InputError, describe
 from pneufdd.sim.description import MachineDescription
-from pneufdd.sim.schedule import parse_duration
+from pneufdd.sim.schedule import check_life, check_unique, parse_duration
 
 __all__ = [
     "FAULT_KINDS",
@@ -343,17 +343,10 @@ class Fault:
         value, unit = parse_fault_size(self.kind, text, where)
         object.__setattr__(self, "size", value)
         object.__setattr__(self, "unit", unit)
-        if not (math.isfinite(self.start_s) and self.start_s >= 0):
-            raise InputError(describe(f"start time of {where} [s]", self.start_s, ">= 0"))
+        check_life(where, self.start_s, self.repair_s)
         if not math.isfinite(self.growth_per_s) or (not unit and self.growth_per_s != 0.0):
             raise InputError(
                 describe(f"growth of {where} [{unit or '-'}/s]", self.growth_per_s, "finite")
-            )
-        if self.repair_s is not None and not (
-            math.isfinite(self.repair_s) and self.repair_s > self.start_s
-        ):
-            raise InputError(
-                describe(f"repair time of {where} [s]", self.repair_s, f"> {self.start_s}")
             )
 
     @property
@@ -437,15 +430,8 @@ class FaultSchedule:
         self.faults: tuple[Fault, ...] = tuple(
             parse_fault(f) if isinstance(f, str) else f for f in items
         )
-        seen: set[tuple[str, str]] = set()
-        for fault in self.faults:
-            if not isinstance(fault, Fault):
-                raise InputError(describe("fault", fault, "Fault objects or 'LOC=KIND:SIZE' text"))
-            if fault.key in seen:
-                raise InputError(
-                    describe("fault given twice (location, kind)", fault.key, "once each")
-                )
-            seen.add(fault.key)
+        names = ("fault", "Fault objects or 'LOC=KIND:SIZE' text", "fault given twice")
+        check_unique(self.faults, Fault, lambda fault: fault.key, names)
 
     def active(self, time_s: float) -> list[tuple[Fault, float]]:
         """The faults present at ``time_s``, each with its size then."""
@@ -497,6 +483,18 @@ def _targets(machine: MachineDescription, target: str) -> list[str]:
     return ["supply"]
 
 
+def _keyed(items: Sequence[str], mark: str, option: str, form: str) -> dict[tuple[str, str], str]:
+    """``LOC=KIND<mark>VALUE`` options by ``(LOC, KIND)``."""
+    out: dict[tuple[str, str], str] = {}
+    for item in items:
+        loc, sep, rest = item.partition("=")
+        kind, marked, value = rest.rpartition(mark) if mark == "@" else rest.partition(mark)
+        if not sep or not marked or not value.strip() or not kind.strip():
+            raise InputError(describe(option, item, form))
+        out[(loc.strip(), kind.strip())] = value.strip()
+    return out
+
+
 def fault_schedule_from_options(
     faults: Sequence[str], growth: Sequence[str], repair: Sequence[str]
 ) -> FaultSchedule | None:
@@ -510,24 +508,8 @@ def fault_schedule_from_options(
     >>> round(f.size_at(3600.0), 6), f.size_at(7200.0)
     (-30.0, None)
     """
-    rates: dict[tuple[str, str], str] = {}
-    for item in growth:
-        loc, sep, rest = item.partition("=")
-        kind, colon, rate = rest.partition(":")
-        if not sep or not colon or not rate.strip():
-            raise InputError(
-                describe("--fault-growth", item, "LOC=KIND:RATE, e.g. DNC=friction:10/h")
-            )
-        rates[(loc.strip(), kind.strip())] = rate.strip()
-    repairs: dict[tuple[str, str], str] = {}
-    for item in repair:
-        head, at, when = item.partition("@")
-        loc, sep, kind = head.partition("=")
-        if not at or not sep or not when.strip():
-            raise InputError(
-                describe("--fault-repair", item, "LOC=KIND@TIME, e.g. DNC=friction@2h")
-            )
-        repairs[(loc.strip(), kind.strip())] = when.strip()
+    rates = _keyed(growth, ":", "--fault-growth", "LOC=KIND:RATE, e.g. DNC=friction:10/h")
+    repairs = _keyed(repair, "@", "--fault-repair", "LOC=KIND@TIME, e.g. DNC=friction@2h")
     parsed = []
     for item in faults:
         location, _, rest = item.partition("=")
