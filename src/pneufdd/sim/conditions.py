@@ -111,11 +111,12 @@ class RunConditions:
         self.nuisance_timeline: list[dict[str, Any]] = []
         self._edges = np.random.default_rng(_seed_sequence(seed, 1))
         dips = nuisances.header_dips if nuisances else None
-        self._dip_rng = np.random.default_rng(
-            _seed_sequence(dips.seed if dips and dips.seed is not None else seed, 2)
-        )
         self.dips: list[tuple[float, float, float]] = []
-        self._next_dip = float(self._dip_rng.exponential(1.0 / dips.rate_per_s)) if dips else 0.0
+        self._next_dip = 0.0
+        if dips is not None:
+            stream = _seed_sequence(dips.seed if dips.seed is not None else seed, 2)
+            self._dip_rng = np.random.default_rng(stream)
+            self._next_dip = float(self._dip_rng.exponential(1.0 / dips.rate_per_s))
         self._switch_faults_before = False
 
     # ------------------------------------------------------------------ per cycle

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -405,11 +404,19 @@ def run_simulation(
             run.cycle(cyc, specs, schedule, keep_outputs)
             if progress is not None:
                 progress(cyc + 1, cycles)
+        samples = int(state["istate"][lay.IS_SAMPLE])
+        # the schedules' ground truth, after the metadata a run without them has
+        ground_truth: dict[str, Any] = {}
+        if schedule is not None:
+            ground_truth["leak_schedule"] = schedule.as_metadata()
+            ground_truth["leak_timeline"] = run.timeline
+        if conditions is not None:
+            ground_truth.update(conditions.metadata(samples * SAMPLE_DT))
         result = _assemble(
             desc,
             sensors,
             run.pooled.truth,
-            int(state["istate"][lay.IS_SAMPLE]),
+            samples,
             plant,
             specs,
             run.chunks,
@@ -419,18 +426,11 @@ def run_simulation(
             seed,
             cycles,
             run.total_sub,
+            ground_truth,
         )
     finally:
         run.release()
-    meta: dict[str, Any] = {}
-    if schedule is not None:
-        meta = {"leak_schedule": schedule.as_metadata(), "leak_timeline": run.timeline}
-    if conditions is not None:
-        meta.update(conditions.metadata(float(result.time.size * SAMPLE_DT)))
-    if not meta:
-        return result
-    recording = result.recording.with_metadata({**result.recording.metadata, **meta})
-    return replace(result, recording=recording)
+    return result
 
 
 def _conditions(
@@ -606,6 +606,7 @@ def _assemble(
     seed: int | None,
     cycles: int,
     total_sub: int,
+    ground_truth: dict[str, Any],
 ) -> SimulationResult:
     # a description without sensors keeps the length its digital samples give
     n = samples if desc.sensors else sum(c["cmd"].shape[0] for c in chunks) * _DIGITAL_EVERY
@@ -638,6 +639,7 @@ def _assemble(
         "simulator": SIMULATOR_VERSION,
         "cycle_start_s": [float(t) for t in step_start[:, 0]],
         "step_names": [s.name for s in desc.steps],
+        **ground_truth,
     }
     recording = Recording.from_arrays(
         analog=analog,
