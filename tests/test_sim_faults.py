@@ -173,6 +173,11 @@ def test_throttle_change_sets_the_exhaust_path_by_the_series_rule(rig: MachineDe
     assert plant.cp[0, CP_CV_EXH] < healthy_exhaust
     assert plant.cp[1, CP_CV_EXH] == pytest.approx(healthy_exhaust)  # the other line
     assert plant.cp[0, CP_CV_FILL] == pytest.approx(plant.cp[1, CP_CV_FILL])  # check valve
+    # or set to a Cv: 0.075 is the same throttle 40 % closed
+    RunConditions(rig, plant, FaultSchedule(["DNC_A=throttle:0.075cv"]), None, 0).apply(
+        0, 0.0, None
+    )
+    assert plant.cp[0, CP_CV_EXH] == pytest.approx(expected, rel=1e-12)
 
 
 def test_throttle_slows_the_stroke_it_meters(rig: MachineDescription, healthy: Any) -> None:
@@ -373,6 +378,7 @@ def test_inactive_faults_and_empty_nuisances_leave_the_run_bit_identical() -> No
         (["DNC=friction:+10%", "DNC=friction:+20%"], "given twice"),
         (["DNC=friction:-200N"], "forces >= 0"),
         (["supply=regulator:-0.3bar@-5s"], "time of"),
+        (["DNC_A=throttle:0cv"], "size of a throttle fault"),
     ],
 )
 def test_bad_faults_are_refused_before_any_run(
@@ -380,6 +386,11 @@ def test_bad_faults_are_refused_before_any_run(
 ) -> None:
     with pytest.raises(InputError, match=message):
         run_simulation(rig, cycles=1, seed=0, faults=faults)
+
+
+def test_a_kind_without_size_refuses_one() -> None:
+    with pytest.raises(InputError, match="a kind without size"):
+        Fault("S_DNC_B", "stuck-on", 3.0)
 
 
 def test_mass_balance_with_every_internal_fault(rig: MachineDescription) -> None:

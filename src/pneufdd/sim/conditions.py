@@ -259,7 +259,7 @@ class RunConditions:
             line = self.lines[c]
             meter, cushion = changed.get(c, (line.meter, line.cushion))
             if fault.kind == "throttle":
-                meter = float(throttled_cv(line.meter, size))
+                meter = size if fault.unit == "Cv" else float(throttled_cv(line.meter, size))
             else:
                 cushion = size if fault.unit == "Cv" else float(throttled_cv(line.cushion, size))
                 i = c // 2

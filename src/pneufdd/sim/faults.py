@@ -134,11 +134,11 @@ FAULT_KINDS: dict[str, FaultKind] = {
             "section 6.2 (1); eq. 4.3",
         ),
         FaultKind(
-            "throttle", "throttle", "line", "%", ("%",), -95.0, 400.0, (-30.0, -60.0),
+            "throttle", "throttle", "line", "%", ("%", "Cv"), -95.0, 400.0, (-30.0, -60.0),
             "the line's meter-out throttle (one-way flow control, section 3.2.3) passes "
-            "(1 + size/100) times its commissioned Cv: a screw turned in or a clogged "
-            "needle (< 0), turned out (> 0); the exhaust path follows the series rule, "
-            "filling is unchanged (the check valve)",
+            "(1 + size/100) times its commissioned Cv (or is set to size Cv): a screw "
+            "turned in or a clogged needle (< 0), turned out (> 0); the exhaust path "
+            "follows the series rule, filling is unchanged (the check valve)",
             "pneufdd.physics.faults.throttled_cv, pneufdd.physics.flow.series_cv (eq. 4.6)",
             "section 3.2.3; eq. 4.6 (linear in Cv)",
         ),
@@ -293,6 +293,8 @@ def _range(spec: FaultKind, unit: str) -> tuple[float, float]:
         return -1e6, 1e6
     if spec.name == "cushion" and unit == "%":
         return -95.0, 400.0
+    if spec.name == "throttle" and unit == "Cv":
+        return 1e-4, 50.0
     return spec.low, spec.high
 
 
@@ -339,6 +341,10 @@ class Fault:
         spec = FAULT_KINDS.get(self.kind)
         if spec is None:
             raise InputError(describe(f"{where}: fault kind", self.kind, sorted(FAULT_KINDS)))
+        if not spec.unit and (self.size != 0.0 or self.unit):
+            raise InputError(
+                describe(f"{where}: size", f"{self.size}{self.unit}", "none (a kind without size)")
+            )
         text = f"{self.size!r}{self.unit or spec.unit}" if spec.unit else None
         value, unit = parse_fault_size(self.kind, text, where)
         object.__setattr__(self, "size", value)
