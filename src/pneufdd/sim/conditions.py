@@ -12,6 +12,7 @@ one, so its arrays and its recording are those of a twin without this module.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,7 +35,7 @@ from pneufdd.sim.description import MachineDescription
 from pneufdd.sim.faults import FAULT_KINDS, Fault, FaultSchedule
 from pneufdd.sim.nuisances import Nuisances
 
-__all__ = ["RunConditions"]
+__all__ = ["RunConditions", "check_conditions", "prepare"]
 
 _SP = [lay.SP_REG_OFFSET, lay.SP_T_WALL, lay.SP_T_SUPPLY, lay.SP_VSW_MODE, lay.SP_VSW_PARAM]
 _AP = [
@@ -343,3 +344,39 @@ def check_conditions(
         if math.isfinite(fault.size) and fault.kind == "friction" and fault.unit == "N":
             act = desc.actuators[desc.actuator_ids.index(fault.location)]
             worn_friction(act.static_friction_n, act.coulomb_friction_n, 0.0, fault.size)
+
+
+def prepare(
+    desc: MachineDescription,
+    plant: Plant,
+    faults: FaultSchedule | Iterable[Fault | str] | None,
+    nuisances: Nuisances | None,
+    seed: int | None,
+) -> RunConditions | None:
+    """A run's faults and nuisances, checked and applied to ``plant`` for its start.
+
+    The ambient temperature and a regulator drift at t = 0 set the initial state's
+    temperature and pressures (:func:`pneufdd.sim.compile.initial_state`). None when
+    there are none (an empty list of faults is none).
+
+    Raises
+    ------
+    InputError
+        For faults or nuisances that do not fit ``desc`` (:func:`check_conditions`).
+    """
+    from pneufdd.errors import InputError, describe
+
+    schedule = faults if isinstance(faults, FaultSchedule) or faults is None else None
+    if schedule is None and faults is not None:
+        schedule = FaultSchedule(faults)  # type: ignore[arg-type]
+    if schedule is not None and not schedule.faults:
+        schedule = None
+    if nuisances is not None and not isinstance(nuisances, Nuisances):
+        raise InputError(describe("nuisances", nuisances, "a pneufdd.sim.nuisances.Nuisances"))
+    if schedule is None and nuisances is None:
+        return None
+    check_conditions(desc, schedule, nuisances)
+    conditions = RunConditions(desc, plant, schedule, nuisances, seed)
+    conditions.apply(0, 0.0, None)
+    plant.t_wall = float(plant.sp[lay.SP_T_WALL])
+    return conditions

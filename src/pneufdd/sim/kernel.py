@@ -417,6 +417,7 @@ def run_cycle(
             out_p[n_out, j] = p[j]
         for i in range(na):
             out_x[n_out, i] = x[i]
+        for i in range(na if has_pl else 0):  # without: not written (the caller knows)
             out_fpl[n_out, i] = 0.0  # summed over the sub-steps below
         out_vac[n_out] = ss[lay.SS_VAC]
         for s in range(ns):
@@ -520,34 +521,56 @@ def run_cycle(
                         p[1], p[j], cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT], temp[1], temp[j]
                     )
                 elif conn[c] == 2:
-                    cv_e = cp[c, lay.CP_CV_EXH]
-                    i = c // 2
-                    if has_cush and cushion_engaged_kernel(
-                        x[i], ap[i, lay.AP_STROKE], ap[i, lay.AP_CUSH_LEN], float(c % 2)
-                    ):
-                        cv_e = cp[c, lay.CP_CV_CUSH]
-                    g_exh[c] = _isa_g(p[j], P_ATM, cv_e, cp[c, lay.CP_XT], temp[j], t_wall)
+                    g_exh[c] = _isa_g(
+                        p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], temp[j], t_wall
+                    )
                 g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, lay.CP_LEAK], temp[j], t_wall)
-                if has_spool:  # a worn spool: supply -> port and port -> exhaust
-                    g_fill[c] += _orifice_g(p[1], p[j], cp[c, lay.CP_SPOOL_IN], temp[1], temp[j])
-                    g_exh[c] += _orifice_g(p[j], P_ATM, cp[c, lay.CP_SPOOL_OUT], temp[j], t_wall)
-            for q in range(n_aw):
+            # faults (issue 34), in loops of their own so that the loops above and
+            # below stay those of a run without them: a cushion throttling an exhaust,
+            # a worn spool (supply -> port, port -> exhaust)
+            for q in range(n_aw if has_cush or has_spool else 0):
+                c = aw[q]
+                j = 2 + c
+                i = c // 2
+                if (
+                    has_cush
+                    and conn[c] == 2
+                    and cushion_engaged_kernel(
+                        x[i], ap[i, lay.AP_STROKE], ap[i, lay.AP_CUSH_LEN], float(c % 2)
+                    )
+                ):
+                    cv_e = cp[c, lay.CP_CV_CUSH]
+                    g_exh[c] = _isa_g(p[j], P_ATM, cv_e, cp[c, lay.CP_XT], temp[j], t_wall)
+                g_fill[c] += _orifice_g(p[1], p[j], cp[c, lay.CP_SPOOL_IN], temp[1], temp[j])
+                g_exh[c] += _orifice_g(p[j], P_ATM, cp[c, lay.CP_SPOOL_OUT], temp[j], t_wall)
+            for q in range(0 if has_pl else n_aw):
+                c = aw[q]
+                j = 2 + c
+                a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
+                s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
+                den = a_c + g_fill[c] + g_exh[c] + g_leak[c]
+                alpha[c] = (a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM) / den
+                beta[c] = g_fill[c] / den
+                lhs_m += g_fill[c] * (1.0 - beta[c])
+                rhs_m += g_fill[c] * alpha[c]
+            # a leaking piston seal joins chambers A and B: their two balances are
+            # solved together, still linear in the manifold pressure (the same loop as
+            # above, its leaking pairs kept for the pair solution)
+            for q in range(n_aw if has_pl else 0):
                 c = aw[q]
                 j = 2 + c
                 a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
                 s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
                 den = a_c + g_fill[c] + g_exh[c] + g_leak[c]
                 num = a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM
-                if has_pl and ap[c // 2, lay.AP_PISTON_LEAK] > 0.0:
-                    alpha[c] = num  # kept for the pair's solution below
+                if ap[c // 2, lay.AP_PISTON_LEAK] > 0.0:
+                    alpha[c] = num
                     beta[c] = den
                     continue
                 alpha[c] = num / den
                 beta[c] = g_fill[c] / den
                 lhs_m += g_fill[c] * (1.0 - beta[c])
                 rhs_m += g_fill[c] * alpha[c]
-            # a leaking piston seal joins chambers A and B: their two balances are
-            # solved together, still linear in the manifold pressure
             for i in range(na if has_pl else 0):
                 if ap[i, lay.AP_PISTON_LEAK] <= 0.0:
                     continue

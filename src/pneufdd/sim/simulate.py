@@ -309,7 +309,10 @@ class _CycleLoop:
         if cyc == 0:  # before the run's buffers are sized from its first cycle
             _check_run_memory(self.cycles, expected, self.n_sensors, self.n_recorded)
         store = self.pooled.truth_store(self.n_recorded, k_start, done, expected)
-        self.chunks.append(_take(self.truth_sources, self.buf, n, k_start, keep_outputs, store))
+        piston_leak = bool(np.any(self.plant.ap[:, lay.AP_PISTON_LEAK] > 0.0))
+        self.chunks.append(
+            _take(self.truth_sources, self.buf, n, k_start, keep_outputs, store, piston_leak)
+        )
 
 
 def _check_run_memory(cycles: int, samples: int, n_sensors: int, n_recorded: int) -> None:
@@ -440,31 +443,13 @@ def _conditions(
     nuisances: Nuisances | None,
     seed: int | None,
 ) -> RunConditions | None:
-    """The run's faults and nuisances, checked and applied for its start (None: none).
-
-    The ambient temperature and a regulator drift at t = 0 set the initial state's
-    temperature and pressures (:func:`pneufdd.sim.compile.initial_state`).
-    """
+    """The run's faults and nuisances, set for its start (None: none; a plain run does not
+    import them, nor numba on the prebuilt twin): :func:`pneufdd.sim.conditions.prepare`."""
     if faults is None and nuisances is None:
-        return None  # a plain run does not import them (nor numba, on the prebuilt twin)
-    from pneufdd.sim.conditions import RunConditions, check_conditions
-    from pneufdd.sim.faults import FaultSchedule
-    from pneufdd.sim.nuisances import Nuisances
-
-    schedule = faults if isinstance(faults, FaultSchedule) or faults is None else None
-    if schedule is None and faults is not None:
-        schedule = FaultSchedule(faults)  # type: ignore[arg-type]
-    if schedule is not None and not schedule.faults:
-        schedule = None
-    if nuisances is not None and not isinstance(nuisances, Nuisances):
-        raise InputError(describe("nuisances", nuisances, "a pneufdd.sim.nuisances.Nuisances"))
-    if schedule is None and nuisances is None:
         return None
-    check_conditions(desc, schedule, nuisances)
-    conditions = RunConditions(desc, plant, schedule, nuisances, seed)
-    conditions.apply(0, 0.0, None)
-    plant.t_wall = float(plant.sp[lay.SP_T_WALL])
-    return conditions
+    from pneufdd.sim.conditions import prepare
+
+    return prepare(desc, plant, faults, nuisances, seed)
 
 
 def _records(
@@ -529,6 +514,7 @@ def _take(
     k0: int,
     keep: bool,
     store: npt.NDArray[np.float64],
+    piston_leak: bool = False,
 ) -> dict[str, npt.NDArray[Any]]:
     """Copy what one cycle produced out of the reusable buffers.
 
@@ -547,8 +533,10 @@ def _take(
     chunk["cmd"] = buf.cmd[first:n:_DIGITAL_EVERY].copy()
     chunk["sw"] = buf.sw[first:n:_DIGITAL_EVERY].copy()
     if keep:
-        for k in ("p", "x", "fch", "fexh", "fr", "vac", "fleak", "cum", "mass", "step", "fpl"):
+        for k in ("p", "x", "fch", "fexh", "fr", "vac", "fleak", "cum", "mass", "step"):
             chunk[k] = getattr(buf, k)[:n].copy()
+        # the kernel writes the piston-seal flows only when a seal leaks (issue 34)
+        chunk["fpl"] = buf.fpl[:n].copy() if piston_leak else np.zeros((n, buf.fpl.shape[1]))
     return chunk
 
 
