@@ -153,7 +153,12 @@ class RunConditions:
         self._exhaust_paths(active)
         if state is not None:
             self.fault_timeline += rows
-        switch_faults = any(FAULT_KINDS[f.kind].target == "switch" for f, _ in active)
+        # switch faults the kernel acts on this cycle (a missing edge not drawn is none):
+        # the kernel keeps the switches' edge times only while there are some
+        switch_faults = bool(
+            np.any(plant.cp[:, lay.CP_SW_MODE] != lay.SW_OK)
+            or plant.sp[lay.SP_VSW_MODE] != lay.SW_OK
+        )
         if switch_faults and not self._switch_faults_before and state is not None:
             vac = np.zeros(plant.n_switches - 2 * len(desc.actuators))
             if vac.size:
