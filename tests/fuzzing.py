@@ -1147,6 +1147,17 @@ def build_simulate(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
         ("max_cycle_s_nan", ["--max-cycle-s", "nan"], ("--max-cycle-s",)),
         ("max_cycle_s_zero", ["--max-cycle-s", "0"], ("--max-cycle-s",)),
         ("max_cycle_s_stall", ["--max-cycle-s", "0.2"], ("max_cycle_s",)),
+        ("fault_unknown_kind", ["--fault", "supply=wobble:3"], ("wobble",)),
+        ("fault_nan_size", ["--fault", "supply=regulator:nanbar"], ("regulator",)),
+        ("fault_unknown_location", ["--fault", "NOWHERE=friction:10%"], ("NOWHERE",)),
+        ("fault_growth_orphan", ["--fault-growth", "supply=regulator:1/h"], ("--fault-growth",)),
+        ("ambient_500C", ["--ambient", "500C"], ("500",)),
+        ("payload_unknown_actuator", ["--payload", "NOWHERE=1kg"], ("NOWHERE",)),
+        (
+            "header_dips_rate_1e9",
+            ["--header-dips", "depth=0.3bar,duration=2s,rate=1e9/h"],
+            ("header dip rate",),
+        ),
     ):
         argv = ["simulate", "--machine", MACHINE, "--out", f"o{len(cases)}.parquet", *extra]
         # any seed >= 0 is a seed: a 26-digit one simulates like any other
@@ -1171,6 +1182,14 @@ def build_machines(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
     return [
         Case("machines/list", "machines", ["machines"], folder, [], [], frozenset({EXIT_OK})),
         Case("machines/extra_arg", "machines", ["machines", "x"], folder, [], [], mentions=("x",)),
+    ]
+
+
+def build_faults(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "faults")
+    return [
+        Case("faults/list", "faults", ["faults"], folder, [], [], frozenset({EXIT_OK})),
+        Case("faults/extra_arg", "faults", ["faults", "x"], folder, [], [], mentions=("x",)),
     ]
 
 
@@ -1723,6 +1742,7 @@ BUILDERS: dict[str, Builder] = {
     "diagnose": build_diagnose,
     "simulate": build_simulate,
     "machines": build_machines,
+    "faults": build_faults,
     "machine vary": build_machine_vary,
     "history": build_history,
     "monitor": build_monitor,

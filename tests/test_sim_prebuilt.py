@@ -42,8 +42,15 @@ import numpy as np
 from pneufdd.sim import run_simulation
 from pneufdd.sim.prebuilt import compiled_twin
 
-leaks = json.loads(sys.argv[1])
-result = run_simulation("festo-dsd", cycles=2, leaks=leaks or None, seed=11)
+case = json.loads(sys.argv[1])
+extra = {}
+if case.get("faults"):
+    extra["faults"] = case["faults"]
+if case.get("ambient"):
+    from pneufdd.sim.nuisances import nuisances_from_options
+    options = (case["ambient"], None, case["payload"], case["dips"])
+    extra["nuisances"] = nuisances_from_options(*options)
+result = run_simulation("festo-dsd", cycles=2, leaks=case.get("leaks") or None, seed=11, **extra)
 digests = {}
 for name in result.recording.channels:
     time, values = result.recording.channel(name)
@@ -68,11 +75,11 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return directory
 
 
-def _run(directory: Path, leaks: dict[str, Any], prebuilt: bool) -> dict[str, Any]:
+def _run(directory: Path, case: dict[str, Any], prebuilt: bool) -> dict[str, Any]:
     env = dict(os.environ, PNEUFDD_PREBUILT_DIR=str(directory))
     env["PNEUFDD_PREBUILT"] = "1" if prebuilt else "0"
     done = subprocess.run(
-        [sys.executable, "-c", _RUN, json.dumps(leaks)],
+        [sys.executable, "-c", _RUN, json.dumps(case)],
         env=env,
         capture_output=True,
         text=True,
@@ -82,17 +89,33 @@ def _run(directory: Path, leaks: dict[str, Any], prebuilt: bool) -> dict[str, An
     return result
 
 
-@pytest.mark.parametrize("leaks", [{}, {"DNC_B": 3}, {"supply": "30slpm", "DNC_A": "1.2mm"}])
-def test_prebuilt_twin_records_what_the_jit_records(built: Path, leaks: dict[str, Any]) -> None:
-    prebuilt = _run(built, leaks, prebuilt=True)
-    jit = _run(built, leaks, prebuilt=False)
+_FAULTS = {
+    "faults": [
+        "DNC=piston-leak:15slpm", "DNC_B=valve-leak-in:5slpm", "DNC_A=throttle:-30%",
+        "DRQD=friction:+40%", "DGPL=valve-pilot:4.5bar", "DNC_B=cushion:0.02cv",
+        "S_SLT_B=late:30ms", "supply=regulator:-0.2bar",
+    ],
+    "ambient": "15C..35C/30s",
+    "payload": ["DNC=+1kg@10s"],
+    "dips": "depth=2bar,duration=2s,rate=360/h,seed=2",
+}  # fmt: skip
+"""Every fault's and nuisance's branch of the kernel at once (issue 34)."""
+
+
+@pytest.mark.parametrize(
+    "case",
+    [{}, {"leaks": {"DNC_B": 3}}, {"leaks": {"supply": "30slpm", "DNC_A": "1.2mm"}}, _FAULTS],
+)
+def test_prebuilt_twin_records_what_the_jit_records(built: Path, case: dict[str, Any]) -> None:
+    prebuilt = _run(built, case, prebuilt=True)
+    jit = _run(built, case, prebuilt=False)
     assert prebuilt["origin"] == str(prebuilt_path(built))
     assert jit["origin"] == "jit"
     assert len(prebuilt["digests"]) > 40  # 2 x 2 x 6 + supply channels, outputs, strokes
     assert prebuilt["digests"] == jit["digests"]
     # without a leak the prebuilt twin's process never imports numba, and no call fell
     # back to the JIT's kernel (its arguments had the layout the module is typed for)
-    assert prebuilt["numba"] is (len(leaks) > 0)
+    assert prebuilt["numba"] is (len(case) > 0)
     assert prebuilt["kernel"] is False
     assert jit["numba"] is True
 

@@ -407,3 +407,27 @@ def test_cli_bad_seed_and_machine(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert main(["machine", "vary", "no-such-rig", "--out", str(out)]) == 2
     assert "no-such-rig" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_cushion_screws_vary_where_described_and_leave_other_draws() -> None:
+    # issue 34: a described PPV cushioning's two screws are set by hand (+-50 %); a
+    # description without cushioning stays without, and adding one moves no other draw
+    import copy
+
+    from pneufdd.sim import load_machine, parse_description, vary_machine
+
+    twin = load_machine("festo-dsd")
+    raw = copy.deepcopy(twin.raw)
+    raw["actuator"][0].update(cushion_length_mm=20.0, cushion_cv=0.03)
+    cushioned = parse_description(raw, "festo-dsd with PPV")
+    plant = vary_machine(cushioned, scale=1.0, seed=11)
+    dnc = plant.actuators[0]
+    assert dnc.cushion_length_mm == 20.0
+    for cv in (dnc.cushion_cv_a, dnc.cushion_cv_b):
+        assert 0.03 / 1.5 <= cv <= 0.03 * 1.5
+    assert dnc.cushion_cv_a != dnc.cushion_cv_b
+    plain = vary_machine(twin, scale=1.0, seed=11)
+    assert plain.actuators[0].cushion_length_mm == 0.0
+    assert plain.actuators[1:] == plant.actuators[1:]
+    assert plain.actuators[0].valve == dnc.valve
+    assert vary_machine(cushioned, scale=0.0, seed=11).actuators[0].cushion_cv_a == 0.03

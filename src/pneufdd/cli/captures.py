@@ -117,6 +117,8 @@ def write_field_recordings(
     out: Path,
     overwrite: bool,
     progress: Callable[[int, int], None] | None,
+    faults: Any = None,
+    nuisances: Any = None,
 ) -> list[Path]:
     """Simulate and write the captures into the folder ``out`` (``capture_0001.parquet``, ...).
 
@@ -149,6 +151,8 @@ def write_field_recordings(
         max_cycle_s=max_cycle_s,
         progress=progress,
         schedule=schedule,
+        faults=faults,
+        nuisances=nuisances,
     )
     out.mkdir(parents=True, exist_ok=True)
     written = []
@@ -168,6 +172,8 @@ def simulate_continuous(
     progress: Callable[[int, int], None] | None,
     max_cycle_s: float,
     schedule: Any,
+    faults: Any = None,
+    nuisances: Any = None,
 ) -> Recording:
     """One continuous run, started in mid-sequence and quantised as ``options`` ask."""
     from pneufdd.sim import run_simulation
@@ -183,6 +189,8 @@ def simulate_continuous(
         keep_outputs=False,
         max_cycle_s=max_cycle_s,
         schedule=schedule,
+        faults=faults,
+        nuisances=nuisances,
     )
     recording = result.recording
     if options.start_in_step is not None:

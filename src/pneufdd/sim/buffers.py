@@ -49,6 +49,7 @@ class OutputBuffers:
         self.ev_dir = np.zeros(n_ev, dtype=np.int64)
         self.ev_t0 = np.zeros((n_ev, 2))
         self.ev_t1 = np.zeros(n_ev)
+        self.fpl = np.empty((n, na))
         self.truth = np.empty((0, 0))
 
     def truth_store(

@@ -265,6 +265,8 @@ def simulate_captures(
     max_cycle_s: float = 120.0,
     progress: Any = None,
     schedule: Any = None,
+    faults: Any = None,
+    nuisances: Any = None,
 ) -> list[Recording]:
     """Simulate a machine and cut the run into ``files`` triggered captures.
 
@@ -292,6 +294,8 @@ def simulate_captures(
             keep_outputs=False,
             max_cycle_s=max_cycle_s,
             schedule=schedule,
+            faults=faults,
+            nuisances=nuisances,
         )
         caps = cut_captures(
             result.recording,

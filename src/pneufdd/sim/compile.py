@@ -9,6 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.physics.constants import KELVIN_OFFSET, PSI, R_AIR
+from pneufdd.physics.restrictions import series_cv
 from pneufdd.physics.units import psig_to_pa
 from pneufdd.sim import layout as lay
 from pneufdd.sim.description import Actuator, MachineDescription, solenoid_slots
@@ -62,17 +63,6 @@ def tube_cv(length_m: float, inner_diameter_mm: float) -> float:
     d_in = inner_diameter_mm / 25.4
     k = TUBE_FRICTION_FACTOR * length_m / (inner_diameter_mm * 1e-3) + TUBE_MINOR_LOSS
     return 29.9 * d_in**2 / math.sqrt(k)
-
-
-def series_cv(*cvs: float) -> float:
-    """Flow coefficient of restrictions in series, ``1/Cv^2 = sum 1/Cv_i^2``.
-
-    Examples
-    --------
-    >>> round(series_cv(0.4, 0.3), 3)
-    0.24
-    """
-    return 1.0 / math.sqrt(sum(1.0 / c**2 for c in cvs))
 
 
 @dataclass
@@ -149,6 +139,7 @@ def compile_plant(
     sp[lay.SP_V_MAN] = s.manifold_volume_l * 1e-3
     sp[lay.SP_TAU_TH] = s.thermal_time_s
     sp[lay.SP_T_WALL] = t_wall
+    sp[lay.SP_T_SUPPLY] = t_wall  # the supply air at the ambient temperature
     sp[lay.SP_SCAN] = machine.scan_time_s
     sp[lay.SP_WINDOW] = machine.switch_window_mm * 1e-3
     sp[lay.SP_OU_DT] = 0.1
@@ -182,18 +173,24 @@ def compile_plant(
         ap[i, lay.AP_AROD] = rod
         ap[i, lay.AP_ON_DELAY] = a.valve.on_delay_s
         ap[i, lay.AP_OFF_DELAY] = a.valve.off_delay_s
+        ap[i, lay.AP_CUSH_LEN] = a.cushion_length_mm * 1e-3
         vkind[i] = _VALVE_KIND[a.valve.kind]
         tube = tube_cv(a.tube_length_m, a.tube_inner_diameter_mm)
         tube_vol = math.pi * (a.tube_inner_diameter_mm * 1e-3) ** 2 / 4 * a.tube_length_m
-        for side, area, dead, meter in (
-            (0, area_a, a.dead_volume_a_cm3, a.meter_out_cv_a),
-            (1, area_b, a.dead_volume_b_cm3, a.meter_out_cv_b),
+        for side, area, dead, meter, cushion in (
+            (0, area_a, a.dead_volume_a_cm3, a.meter_out_cv_a, a.cushion_cv_a),
+            (1, area_b, a.dead_volume_b_cm3, a.meter_out_cv_b, a.cushion_cv_b),
         ):
             c = 2 * i + side
             cp[c, lay.CP_AREA] = area
             cp[c, lay.CP_DEAD] = dead * 1e-6 + tube_vol
             cp[c, lay.CP_CV_FILL] = series_cv(a.valve.cv, tube)
             cp[c, lay.CP_CV_EXH] = series_cv(a.valve.cv, tube, meter)
+            cp[c, lay.CP_CV_CUSH] = (
+                series_cv(a.valve.cv, tube, meter, cushion)
+                if cushion > 0.0
+                else cp[c, lay.CP_CV_EXH]
+            )
             cp[c, lay.CP_XT] = a.valve.xt
             cp[c, lay.CP_LEAK] = leak_by_loc.get(f"{a.id}_{'AB'[side]}", 0.0)
             cp[c, lay.CP_TAU_TH] = a.thermal_time_s
@@ -254,7 +251,8 @@ def initial_state(machine: MachineDescription, plant: Plant) -> dict[str, F64 | 
     """
     na = len(machine.actuators)
     nn = 2 + 2 * na
-    p_set = plant.sp[lay.SP_P_SET]
+    # a drifted regulator (a fault of issue 34) holds its own pressure
+    p_set = plant.sp[lay.SP_P_SET] + plant.sp[lay.SP_REG_OFFSET]
     p_atm = 101_325.0
     t_wall = plant.t_wall
     x = np.zeros(na)
@@ -294,4 +292,21 @@ def initial_state(machine: MachineDescription, plant: Plant) -> dict[str, F64 | 
         "cum": np.zeros(lay.CM_SIZE),
         "mv_t0": np.tile(np.array([-1.0, -1.0, 0.0, 1.0]), (na, 1)),
         "mv_dir": np.zeros(na, dtype=np.int64),
+        "sw_t": switch_edge_times(plant, x, np.zeros(plant.n_switches - 2 * na)),
     }
+
+
+def switch_edge_times(plant: Plant, x: F64, vacuum_switch: F64) -> F64:
+    """``State.sw_t`` of switches that have been in their state for a long time.
+
+    A switch whose piston is at its end closed long ago (-1e9 s); one whose piston is
+    away has no rising edge pending (:data:`pneufdd.sim.layout.SW_OFF`). ``x`` are the
+    piston positions [m], ``vacuum_switch`` the vacuum switch's reading (0 or 1; empty
+    without a vacuum).
+    """
+    window = plant.sp[lay.SP_WINDOW]
+    closed = []
+    for i in range(x.size):
+        closed += [x[i] <= window, x[i] >= plant.ap[i, lay.AP_STROKE] - window]
+    closed += [bool(v) for v in vacuum_switch]
+    return np.where(np.array(closed, dtype=bool).reshape(-1), -1e9, lay.SW_OFF)

@@ -204,6 +204,9 @@ class Actuator:
     meter_out_cv_b: float
     initial: str
     valve: Valve
+    cushion_length_mm: float = 0.0
+    cushion_cv_a: float = 0.0
+    cushion_cv_b: float = 0.0
 
     @property
     def drafted(self) -> bool:
@@ -400,6 +403,7 @@ def _actuator(r: _Reader) -> Actuator:
     meter_out = r.number("meter_out_cv", 0.0, low=0.0, high=50.0)
     if 0.0 < meter_out < MIN_CV:  # 0: no flow control (the line alone)
         raise r.fail("meter_out_cv", meter_out, f"0 (none) or from {MIN_CV:g} to 50")
+    cushion = _cushion(r, stroke)
     act = Actuator(
         id=ident,
         kind=kind,
@@ -420,6 +424,9 @@ def _actuator(r: _Reader) -> Actuator:
         meter_out_cv_b=r.number("meter_out_cv_b", meter_out or 50.0, low=MIN_CV, high=50.0),
         initial=r.text("initial", "retracted", choices=("retracted", "extended")),
         valve=_valve(r.table("valve")),
+        cushion_length_mm=cushion[0],
+        cushion_cv_a=cushion[1],
+        cushion_cv_b=cushion[2],
     )
     if act.valve.kind == "5/2-monostable" and act.initial != "retracted":
         raise r.fail(
@@ -430,6 +437,20 @@ def _actuator(r: _Reader) -> Actuator:
         )
     r.finish()
     return act
+
+
+def _cushion(r: _Reader, stroke_mm: float) -> tuple[float, float, float]:
+    """End-position cushioning (Festo PPV): length [mm], screw Cv of the A and B ends."""
+    length = r.number("cushion_length_mm", 0.0, low=0.0, high=stroke_mm / 2.0)
+    both = r.number("cushion_cv", 0.0, low=0.0, high=50.0)
+    cvs = [r.number(f"cushion_cv_{side}", both, low=0.0, high=50.0) for side in "ab"]
+    if length > 0.0 and min(cvs) < MIN_CV:
+        raise r.fail(
+            "cushion_cv", both, f"from {MIN_CV:g} to 50 on both ends with cushion_length_mm > 0"
+        )
+    if length == 0.0 and max(cvs) > 0.0:
+        raise r.fail("cushion_length_mm", length, "> 0 [mm] when a cushion_cv is given")
+    return length, cvs[0], cvs[1]
 
 
 def _vacuum(r: _Reader) -> Vacuum:

@@ -50,6 +50,16 @@ The kernel releases the GIL (``nogil``): the diagnosis's simulation checks run
 independent explanations on several threads of one process
 (:mod:`pneufdd.diagnosis.localisation.check`).
 
+Faults beyond leaks (issue 34, ``docs/faults.md``; the laws in
+:mod:`pneufdd.physics.faults`) enter as parameters the caller sets between cycles
+(:mod:`pneufdd.sim.conditions`) and a few branches, each behind a flag computed once per
+cycle, so a run without them computes what it did before, bit for bit: a leaking piston
+seal couples the two chambers' implicit balances (solved as a pair, still linear in the
+manifold pressure), spool leaks add conductances beside the valve paths, a cushion
+throttles a chamber's exhaust over its zone, a valve's pilot lengthens its on-delay,
+faulty switches change what the PLC reads, the regulator takes a set-point offset and
+the supply air its own temperature.
+
 The PLC (section 3.2.3) runs every millisecond: a step starts by applying its
 valve commands, ends when all awaited switches (and its dwell timer) are
 satisfied, plus a random part of a scan time. Solenoids with an ``until``
@@ -64,7 +74,6 @@ import math
 import numpy as np
 from numba import njit
 
-from pneufdd.array_types import FloatArray, IntArray
 from pneufdd.physics.chamber import (
     chamber_energy_step_kernel,
     chamber_pressure_kernel,
@@ -72,11 +81,22 @@ from pneufdd.physics.chamber import (
     enthalpy_flow_kernel,
 )
 from pneufdd.physics.constants import GAMMA_AIR, P_ATM, R_AIR
+from pneufdd.physics.faults import (
+    PILOT_MIN_NOMINAL_PA,
+    cushion_engaged_kernel,
+    pilot_delay_factor_kernel,
+    regulator_outlet_pressure_kernel,
+)
 from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
 from pneufdd.physics.friction import friction_force_kernel, piston_net_force_kernel
 from pneufdd.sim import layout as lay
 from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
+from pneufdd.sim.signal_kernels import (
+    first_order_recursion_kernel,
+    sensor_reading_kernel,
+    truth_rows_kernel,
+)
 
 __all__ = [
     "SAMPLE_DT",
@@ -171,10 +191,10 @@ def run_cycle(
     act_start, act_sol, act_mode, act_sw, act_dur, wait_start, wait_sw, wait_val, dwell = program
     jitter, fric, ou = draws
     m, temp, x, v, stuck, spool, cmd, eff, chg, rel_sw, rel_t, ss, istate, cum = state[:14]
-    mv_t0, mv_dir = state.mv_t0, state.mv_dir
+    mv_t0, mv_dir, sw_t = state.mv_t0, state.mv_dir, state.sw_t
     out_p, out_x, out_vac, out_fch, out_fexh, out_fleak, out_fr, out_cum = out[:8]
     out_mass, out_cmd, out_sw, out_step, step_t = out[8:13]
-    ev_act, ev_dir, ev_t0, ev_t1 = out.ev_act, out.ev_dir, out.ev_t0, out.ev_t1
+    ev_act, ev_dir, ev_t0, ev_t1, out_fpl = out.ev_act, out.ev_dir, out.ev_t0, out.ev_t1, out.fpl
     na = x.size
     nc = 2 * na
     nn = 2 + nc
@@ -211,6 +231,22 @@ def run_cycle(
     alpha = np.zeros(nc)
     beta = np.zeros(nc)
     sw = np.zeros(nsw, dtype=np.uint8)
+    # faults (issue 34, docs/faults.md): which of their branches this cycle needs, and
+    # the chambers a leak or a fault keeps awake
+    t_sup = sp[lay.SP_T_SUPPLY]
+    hold = np.zeros(nc, dtype=np.int64)
+    g_pl = np.zeros(na)
+    has_pl = has_cush = has_spool = False
+    has_swf = has_vac and sp[lay.SP_VSW_MODE] != lay.SW_OK
+    for c in range(nc):
+        spool_leak = cp[c, lay.CP_SPOOL_IN] > 0.0 or cp[c, lay.CP_SPOOL_OUT] > 0.0
+        piston_leak = ap[c // 2, lay.AP_PISTON_LEAK] > 0.0
+        has_spool = has_spool or spool_leak
+        has_pl = has_pl or piston_leak
+        has_cush = has_cush or ap[c // 2, lay.AP_CUSH_LEN] > 0.0
+        has_swf = has_swf or cp[c, lay.CP_SW_MODE] != lay.SW_OK
+        if cp[c, lay.CP_LEAK] > 0.0 or spool_leak or piston_leak:
+            hold[c] = 1
     n_ev = 0
     total_sub = 0
     dp_prev = 1e9
@@ -245,13 +281,28 @@ def run_cycle(
     while True:
         t = ss[lay.SS_TIME]
         # ---------------------------------------------------------- switches
-        if x_moved:
+        if x_moved or has_swf:
             for i in range(na):
                 sw[2 * i] = 1 if x[i] <= window else 0
                 sw[2 * i + 1] = 1 if x[i] >= ap[i, lay.AP_STROKE] - window else 0
             x_moved = False
         if has_vac:
             sw[nc] = 1 if ss[lay.SS_VAC] >= sp[lay.SP_VAC_LEVEL] else 0
+        if has_swf:  # faulty switches: what the PLC reads instead (docs/faults.md)
+            for s in range(nsw):
+                mode = cp[s, lay.CP_SW_MODE] if s < nc else sp[lay.SP_VSW_MODE]
+                if sw[s] == 0:
+                    sw_t[s] = lay.SW_OFF
+                elif sw_t[s] == lay.SW_OFF:  # the piston (or the vacuum) just arrived
+                    sw_t[s] = lay.SW_MISSED if mode == lay.SW_MISS else t
+                if mode == lay.SW_STUCK_ON:
+                    sw[s] = 1
+                elif mode == lay.SW_STUCK_OFF or sw_t[s] == lay.SW_MISSED:
+                    sw[s] = 0
+                elif mode == lay.SW_LATE and sw[s] == 1:
+                    delay = cp[s, lay.CP_SW_PARAM] if s < nc else sp[lay.SP_VSW_PARAM]
+                    if t - sw_t[s] < delay - 1e-9:
+                        sw[s] = 0
         # ---------------------------------------------------------------- PLC
         if armed:
             armed = False
@@ -316,6 +367,11 @@ def run_cycle(
                         )
                     else:
                         delay = sp[lay.SP_VAC_ON_DELAY] if cmd[s] == 1 else sp[lay.SP_VAC_OFF_DELAY]
+                    if cmd[s] == 1 and s < nc and ap[s // 2, lay.AP_PILOT_MIN] > 0.0:
+                        # a valve whose pilot needs more pressure shifts later
+                        delay *= pilot_delay_factor_kernel(
+                            p[1] - P_ATM, PILOT_MIN_NOMINAL_PA, ap[s // 2, lay.AP_PILOT_MIN]
+                        )
                     if t - chg[s] >= delay - 1e-9:
                         eff[s] = cmd[s]
                         eff_changed = True
@@ -361,6 +417,8 @@ def run_cycle(
             out_p[n_out, j] = p[j]
         for i in range(na):
             out_x[n_out, i] = x[i]
+        for i in range(na if has_pl else 0):  # without: not written (the caller knows)
+            out_fpl[n_out, i] = 0.0  # summed over the sub-steps below
         out_vac[n_out] = ss[lay.SS_VAC]
         for s in range(ns):
             out_cmd[n_out, s] = cmd[s]
@@ -380,7 +438,7 @@ def run_cycle(
                 any_moving = True
         for c in range(nc):
             i = c // 2
-            if stuck[i] == 0 or cp[c, lay.CP_LEAK] > 0.0:
+            if stuck[i] == 0 or hold[c] == 1:
                 awake[c] = 1
                 continue
             if conn[c] == 1:
@@ -432,15 +490,15 @@ def run_cycle(
                 w_ou = u_ou - i_ou
                 drift = ou[i_ou] * (1.0 - w_ou) + ou[i_ou + 1] * w_ou
             ph = _house_pressure(ts, comp_period, comp_phase, p_house, comp_band, drift)
-            p_src = sp[lay.SP_P_SET] + sp[lay.SP_REG_EFFECT] * (ph - sp[lay.SP_P_HOUSE])
-            if p_src > ph:
-                p_src = ph
+            p_src = regulator_outlet_pressure_kernel(
+                sp[lay.SP_P_SET], sp[lay.SP_REG_EFFECT], ph, p_house, sp[lay.SP_REG_OFFSET]
+            )
             for j in range(nn):
                 energy_in[j] = 0.0
                 dm[j] = 0.0
             # ----- conductances at the start of the sub-step
             if p_src > p[0]:
-                g_sr = _isa_g(p_src, p[0], sp[lay.SP_REG_CV], sp[lay.SP_REG_XT], t_wall, temp[0])
+                g_sr = _isa_g(p_src, p[0], sp[lay.SP_REG_CV], sp[lay.SP_REG_XT], t_sup, temp[0])
             else:
                 g_sr = 0.0  # non-relieving regulator: no back flow
             g_rm = _isa_g(p[0], p[1], sp[lay.SP_LINE_CV], sp[lay.SP_LINE_XT], temp[0], temp[1])
@@ -467,7 +525,25 @@ def run_cycle(
                         p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], temp[j], t_wall
                     )
                 g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, lay.CP_LEAK], temp[j], t_wall)
-            for q in range(n_aw):
+            # faults (issue 34), in loops of their own so that the loops above and
+            # below stay those of a run without them: a cushion throttling an exhaust,
+            # a worn spool (supply -> port, port -> exhaust)
+            for q in range(n_aw if has_cush or has_spool else 0):
+                c = aw[q]
+                j = 2 + c
+                i = c // 2
+                if (
+                    has_cush
+                    and conn[c] == 2
+                    and cushion_engaged_kernel(
+                        x[i], ap[i, lay.AP_STROKE], ap[i, lay.AP_CUSH_LEN], float(c % 2)
+                    )
+                ):
+                    cv_e = cp[c, lay.CP_CV_CUSH]
+                    g_exh[c] = _isa_g(p[j], P_ATM, cv_e, cp[c, lay.CP_XT], temp[j], t_wall)
+                g_fill[c] += _orifice_g(p[1], p[j], cp[c, lay.CP_SPOOL_IN], temp[1], temp[j])
+                g_exh[c] += _orifice_g(p[j], P_ATM, cp[c, lay.CP_SPOOL_OUT], temp[j], t_wall)
+            for q in range(0 if has_pl else n_aw):
                 c = aw[q]
                 j = 2 + c
                 a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
@@ -477,6 +553,44 @@ def run_cycle(
                 beta[c] = g_fill[c] / den
                 lhs_m += g_fill[c] * (1.0 - beta[c])
                 rhs_m += g_fill[c] * alpha[c]
+            # a leaking piston seal joins chambers A and B: their two balances are
+            # solved together, still linear in the manifold pressure (the same loop as
+            # above, its leaking pairs kept for the pair solution)
+            for q in range(n_aw if has_pl else 0):
+                c = aw[q]
+                j = 2 + c
+                a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
+                s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
+                den = a_c + g_fill[c] + g_exh[c] + g_leak[c]
+                num = a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM
+                if ap[c // 2, lay.AP_PISTON_LEAK] > 0.0:
+                    alpha[c] = num
+                    beta[c] = den
+                    continue
+                alpha[c] = num / den
+                beta[c] = g_fill[c] / den
+                lhs_m += g_fill[c] * (1.0 - beta[c])
+                rhs_m += g_fill[c] * alpha[c]
+            for i in range(na if has_pl else 0):
+                if ap[i, lay.AP_PISTON_LEAK] <= 0.0:
+                    continue
+                ca = 2 * i
+                cb = ca + 1
+                g = _orifice_g(
+                    p[2 + ca], p[2 + cb], ap[i, lay.AP_PISTON_LEAK], temp[2 + ca], temp[2 + cb]
+                )
+                g_pl[i] = g
+                den_a = beta[ca] + g
+                den_b = beta[cb] + g
+                num_a = alpha[ca]
+                num_b = alpha[cb]
+                det = den_a * den_b - g * g
+                alpha[ca] = (den_b * num_a + g * num_b) / det
+                beta[ca] = (den_b * g_fill[ca] + g * g_fill[cb]) / det
+                alpha[cb] = (g * num_a + den_a * num_b) / det
+                beta[cb] = (g * g_fill[ca] + den_a * g_fill[cb]) / det
+                lhs_m += g_fill[ca] * (1.0 - beta[ca]) + g_fill[cb] * (1.0 - beta[cb])
+                rhs_m += g_fill[ca] * alpha[ca] + g_fill[cb] * alpha[cb]
             # 2x2: reservoir and manifold
             a11 = a_r + g_sr + g_rm
             b1 = a_r * p[0] + g_sr * p_src
@@ -490,7 +604,7 @@ def run_cycle(
             f_vac = g_mv * (pm_new - P_ATM)
             dm[0] += f_reg - f_line
             dm[1] += f_line - f_sl - f_vac
-            energy_in[0] += enthalpy_flow_kernel(f_reg, t_wall, t_wall)
+            energy_in[0] += enthalpy_flow_kernel(f_reg, t_sup, t_sup)
             h = enthalpy_flow_kernel(f_line, temp[0], temp[1])
             energy_in[0] -= h
             energy_in[1] += h
@@ -517,6 +631,20 @@ def run_cycle(
                 out_fleak[n_out, c] += f_lk
                 cum[lay.CM_EXHAUST] += f_ex * dt
                 cum[lay.CM_LEAK] += f_lk * dt
+            for i in range(na if has_pl else 0):
+                if ap[i, lay.AP_PISTON_LEAK] <= 0.0:
+                    continue
+                ja = 2 + 2 * i
+                jb = ja + 1
+                pa_new = alpha[ja - 2] + beta[ja - 2] * pm_new
+                pb_new = alpha[jb - 2] + beta[jb - 2] * pm_new
+                f_pl = g_pl[i] * (pa_new - pb_new)
+                dm[ja] -= f_pl
+                dm[jb] += f_pl
+                h = enthalpy_flow_kernel(f_pl, temp[ja], temp[jb])
+                energy_in[ja] -= h
+                energy_in[jb] += h
+                out_fpl[n_out, i] += f_pl
             cum[lay.CM_REG] += f_reg * dt
             cum[lay.CM_LINE] += f_line * dt
             cum[lay.CM_LEAK] += f_sl * dt
@@ -627,6 +755,8 @@ def run_cycle(
                 out_fleak[n_out, c] /= nsub
             for q in range(4):
                 out_fr[n_out, q] /= nsub
+            for i in range(na if has_pl else 0):
+                out_fpl[n_out, i] /= nsub
         dp_max = 0.0
         for q in range(n_aw):
             c = aw[q]
@@ -641,102 +771,3 @@ def run_cycle(
         istate[lay.IS_SAMPLE] += 1
         ss[lay.SS_TIME] = istate[lay.IS_SAMPLE] * SAMPLE_DT
     return n_out, 0, n_ev, total_sub
-
-
-@njit(cache=True, nogil=True)
-def first_order_recursion_kernel(x: FloatArray, gain: float, pole: float) -> FloatArray:
-    """``y[k] = gain * x[k] + pole * y[k-1]``, ``y[-1] = 0``: the sensors' first-order lag
-    and the house-pressure drift (:func:`pneufdd.sim.sensors.first_order_recursion`)."""
-    y = np.empty_like(x)
-    previous = 0.0
-    for k in range(x.size):
-        previous = gain * x[k] + pole * previous
-        y[k] = previous
-    return y
-
-
-@njit(cache=True, nogil=True)
-def sensor_reading_kernel(
-    x: FloatArray,
-    z: FloatArray,
-    kind: int,
-    gain: float,
-    offset: float,
-    noise: float,
-    low: float,
-    high: float,
-    step: float,
-) -> FloatArray:
-    """What a sensor records for the true signal ``x`` (:func:`pneufdd.sim.sensors.apply_sensor`).
-
-    In the sensor's unit, ``gain * x + offset + noise * z`` clipped to ``[low, high]``
-    and rounded to the nearest multiple of ``step`` above ``low`` (ties to even), then
-    back to SI. One pass over the samples, each operation in the order of
-    ``apply_sensor``'s formulas, so the result is the same bit for bit as the NumPy
-    expression it replaces (``tests/test_sim_sensors.py``).
-    """
-    y = np.empty_like(x)
-    for k in range(x.size):
-        if kind == lay.SENSOR_PRESSURE:
-            v = x[k] - P_ATM
-            v = v * gain
-            v = v / 1e5
-        elif kind == lay.SENSOR_FLOW:
-            v = x[k] * gain
-        else:
-            v = x[k] * gain
-            v = v * 1e3
-        v = v + offset
-        v = v + noise * z[k]
-        v = min(max(v, low), high)
-        v = v - low
-        v = v / step
-        v = np.rint(v)
-        v = v * step
-        v = v + low
-        if kind == lay.SENSOR_PRESSURE:
-            v = v * 1e5
-            v = v + P_ATM
-        elif kind == lay.SENSOR_POSITION:
-            v = v * 1e-3
-        y[k] = v
-    return y
-
-
-@njit(cache=True, nogil=True)
-def truth_rows_kernel(
-    p: FloatArray,
-    x: FloatArray,
-    fch: FloatArray,
-    fexh: FloatArray,
-    fr: FloatArray,
-    source: IntArray,
-    column: IntArray,
-    store: FloatArray,
-    first: int,
-    n: int,
-) -> None:
-    """Copy the true signals of one cycle's ``n`` samples into ``store``.
-
-    Row ``r`` of ``store`` (one recorded sensor) gets, from sample ``first`` on, the
-    column ``column[r]`` of the kernel output that ``source[r]`` names
-    (:data:`pneufdd.sim.layout.TRUTH_NODE_PRESSURE` ...): a pressure, a position, the
-    supply line's flow or a chamber's net flow ``fch - fexh`` (the flow a meter on that
-    line sees, towards the chamber). One compiled pass that releases the GIL, instead
-    of a strided column copy (and a temporary for the flows) per sensor and cycle.
-    """
-    for r in range(source.size):
-        c = column[r]
-        kind = source[r]
-        if kind == lay.TRUTH_NODE_PRESSURE:
-            for k in range(n):
-                store[r, first + k] = p[k, c]
-        elif kind == lay.TRUTH_POSITION:
-            for k in range(n):
-                store[r, first + k] = x[k, c]
-        elif kind == lay.TRUTH_CHAMBER_FLOW:
-            for k in range(n):
-                store[r, first + k] = fch[k, c] - fexh[k, c]
-        else:
-            for k in range(n):
-                store[r, first + k] = fr[k, c]

@@ -44,7 +44,11 @@ SP_OU_DT = 24  # grid of the house-pressure drift array [s]
 SP_N_MOVE = 25  # minimum sub-steps per ms while a piston moves [-]
 SP_DP_TOL = 26  # target pressure change per sub-step [Pa]
 SP_N_MAX = 27  # maximum sub-steps per ms [-]
-SP_SIZE = 28
+SP_REG_OFFSET = 28  # drift of the regulator set point (fault) [Pa]
+SP_T_SUPPLY = 29  # temperature of the air the regulator delivers [K]
+SP_VSW_MODE = 30  # fault of the vacuum switch (SW_*)
+SP_VSW_PARAM = 31  # its size (SW_LATE: delay [s])
+SP_SIZE = 32
 
 # actuator parameters (float array, one row per actuator)
 AP_STROKE = 0  # [m]
@@ -55,7 +59,10 @@ AP_CVF = 4  # viscous friction [N s/m]
 AP_AROD = 5  # rod area exposed to atmosphere [m^2]
 AP_ON_DELAY = 6  # [s]
 AP_OFF_DELAY = 7  # [s]
-AP_SIZE = 8
+AP_PISTON_LEAK = 8  # effective area of a leak across the piston seal, A <-> B [m^2]
+AP_CUSH_LEN = 9  # end-position cushioning length (0: none) [m]
+AP_PILOT_MIN = 10  # supply gauge pressure the valve's pilot needs to shift (0: any) [Pa]
+AP_SIZE = 11
 
 # actuator valve kinds (int)
 VK_BISTABLE = 0
@@ -70,7 +77,23 @@ CP_CV_EXH = 3  # valve + tube + meter-out throttle, series [-]
 CP_XT = 4
 CP_LEAK = 5  # effective leak area [m^2]
 CP_TAU_TH = 6  # thermal time constant [s]
-CP_SIZE = 7
+CP_SPOOL_IN = 7  # effective area of a spool leak supply -> this port [m^2]
+CP_SPOOL_OUT = 8  # effective area of a spool leak this port -> exhaust [m^2]
+CP_CV_CUSH = 9  # exhaust path with the cushion engaged (CP_CV_EXH + cushion screw) [-]
+CP_SW_MODE = 10  # fault of switch 2 i + side (S_<ACT>_A, S_<ACT>_B), SW_*
+CP_SW_PARAM = 11  # its size (SW_LATE: delay [s])
+CP_SIZE = 12
+
+# switch faults (CP_SW_MODE, SP_VSW_MODE)
+SW_OK = 0
+SW_STUCK_ON = 1  # reads 1 whatever the piston does
+SW_STUCK_OFF = 2  # reads 0 whatever the piston does
+SW_LATE = 3  # closes its delay after the piston arrives, opens at once
+SW_MISS = 4  # misses the next rising edge (the PLC waits)
+SW_OFF = 1e300
+"""``State.sw_t`` of a switch whose piston is away: no rising edge pending."""
+SW_MISSED = -1e300
+"""``State.sw_t`` of a switch that missed the rising edge of this visit."""
 
 # scalar float state
 SS_TIME = 0  # simulated time [s]

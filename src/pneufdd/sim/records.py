@@ -73,6 +73,7 @@ class State(NamedTuple):
     cum: Array  # cumulative masses (CM_*) [kg]
     mv_t0: Array  # per actuator: motion start, candidate start, its position, sustained
     mv_dir: Array  # per actuator: direction of the current motion
+    sw_t: Array  # per switch: time its piston arrived (SW_OFF: away; SW_MISSED) [s]
 
 
 class Outputs(NamedTuple):
@@ -95,3 +96,4 @@ class Outputs(NamedTuple):
     ev_dir: Array
     ev_t0: Array
     ev_t1: Array
+    fpl: Array  # per actuator: flow across the piston seal, A -> B [kg/s]

@@ -26,6 +26,7 @@ from pneufdd.physics.chamber import (
     chamber_volume_kernel,
 )
 from pneufdd.physics.constants import CV_AIR, P_ATM
+from pneufdd.physics.faults import cushion_engaged_kernel
 from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
 from pneufdd.physics.friction import friction_force_kernel, piston_net_force_kernel
 from pneufdd.sim import layout as lay
@@ -93,6 +94,7 @@ def plant_derivatives(
     x = y[2 * nn : 2 * nn + na]
     v = y[2 * nn + na :]
     t_wall = sp[lay.SP_T_WALL]
+    t_sup = sp[lay.SP_T_SUPPLY]
     vol = np.empty(nn)
     vdot = np.zeros(nn)
     vol[0] = sp[lay.SP_V_RES]
@@ -116,8 +118,8 @@ def plant_derivatives(
     hin = np.zeros(nn)
     f_reg = 0.0
     if p_src > p[0]:
-        f_reg = isa_mass_flow_kernel(p_src, p[0], sp[lay.SP_REG_CV], sp[lay.SP_REG_XT], t_wall)
-    _edge(-1, 0, f_reg, t_wall, temp[0], fin, fout, hin)
+        f_reg = isa_mass_flow_kernel(p_src, p[0], sp[lay.SP_REG_CV], sp[lay.SP_REG_XT], t_sup)
+    _edge(-1, 0, f_reg, t_sup, temp[0], fin, fout, hin)
     t_up = temp[0] if p[0] >= p[1] else temp[1]
     f_line = isa_mass_flow_kernel(p[0], p[1], sp[lay.SP_LINE_CV], sp[lay.SP_LINE_XT], t_up)
     _edge(0, 1, f_line, temp[0], temp[1], fin, fout, hin)
@@ -131,10 +133,30 @@ def plant_derivatives(
             _edge(1, j, f, temp[1], temp[j], fin, fout, hin)
         elif conn[c] == 2:
             t_up = temp[j] if p[j] >= P_ATM else t_wall
-            f = isa_mass_flow_kernel(p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], t_up)
+            i = c // 2
+            cv_e = cp[c, lay.CP_CV_EXH]
+            if cushion_engaged_kernel(x[i], ap[i, lay.AP_STROKE], ap[i, lay.AP_CUSH_LEN], c % 2):
+                cv_e = cp[c, lay.CP_CV_CUSH]
+            f = isa_mass_flow_kernel(p[j], P_ATM, cv_e, cp[c, lay.CP_XT], t_up)
             _edge(j, -1, f, temp[j], t_wall, fin, fout, hin)
         f = orifice_mass_flow_kernel(p[j], P_ATM, cp[c, lay.CP_LEAK], 1.0, temp[j])
         _edge(j, -1, f, temp[j], t_wall, fin, fout, hin)
+        # faults (issue 34): spool leaks supply -> port and port -> exhaust
+        t_up = temp[1] if p[1] >= p[j] else temp[j]
+        f = orifice_mass_flow_kernel(
+            max(p[1], p[j]), min(p[1], p[j]), cp[c, lay.CP_SPOOL_IN], 1.0, t_up
+        )
+        _edge(1, j, f if p[1] >= p[j] else -f, temp[1], temp[j], fin, fout, hin)
+        f = orifice_mass_flow_kernel(p[j], P_ATM, cp[c, lay.CP_SPOOL_OUT], 1.0, temp[j])
+        _edge(j, -1, f, temp[j], t_wall, fin, fout, hin)
+    for i in range(na):  # a leaking piston seal, chamber A <-> chamber B
+        ja = 2 + 2 * i
+        jb = ja + 1
+        t_up = temp[ja] if p[ja] >= p[jb] else temp[jb]
+        f = orifice_mass_flow_kernel(
+            max(p[ja], p[jb]), min(p[ja], p[jb]), ap[i, lay.AP_PISTON_LEAK], 1.0, t_up
+        )
+        _edge(ja, jb, f if p[ja] >= p[jb] else -f, temp[ja], temp[jb], fin, fout, hin)
     dy = np.zeros(y.size)
     for j in range(nn):
         tau = sp[lay.SP_TAU_TH] if j < 2 else cp[j - 2, lay.CP_TAU_TH]
@@ -224,7 +246,7 @@ def solve_segment(
     nn = 2 + 2 * na
     stroke = float(plant.ap[actuator, lay.AP_STROKE])
     fric = np.ones(na)
-    p_src = float(plant.sp[lay.SP_P_SET])
+    p_src = float(plant.sp[lay.SP_P_SET] + plant.sp[lay.SP_REG_OFFSET])
     if atol is None:
         atol = np.concatenate(
             [np.maximum(y0[:nn], 1e-9) * rtol, np.full(nn, 1e-3), np.full(na, 1e-7),

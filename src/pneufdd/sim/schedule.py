@@ -18,17 +18,22 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from pneufdd.errors import InputError, describe
+from pneufdd.sim import layout as lay
+from pneufdd.sim.compile import Plant
 from pneufdd.sim.description import MachineDescription
 from pneufdd.sim.leaks import MAX_TURNS, Leak, LeakSpec, parse_leak_size, resolve_leaks
 
 __all__ = [
     "LeakSchedule",
     "ScheduledLeak",
+    "apply_leak_schedule",
+    "check_life",
+    "check_unique",
     "parse_duration",
     "parse_rate",
     "parse_scheduled_leak",
@@ -38,6 +43,41 @@ __all__ = [
 _TIME = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(s|min|h)?\s*$", re.I)
 _RATE = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*/\s*(s|min|h)\s*$", re.I)
 _SECONDS = {"s": 1.0, "min": 60.0, "h": 3600.0}
+
+
+def check_life(where: str, start_s: float, repair_s: float | None) -> None:
+    """A scheduled leak's or fault's onset (>= 0) and repair (after the onset) [s].
+
+    Raises
+    ------
+    InputError
+        Naming ``where`` and the time refused.
+    """
+    if not (math.isfinite(start_s) and start_s >= 0):
+        raise InputError(describe(f"start time of {where} [s]", start_s, ">= 0"))
+    if repair_s is not None and not (math.isfinite(repair_s) and repair_s > start_s):
+        raise InputError(describe(f"repair time of {where} [s]", repair_s, f"> {start_s}"))
+
+
+def check_unique(
+    items: Sequence[Any], kind: type, key: Callable[[Any], Any], names: tuple[str, str, str]
+) -> None:
+    """Every item is a ``kind`` and no two share a ``key`` (a schedule's leaks, faults).
+
+    ``names``: what an item is called, what is allowed, what a repeated key is called.
+
+    Raises
+    ------
+    InputError
+        Naming the item of another type, or the key given twice.
+    """
+    seen: set[Any] = set()
+    for item in items:
+        if not isinstance(item, kind):
+            raise InputError(describe(names[0], item, names[1]))
+        if key(item) in seen:
+            raise InputError(describe(names[2], key(item), "once"))
+        seen.add(key(item))
 
 
 def parse_duration(text: str, where: str) -> float:
@@ -97,16 +137,9 @@ class ScheduledLeak:
 
     def __post_init__(self) -> None:
         where = f"scheduled leak {self.location!r}"
-        if not (math.isfinite(self.start_s) and self.start_s >= 0):
-            raise InputError(describe(f"start time of {where} [s]", self.start_s, ">= 0"))
+        check_life(where, self.start_s, self.repair_s)
         if not (math.isfinite(self.growth_per_s) and self.growth_per_s >= 0):
             raise InputError(describe(f"growth of {where} [unit/s]", self.growth_per_s, ">= 0"))
-        if self.repair_s is not None and not (
-            math.isfinite(self.repair_s) and self.repair_s > self.start_s
-        ):
-            raise InputError(
-                describe(f"repair time of {where} [s]", self.repair_s, f"> {self.start_s}")
-            )
         parse_leak_size(f"{self.size}{self.unit}" if self.unit != "turns" else self.size, where)
 
     def size_at(self, time_s: float) -> float:
@@ -172,15 +205,10 @@ class LeakSchedule:
 
     def __init__(self, leaks: Iterable[ScheduledLeak]) -> None:
         self.leaks: tuple[ScheduledLeak, ...] = tuple(leaks)
-        seen: set[str] = set()
-        for leak in self.leaks:
-            if not isinstance(leak, ScheduledLeak):
-                raise InputError(describe("scheduled leak", leak, "ScheduledLeak objects"))
-            if leak.location in seen:
-                raise InputError(
-                    describe("scheduled leak location given twice", leak.location, "once")
-                )
-            seen.add(leak.location)
+        check_unique(
+            self.leaks, ScheduledLeak, lambda leak: leak.location,
+            ("scheduled leak", "ScheduledLeak objects", "scheduled leak location given twice"),
+        )  # fmt: skip
 
     @property
     def locations(self) -> tuple[str, ...]:
@@ -258,3 +286,31 @@ def schedule_from_options(
             )
         )
     return LeakSchedule(leaks) if leaks else None
+
+
+def apply_leak_schedule(
+    plant: Plant,
+    desc: MachineDescription,
+    static: list[LeakSpec],
+    schedule: LeakSchedule,
+    time_s: float,
+    cycle: int,
+) -> list[dict[str, Any]]:
+    """Set the plant's leak areas for the cycle starting at ``time_s``; its ground truth."""
+    present = schedule.resolve(desc, time_s)
+    areas = {spec.location: spec.area_m2 for spec in [*static, *present]}
+    plant.sp[lay.SP_SUPPLY_LEAK] = areas.get("supply", 0.0)
+    for i, a in enumerate(desc.actuators):
+        for side in (0, 1):
+            plant.cp[2 * i + side, lay.CP_LEAK] = areas.get(f"{a.id}_{'AB'[side]}", 0.0)
+    return [
+        {
+            "cycle": cycle,
+            "cycle_start_s": time_s,
+            "location": spec.location,
+            "size": spec.size,
+            "unit": spec.unit,
+            "slpm": spec.nominal_slpm,
+        }
+        for spec in present
+    ]

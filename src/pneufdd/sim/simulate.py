@@ -5,8 +5,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -25,8 +24,15 @@ from pneufdd.sim.loading import MachineLike, load_machine
 from pneufdd.sim.prebuilt import compiled_twin
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.result import SimulatedStroke, SimulationResult
-from pneufdd.sim.schedule import LeakSchedule
+from pneufdd.sim.schedule import LeakSchedule, apply_leak_schedule
 from pneufdd.sim.sensors import SENSOR_SI_UNIT, apply_sensor, first_order_recursion
+
+if TYPE_CHECKING:  # imported when a run has faults or nuisances (they load numba)
+    from pneufdd.sim.conditions import RunConditions
+    from pneufdd.sim.faults import Fault, FaultSchedule
+    from pneufdd.sim.nuisances import Nuisances
+
+    FaultsLike = FaultSchedule | Iterable[Fault | str] | None
 
 __all__ = [
     "SIMULATOR_VERSION",
@@ -126,11 +132,18 @@ def _ou_grid(rng: np.random.Generator, start: float, std: float, tau: float, n: 
 
 
 def _stall_message(
-    machine: MachineDescription, cycle: int, step: int, leaks: int = 0, max_cycle_s: float = 120.0
+    machine: MachineDescription,
+    cycle: int,
+    step: int,
+    leaks: int = 0,
+    max_cycle_s: float = 120.0,
+    faults: str = "",
 ) -> str:
     st = machine.steps[min(step, len(machine.steps) - 1)]
     cause = (
-        "a leak this large keeps an actuator from reaching its switch"
+        f"the faults {faults} keep an actuator or a switch from reaching its end"
+        if faults
+        else "a leak this large keeps an actuator from reaching its switch"
         if leaks
         else "no leak is simulated: the description's supply, valves or loads cannot move "
         "the actuator to its switch"
@@ -172,8 +185,10 @@ class _CycleLoop:
         rng: np.random.Generator,
         cycles: int,
         max_cycle_s: float,
+        conditions: RunConditions | None = None,
     ) -> None:
         self.desc, self.plant, self.state, self.rng = desc, plant, state, rng
+        self.conditions = conditions
         self.cycles, self.max_cycle_s = cycles, max_cycle_s
         na = len(desc.actuators)
         nsteps = len(desc.steps)
@@ -263,17 +278,27 @@ class _CycleLoop:
             If the cycle does not end within ``max_cycle_s``.
         """
         state = self.state
-        draws = self._draws(cyc)
+        draws = kernel_draws = self._draws(cyc)
         t_start = float(state["ss"][lay.SS_TIME])
         k_start = int(state["istate"][lay.IS_SAMPLE])
         if schedule is not None:
-            self.timeline += _apply_schedule(self.plant, self.desc, specs, schedule, t_start, cyc)
-        n, status, n_ev, nsub = self._run_kernel(draws)
+            self.timeline += apply_leak_schedule(
+                self.plant, self.desc, specs, schedule, t_start, cyc
+            )
+        faults = ""
+        if self.conditions is not None:
+            self.conditions.apply(cyc, t_start, state)
+            dips = self.conditions.dip_grid(t_start, self.n_ou, 0.1)
+            if dips is not None:  # the house pressure dips; the drift carried on is the OU's
+                kernel_draws = draws._replace(ou=draws.ou + dips)
+            rows = [r for r in self.conditions.fault_timeline if r["cycle"] == cyc]
+            faults = ", ".join(f"{r['location']}={r['kind']}" for r in rows)
+        n, status, n_ev, nsub = self._run_kernel(kernel_draws)
         self.total_sub += nsub
         if status != 0:
             step_now = int(state["istate"][lay.IS_STEP])
             raise MachineStalledError(
-                _stall_message(self.desc, cyc, step_now, len(specs), self.max_cycle_s)
+                _stall_message(self.desc, cyc, step_now, len(specs), self.max_cycle_s, faults)
             )
         elapsed = float(state["ss"][lay.SS_TIME]) - t_start
         self.ou_now = float(np.interp(elapsed / 0.1, np.arange(self.n_ou), draws.ou))
@@ -284,7 +309,10 @@ class _CycleLoop:
         if cyc == 0:  # before the run's buffers are sized from its first cycle
             _check_run_memory(self.cycles, expected, self.n_sensors, self.n_recorded)
         store = self.pooled.truth_store(self.n_recorded, k_start, done, expected)
-        self.chunks.append(_take(self.truth_sources, self.buf, n, k_start, keep_outputs, store))
+        piston_leak = bool(np.any(self.plant.ap[:, lay.AP_PISTON_LEAK] > 0.0))
+        self.chunks.append(
+            _take(self.truth_sources, self.buf, n, k_start, keep_outputs, store, piston_leak)
+        )
 
 
 def _check_run_memory(cycles: int, samples: int, n_sensors: int, n_recorded: int) -> None:
@@ -303,16 +331,6 @@ def _check_run_memory(cycles: int, samples: int, n_sensors: int, n_recorded: int
     )
 
 
-def _with_schedule(
-    result: SimulationResult, schedule: LeakSchedule, timeline: list[dict[str, Any]]
-) -> SimulationResult:
-    """``result`` with the leak schedule and its timeline in the metadata."""
-    meta = dict(result.recording.metadata)
-    meta["leak_schedule"] = schedule.as_metadata()
-    meta["leak_timeline"] = timeline
-    return replace(result, recording=result.recording.with_metadata(meta))
-
-
 def run_simulation(
     machine: MachineLike,
     cycles: int = 1,
@@ -324,6 +342,8 @@ def run_simulation(
     resolution: Resolution = DEFAULT_RESOLUTION,
     schedule: LeakSchedule | None = None,
     channels: Sequence[str] | None = None,
+    faults: FaultsLike = None,
+    nuisances: Nuisances | None = None,
 ) -> SimulationResult:
     """Simulate ``cycles`` machine cycles and return true states plus the recording.
 
@@ -358,6 +378,13 @@ def run_simulation(
         a channel left out before a recorded one still draws its noise, and channels
         after the last recorded one cost nothing (the twin's check of a diagnosis
         needs only its sensor set's channels).
+    faults : FaultSchedule or iterable of Fault or str, optional
+        Faults other than leaks (:mod:`pneufdd.sim.faults`, ``docs/faults.md``), e.g.
+        ``["DNC=friction:+50%@2min", "DNC_A=throttle:-40%"]``; scheduled like leaks,
+        recorded in the metadata (``fault_schedule``, ``fault_timeline``).
+    nuisances : Nuisances, optional
+        Ambient temperature, payloads, header dips (:mod:`pneufdd.sim.nuisances`);
+        recorded in the metadata (``nuisances``, ``nuisance_timeline``, ``header_dips``).
 
     Returns
     -------
@@ -370,20 +397,29 @@ def run_simulation(
     plant = compile_plant(desc, specs, resolution)
     if schedule is not None:
         schedule.check(desc, specs)
+    conditions = _conditions(desc, plant, faults, nuisances, seed)
     rng = np.random.default_rng(seed)
     state = initial_state(desc, plant)
     plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
-    run = _CycleLoop(desc, plant, state, sensors, rng, cycles, max_cycle_s)
+    run = _CycleLoop(desc, plant, state, sensors, rng, cycles, max_cycle_s, conditions)
     try:
         for cyc in range(cycles):
             run.cycle(cyc, specs, schedule, keep_outputs)
             if progress is not None:
                 progress(cyc + 1, cycles)
+        samples = int(state["istate"][lay.IS_SAMPLE])
+        # the schedules' ground truth, after the metadata a run without them has
+        ground_truth: dict[str, Any] = {}
+        if schedule is not None:
+            ground_truth["leak_schedule"] = schedule.as_metadata()
+            ground_truth["leak_timeline"] = run.timeline
+        if conditions is not None:
+            ground_truth.update(conditions.metadata(samples * SAMPLE_DT))
         result = _assemble(
             desc,
             sensors,
             run.pooled.truth,
-            int(state["istate"][lay.IS_SAMPLE]),
+            samples,
             plant,
             specs,
             run.chunks,
@@ -393,38 +429,27 @@ def run_simulation(
             seed,
             cycles,
             run.total_sub,
+            ground_truth,
         )
     finally:
         run.release()
-    return result if schedule is None else _with_schedule(result, schedule, run.timeline)
+    return result
 
 
-def _apply_schedule(
-    plant: Plant,
+def _conditions(
     desc: MachineDescription,
-    static: list[LeakSpec],
-    schedule: LeakSchedule,
-    time_s: float,
-    cycle: int,
-) -> list[dict[str, Any]]:
-    """Set the plant's leak areas for the cycle starting at ``time_s``; its ground truth."""
-    present = schedule.resolve(desc, time_s)
-    areas = {spec.location: spec.area_m2 for spec in [*static, *present]}
-    plant.sp[lay.SP_SUPPLY_LEAK] = areas.get("supply", 0.0)
-    for i, a in enumerate(desc.actuators):
-        for side in (0, 1):
-            plant.cp[2 * i + side, lay.CP_LEAK] = areas.get(f"{a.id}_{'AB'[side]}", 0.0)
-    return [
-        {
-            "cycle": cycle,
-            "cycle_start_s": time_s,
-            "location": spec.location,
-            "size": spec.size,
-            "unit": spec.unit,
-            "slpm": spec.nominal_slpm,
-        }
-        for spec in present
-    ]
+    plant: Plant,
+    faults: FaultsLike,
+    nuisances: Nuisances | None,
+    seed: int | None,
+) -> RunConditions | None:
+    """The run's faults and nuisances, set for its start (None: none; a plain run does not
+    import them, nor numba on the prebuilt twin): :func:`pneufdd.sim.conditions.prepare`."""
+    if faults is None and nuisances is None:
+        return None
+    from pneufdd.sim.conditions import prepare
+
+    return prepare(desc, plant, faults, nuisances, seed)
 
 
 def _records(
@@ -489,6 +514,7 @@ def _take(
     k0: int,
     keep: bool,
     store: npt.NDArray[np.float64],
+    piston_leak: bool = False,
 ) -> dict[str, npt.NDArray[Any]]:
     """Copy what one cycle produced out of the reusable buffers.
 
@@ -509,6 +535,8 @@ def _take(
     if keep:
         for k in ("p", "x", "fch", "fexh", "fr", "vac", "fleak", "cum", "mass", "step"):
             chunk[k] = getattr(buf, k)[:n].copy()
+        # the kernel writes the piston-seal flows only when a seal leaks (issue 34)
+        chunk["fpl"] = buf.fpl[:n].copy() if piston_leak else np.zeros((n, buf.fpl.shape[1]))
     return chunk
 
 
@@ -566,6 +594,7 @@ def _assemble(
     seed: int | None,
     cycles: int,
     total_sub: int,
+    ground_truth: dict[str, Any],
 ) -> SimulationResult:
     # a description without sensors keeps the length its digital samples give
     n = samples if desc.sensors else sum(c["cmd"].shape[0] for c in chunks) * _DIGITAL_EVERY
@@ -598,6 +627,7 @@ def _assemble(
         "simulator": SIMULATOR_VERSION,
         "cycle_start_s": [float(t) for t in step_start[:, 0]],
         "step_names": [s.name for s in desc.steps],
+        **ground_truth,
     }
     recording = Recording.from_arrays(
         analog=analog,
@@ -644,8 +674,10 @@ def _outputs(
         "p_manifold": p[:, 1],
     }
     fleak = _cat(chunks, "fleak")
+    fpl = _cat(chunks, "fpl")
     for i, a in enumerate(desc.actuators):
         out[f"x_{a.id}"] = x[:, i]
+        out[f"mdot_piston_leak_{a.id}"] = fpl[:, i]
         for s, side in enumerate("AB"):
             c = 2 * i + s
             out[f"p_{a.id}_{side}"] = p[:, 2 + c]
@@ -676,6 +708,8 @@ def simulate(
     progress: Callable[[int, int], None] | None = None,
     max_cycle_s: float = 120.0,
     schedule: LeakSchedule | None = None,
+    faults: FaultsLike = None,
+    nuisances: Nuisances | None = None,
 ) -> Recording:
     """Simulate the machine and return what its sensors and PLC I/O record.
 
@@ -696,6 +730,10 @@ def simulate(
         A cycle longer than this is a stalled machine [s].
     schedule : LeakSchedule, optional
         Leaks that appear, grow and are repaired during the run.
+    faults : FaultSchedule or iterable of Fault or str, optional
+        Faults other than leaks, e.g. ``["DNC=friction:+50%"]`` (``docs/faults.md``).
+    nuisances : Nuisances, optional
+        Ambient temperature, payloads and header dips over the run.
 
     Returns
     -------
@@ -719,6 +757,8 @@ def simulate(
         keep_outputs=False,
         max_cycle_s=max_cycle_s,
         schedule=schedule,
+        faults=faults,
+        nuisances=nuisances,
     ).recording
 
 

@@ -153,6 +153,7 @@ SPREADS: dict[str, Spread] = {
     "actuator.thermal_time_s": Spread("relative", 0.30, _EA + " (convection correlations)"),
     "actuator.tube_length_m": Spread("relative", 0.20, _EA + " (tubing cut on site)"),
     "actuator.meter_out_cv": Spread("relative", 0.50, _EA + " (needle valve set by hand)"),
+    "actuator.cushion_cv": Spread("relative", 0.50, _EA + " (cushion screw set by hand)"),
     "valve.cv": Spread("relative", 0.15, _ISO6358),
     "valve.xt": Spread("relative", 0.10, _EA + " (catalogue b is representative)"),
     "valve.switching_delay_s": Spread("relative", 0.20, _EA + " (coil voltage, temperature)"),
@@ -302,6 +303,17 @@ def _replace_key(table: dict[str, Any], old_key: str, new: dict[str, float]) -> 
     return out
 
 
+def _vary_cushion(table: dict[str, Any], a: Actuator, d: _Draws) -> None:
+    """End-position cushion screws (Festo PPV), where described: one draw per end."""
+    if a.cushion_length_mm <= 0.0:
+        return
+    spread = SPREADS["actuator.cushion_cv"]
+    table.pop("cushion_cv", None)  # the two screws are set independently
+    for key in ("cushion_cv_a", "cushion_cv_b"):
+        old = float(getattr(a, key))
+        table[key] = d.value(f"actuator.{a.id}.{key}", old, spread, high=50.0)
+
+
 def _vary_actuator(table: dict[str, Any], a: Actuator, d: _Draws) -> dict[str, Any]:
     p = f"actuator.{a.id}"
     _put(
@@ -339,6 +351,7 @@ def _vary_actuator(table: dict[str, Any], a: Actuator, d: _Draws) -> dict[str, A
     else:
         for key, value in throttles.items():
             _put(table, key, float(getattr(a, key)), value)
+    _vary_cushion(table, a, d)
     valve = table["valve"]
     v = a.valve
     _put(valve, "cv", v.cv, d.value(f"{p}.valve.cv", v.cv, SPREADS["valve.cv"], high=50.0))
