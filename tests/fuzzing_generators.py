@@ -235,6 +235,7 @@ COMMANDS: dict[str, Entry] = {
         lambda k: ["features", k.run(), "--group", "air", "--actuator", "PRESS",
                    "--out", k.out("--out", ".csv")]
     ),
+    "faults": Entry(lambda k: ["faults"]),  # no options: only a stray argument varies
     "history": Entry(
         lambda k: [
             "history",
