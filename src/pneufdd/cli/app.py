@@ -26,6 +26,7 @@ from pneufdd.cli import (
     monitor,
     reference,
     simulate,
+    standstill,
     steps,
 )
 from pneufdd.cli.exit_codes import ExitCode
@@ -47,7 +48,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data, evaluate, monitor, history, build_twin):
+for module in (import_data, evaluate, monitor, history, build_twin, standstill):
     module.register(app)
 
 _STATE = {"debug": False}

@@ -274,7 +274,11 @@ def fit_pressure_decay(
     # start: the isothermal choked decay's initial slope, dP/dt = -R T P * c * ratio
     slope = (p[-1] - p0) / max(t[-1], 1e-9)
     per_ratio = R_AIR * temperature_k * leak_mass_flow_kernel(p0, 1.0, temperature_k)
-    start_ratio = max(-slope / per_ratio, 1e-9)
+    # bounds: from no leak to one that empties the volume's first e-fold within the
+    # first sample interval (beyond, the curve says nothing and the ODE turns stiff)
+    low = 1e-14
+    high = max(p0 / (per_ratio * max(float(np.min(np.diff(t))), 1e-6)), 1e3 * low)
+    start_ratio = float(np.clip(-slope / per_ratio, 10.0 * low, 0.1 * high))
     scale = max(float(np.ptp(p)), 1.0)
 
     def residuals(theta: FloatArray) -> FloatArray:
@@ -285,7 +289,11 @@ def fit_pressure_decay(
         return out
 
     sol = least_squares(
-        residuals, np.array([math.log(start_ratio), p0 / scale]), method="trf", x_scale=1.0
+        residuals,
+        np.array([math.log(start_ratio), p0 / scale]),
+        method="trf",
+        x_scale=1.0,
+        bounds=([math.log(low), -np.inf], [math.log(high), np.inf]),
     )
     r = np.asarray(sol.fun) * scale
     jac = np.asarray(sol.jac)

@@ -324,6 +324,7 @@ def run_simulation(
     resolution: Resolution = DEFAULT_RESOLUTION,
     schedule: LeakSchedule | None = None,
     channels: Sequence[str] | None = None,
+    supply_open: Sequence[bool] | None = None,
 ) -> SimulationResult:
     """Simulate ``cycles`` machine cycles and return true states plus the recording.
 
@@ -358,6 +359,11 @@ def run_simulation(
         a channel left out before a recorded one still draws its noise, and channels
         after the last recorded one cost nothing (the twin's check of a diagnosis
         needs only its sensor set's channels).
+    supply_open : sequence of bool, optional
+        Per cycle, whether the supply shut-off valve at the regulator's outlet is open
+        (None: always). Closed, the regulator passes no air: the reservoir, the manifold
+        and the lines connected to it keep their air and lose it through their leaks
+        (the standstill test's pressure decay, ``docs/standstill.md``).
 
     Returns
     -------
@@ -374,8 +380,13 @@ def run_simulation(
     state = initial_state(desc, plant)
     plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
     run = _CycleLoop(desc, plant, state, sensors, rng, cycles, max_cycle_s)
+    regulator_cv = float(plant.sp[lay.SP_REG_CV])
+    if supply_open is not None and len(supply_open) != cycles:
+        raise InputError(describe("supply_open", f"{len(supply_open)} flags", f"{cycles}"))
     try:
         for cyc in range(cycles):
+            if supply_open is not None:  # a closed shut-off valve: no flow from the regulator
+                plant.sp[lay.SP_REG_CV] = regulator_cv if supply_open[cyc] else 0.0
             run.cycle(cyc, specs, schedule, keep_outputs)
             if progress is not None:
                 progress(cyc + 1, cycles)
