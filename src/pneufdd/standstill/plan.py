@@ -46,7 +46,7 @@ from pneufdd.array_types import FloatArray
 from pneufdd.errors import InputError, describe
 from pneufdd.physics.units import psig_to_pa, slpm_to_kg_s
 from pneufdd.sim import MachineDescription
-from pneufdd.sim.compile import piston_areas
+from pneufdd.sim.compile import piston_areas, series_cv, tube_cv
 
 __all__ = [
     "MODES",
@@ -119,6 +119,7 @@ class StandstillPlan:
     supply_volume_m3: float
     line_volumes_m3: dict[str, dict[str, float]]
     meter_spans_kg_s: dict[str, float] = field(default_factory=dict)
+    line_paths: dict[str, tuple[float, float]] = field(default_factory=dict)
     separable: tuple[str, ...] = ()
     groups: tuple[tuple[str, ...], ...] = ()
     pairs_separable: tuple[tuple[str, str], ...] = ()
@@ -173,6 +174,9 @@ class StandstillPlan:
                 body[key] = tuple(body[key])
             for key in ("groups", "pairs_separable", "pairs_not_separable"):
                 body[key] = tuple(tuple(g) for g in body[key])
+            body["line_paths"] = {
+                k: (float(v[0]), float(v[1])) for k, v in body["line_paths"].items()
+            }
             return cls(states=states, **body)
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(describe(f"{where}: fields", repr(exc), "a plan.json")) from exc
@@ -303,6 +307,14 @@ def plan_standstill(
             s.channel: float(slpm_to_kg_s(s.range_high - s.range_low))
             for s in machine.sensors
             if s.kind == "flow"
+        },
+        line_paths={
+            f"{a.id}_{side}": (
+                series_cv(a.valve.cv, tube_cv(a.tube_length_m, a.tube_inner_diameter_mm)),
+                a.valve.xt,
+            )
+            for a in machine.actuators
+            for side in "AB"
         },
     )
     from pneufdd.standstill.separability import with_separability
