@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, fields
 from functools import cache
 from importlib import resources
+from typing import Any, TypeVar
 
 from pneufdd.errors import InputError, describe
+
+T = TypeVar("T")
 
 __all__ = [
     "Family",
@@ -112,88 +116,50 @@ def _rows(name: str) -> list[dict[str, str]]:
     return list(csv.DictReader(io.StringIO(text)))
 
 
-def _opt(text: str) -> float | None:
-    return float(text) if text.strip() else None
+_CONVERT: dict[str, Callable[[str], Any]] = {
+    "str": str,
+    "int": int,
+    "float": float,
+    "float | None": lambda text: float(text) if text.strip() else None,
+}
+"""How a CSV cell becomes a field of its annotated type (empty: None where allowed)."""
+
+
+def _load(cls: type[T], name: str) -> list[T]:
+    """Every row of the table ``name`` as a ``cls``, each cell by its field's type."""
+    kinds = {f.name: _CONVERT[str(f.type)] for f in fields(cls)}  # type: ignore[arg-type]
+    return [cls(**{k: kinds[k](v) for k, v in r.items()}) for r in _rows(name)]
 
 
 @cache
 def sources() -> dict[str, Source]:
     """Every source by its id."""
-    return {r["id"]: Source(**r) for r in _rows("sources.csv")}
+    return {row.id: row for row in _load(Source, "sources.csv")}
 
 
 @cache
 def families() -> dict[str, Family]:
     """Every actuator family by its name."""
-    out = {}
-    for r in _rows("families.csv"):
-        out[r["family"]] = Family(
-            family=r["family"],
-            maker=r["maker"],
-            kind=r["kind"],
-            standard=r["standard"],
-            form=r["form"],
-            friction_n_per_mm2=float(r["friction_n_per_mm2"]),
-            coulomb_ratio=float(r["coulomb_ratio"]),
-            viscous_n_s_m_per_mm2=float(r["viscous_n_s_m_per_mm2"]),
-            dead_length_mm=float(r["dead_length_mm"]),
-            rules_source=r["rules_source"],
-        )
-    return out
+    return {row.family: row for row in _load(Family, "families.csv")}
 
 
 @cache
 def sizes() -> dict[tuple[str, str], SizeRow]:
     """Every actuator size by (family, size)."""
-    out = {}
-    for r in _rows("actuator_sizes.csv"):
-        row = SizeRow(
-            family=r["family"],
-            size=r["size"],
-            bore_mm=float(r["bore_mm"]),
-            rod_mm=float(r["rod_mm"]),
-            pistons=int(r["pistons"]),
-            stroke_mm=_opt(r["stroke_mm"]),
-            lever_mm=_opt(r["lever_mm"]),
-            port=r["port"],
-            source=r["source"],
-            status=r["status"],
-        )
-        out[row.family, row.size] = row
-    return out
+    return {(row.family, row.size): row for row in _load(SizeRow, "actuator_sizes.csv")}
 
 
 @cache
 def valve_rows() -> dict[tuple[str, str, str], ValveRow]:
     """Every valve by (family, size, function)."""
-    out = {}
-    for r in _rows("valves.csv"):
-        row = ValveRow(
-            family=r["family"],
-            size=r["size"],
-            function=r["function"],
-            kind=r["kind"],
-            nominal_flow_l_min_anr=_opt(r["nominal_flow_l_min_anr"]),
-            sonic_conductance_dm3_s_bar=_opt(r["sonic_conductance_dm3_s_bar"]),
-            critical_ratio_b=_opt(r["critical_ratio_b"]),
-            xt=_opt(r["xt"]),
-            port=r["port"],
-            source=r["source"],
-            status=r["status"],
-        )
-        out[row.family, row.size, row.function] = row
-    return out
+    rows = _load(ValveRow, "valves.csv")
+    return {(row.family, row.size, row.function): row for row in rows}
 
 
 @cache
 def ports() -> dict[str, PortRow]:
     """The tube of every port thread."""
-    return {
-        r["port"]: PortRow(
-            r["port"], r["tube"], float(r["tube_inner_diameter_mm"]), r["source"], r["status"]
-        )
-        for r in _rows("ports.csv")
-    }
+    return {row.port: row for row in _load(PortRow, "ports.csv")}
 
 
 def source(ident: str) -> Source:
