@@ -92,6 +92,9 @@ def plan(
 
 
 def _read_plan(folder: Path) -> StandstillPlan:
+    """The plan of ``standstill plan``: a folder holding plan.json, or the file itself
+    (at most 4 MiB, JSON nested at most 64 levels: docs/limits.md)."""
+    from pneufdd.limits import check_json_depth, read_text_capped
     from pneufdd.standstill.plan import StandstillPlan
 
     path = folder / "plan.json" if folder.is_dir() else folder
@@ -99,9 +102,11 @@ def _read_plan(folder: Path) -> StandstillPlan:
         raise InputError(
             describe("--plan", str(folder), "a folder holding plan.json (standstill plan)")
         )
+    text = read_text_capped(path, "--plan")
+    check_json_depth(text, f"--plan {path}")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
         raise InputError(describe(f"--plan {path}", repr(exc), "a plan.json")) from exc
     return StandstillPlan.from_dict(data, str(path))
 
