@@ -172,6 +172,10 @@ def test_states_are_found_by_their_switches_and_solenoids(press) -> None:
 def test_standstill_cli(press, tmp_path: Path, capsys) -> None:
     twin, plant = press
     folder = tmp_path / "plan"
+    assert main(["standstill", "plan", "--machine", "press-fit-cell"]) == 0  # prints, writes none
+    table = capsys.readouterr().out
+    assert table.startswith("| state | name | FEED | CLAMP | PRESS | EJECT |")
+    assert table.count("\n") == 2 + 6
     assert main(["standstill", "plan", "--machine", "press-fit-cell", "--out", str(folder)]) == 0
     assert sorted(p.name for p in folder.iterdir()) == [
         "plan.json", "standstill.csv", "standstill.md", "standstill.st"

@@ -39,9 +39,13 @@ def plan(
         str, typer.Option("--machine", help="Built-in machine name or a description (TOML).")
     ],
     out: Annotated[
-        Path,
-        typer.Option("--out", help="Folder for plan.json, standstill.st, .csv and .md."),
-    ],
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Folder for plan.json, standstill.st, .csv and .md (without: the table "
+            "is printed, nothing is written).",
+        ),
+    ] = None,
     mode: Annotated[
         str,
         typer.Option(
@@ -59,7 +63,7 @@ def plan(
         bool, typer.Option("--overwrite", help="Replace existing files in OUT.")
     ] = False,
 ) -> None:
-    """Plan the standstill leak test of MACHINE and write its PLC sequence into OUT.
+    """Plan the standstill leak test of MACHINE and write its PLC sequence into --out.
 
     The states hold every actuator at each end (a 5/3 closed-centre valve also in its
     centre); the plan says which lines they separate. Method: docs/standstill.md.
@@ -69,21 +73,26 @@ def plan(
     from pneufdd.standstill import plan_standstill
     from pneufdd.standstill.program import state_table, structured_text
 
-    if out.exists() and not out.is_dir():
-        raise InputError(describe("--out", str(out), "a folder (or a path to create one)"))
-    targets = {f"--out {name}": out / name for name in PLAN_FILES}
-    check_outputs(targets, {"--machine": Path(machine)}, overwrite)
+    if out is not None:
+        if out.exists() and not out.is_dir():
+            raise InputError(describe("--out", str(out), "a folder (or a path to create one)"))
+        targets = {f"--out {name}": out / name for name in PLAN_FILES}
+        check_outputs(targets, {"--machine": Path(machine)}, overwrite)
     description = load_machine(machine)
     planned = plan_standstill(description, mode=mode, settle_s=settle, window_s=window)
-    out.mkdir(parents=True, exist_ok=True)
     csv_text, md_text = state_table(planned)
-    write_text_atomic(out / "plan.json", planned.to_json() + "\n")
-    write_text_atomic(out / "standstill.st", structured_text(planned))
-    write_text_atomic(out / "standstill.csv", csv_text)
-    write_text_atomic(out / "standstill.md", md_text)
-    _say(
-        f"wrote {out}: {len(planned.states)} states ({planned.mode} mode), {', '.join(PLAN_FILES)}"
-    )
+    if out is None:
+        typer.echo(md_text, nl=False)
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(out / "plan.json", planned.to_json() + "\n")
+        write_text_atomic(out / "standstill.st", structured_text(planned))
+        write_text_atomic(out / "standstill.csv", csv_text)
+        write_text_atomic(out / "standstill.md", md_text)
+        _say(
+            f"wrote {out}: {len(planned.states)} states ({planned.mode} mode), "
+            f"{', '.join(PLAN_FILES)}"
+        )
     for note in planned.notes:
         _say(note)
     if planned.pairs_not_separable:

@@ -173,7 +173,7 @@ def state_table(plan: StandstillPlan) -> tuple[str, str]:
         cells.append(
             "closed during the window"
             if plan.mode == "decay"
-            else f"mean {plan.supply_flow_channel} over the window"
+            else f"median {plan.supply_flow_channel} over the window"
         )
         rows.append(cells)
     buf = io.StringIO()
