@@ -146,6 +146,33 @@ def _campaign(root: Path) -> Path:
     return store / "camp"
 
 
+def _standstill(root: Path) -> tuple[Path, Path]:
+    """A standstill plan of the base machine and a recording of its test on the twin with
+    a leak (cached): the working inputs of ``standstill analyse``."""
+    store = root / "_standstill"
+    plan_json, run = store / "plan" / "plan.json", store / "test.parquet"
+    if not run.exists():
+        from pneufdd.sim import load_machine
+        from pneufdd.standstill.plan import plan_standstill
+        from pneufdd.standstill.twin import simulate_standstill
+
+        store.mkdir(parents=True, exist_ok=True)
+        code = _quietly(["standstill", "plan", "--machine", MACHINE, "--out", "plan"], store)
+        if code != 0:
+            raise RuntimeError(f"the base standstill plan failed with exit {code}")
+        machine = load_machine(MACHINE)
+        (rec,) = simulate_standstill(machine, plan_standstill(machine), {"EJECT_B": "60slpm"})
+        rec.write(run)
+    return plan_json, run
+
+
+def _standstill_analyse(kit: Kit) -> list[str]:
+    plan_json, run = _standstill(kit.root)
+    return ["standstill", "analyse", kit.put(run, "recording", ".parquet"),
+            "--plan", kit.put(plan_json, "plan", ".json"),
+            "--json", kit.out("--json", ".json")]  # fmt: skip
+
+
 def _history(base: dict[str, Path], root: Path) -> Path:
     """A history database with the base run's cycles in it (cached)."""
     store = root / "_history"
@@ -296,6 +323,10 @@ COMMANDS: dict[str, Entry] = {
             "--out",
             k.out("--out", ".parquet"),
         ]
+    ),
+    "standstill analyse": Entry(_standstill_analyse, ok=frozenset({EXIT_OK, EXIT_LEAK})),
+    "standstill plan": Entry(
+        lambda k: ["standstill", "plan", "--machine", k.machine(), "--out", k.out("--out", "")]
     ),
     "steps": Entry(lambda k: ["steps", k.run()]),
     # users add reads its password from standard input, which the corpus closes: the

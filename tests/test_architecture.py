@@ -3,8 +3,9 @@
 The layers follow the ISO 13374 chain of the README's package map (acquire, condition,
 detect, assess, advise)::
 
-    physics -> recording -> identification -> sim -> signals -> features -> diagnosis
-    -> calibration -> classifiers -> evaluation -> monitor -> report -> web -> cli
+    physics -> catalogue -> recording -> identification -> sim -> signals -> features
+    -> diagnosis -> standstill -> calibration -> classifiers -> evaluation -> monitor
+    -> report -> web -> cli
 
 and inside :mod:`pneufdd.diagnosis`: detection -> effects -> localisation -> reference
 -> the diagnosis's own modules (engine, diagnoser, recordings, cost, ...). A module may
@@ -27,6 +28,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "pneufdd"
 BASE = ("_lazy", "errors", "array_types", "files", "limits", "location", "parallel", "progress")
 LAYERS: tuple[str, ...] = (
     "physics",
+    "catalogue",
     "recording",
     "identification",
     "sim",
@@ -37,6 +39,7 @@ LAYERS: tuple[str, ...] = (
     "diagnosis.localisation",
     "diagnosis.reference",
     "diagnosis",
+    "standstill",
     "calibration",
     "classifiers",
     "evaluation",

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from pneufdd.calibration.calibrate import (
+    _TwinFit,
     calibrate_machine,
     machine_parameters,
     measure_evidence,
@@ -74,6 +75,22 @@ def test_calibration_explains_a_plant_at_scale_2(plant) -> None:
     (factor,) = [e for e in result.estimates if e.name == "PRESS.fill_path_cv"]
     assert twin_path == pytest.approx(path.path_cv * np.exp(factor.value), rel=1e-9)
     assert twin_path == pytest.approx(plant_path, rel=0.05)
+
+
+def test_the_jacobian_does_not_depend_on_the_threads(plant) -> None:
+    # the twin runs of a Jacobian overlap on threads (issue 35); each run is a
+    # deterministic function of its parameters, so the Jacobian is the same on 1 or 2
+    rec = as_exported(simulate(plant, cycles=3, seed=SEED + 3))
+    twin = load_machine("press-fit-cell")
+    measured = measure_evidence([rec], twin)
+    params = machine_parameters(twin)
+    z = np.linspace(-0.5, 0.5, len(params))
+    free = np.ones(len(params), dtype=bool)
+    fits = [_TwinFit(twin.raw, params, measured, (), 0, 10, None, threads=n) for n in (1, 2)]
+    one, two = (fit.jacobian(z, free) for fit in fits)
+    assert fits[0].evaluations == fits[1].evaluations == len(params) + 1
+    assert np.array_equal(one, two)
+    assert np.count_nonzero(np.abs(one[: -len(params)]).sum(axis=0)) == len(params)
 
 
 def test_calibrate_cli_writes_description_and_report(plant, tmp_path: Path) -> None:

@@ -138,6 +138,7 @@ def test_six_bar_machine_is_described() -> None:
 def _monostable(raw: dict[str, Any], ident: str) -> None:
     index = [a["id"] for a in raw["actuator"]].index(ident)
     raw["actuator"][index]["valve"]["kind"] = "5/2-monostable"
+    raw["actuator"][index]["valve"].pop("catalogue", None)  # its code names a bistable valve
 
 
 def test_monostable_valve_has_one_solenoid() -> None:

@@ -25,7 +25,7 @@ what the recordings inform.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from pneufdd.array_types import FloatArray
+from pneufdd.calibration.draft_codes import apply_actuator_code, apply_valve_code, check_code_ids
 from pneufdd.calibration.gaps import gaps_repaired
 from pneufdd.errors import ChannelError, InputError, describe
 from pneufdd.identification.supply import fit_supply_path
@@ -571,7 +572,12 @@ def _joined(recordings: Sequence[Recording]) -> Recording:
     return Recording(channels, start_time=first.start_time, metadata=first.metadata)
 
 
-def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> DraftedMachine:
+def draft_machine(
+    recordings: Sequence[Recording],
+    name: str = "drafted",
+    actuator_codes: Mapping[str, str] | None = None,
+    valve_codes: Mapping[str, str] | None = None,
+) -> DraftedMachine:
     """Draft a machine description from leak-free recordings of a plant.
 
     Parameters
@@ -582,6 +588,10 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
         triggered capture of one cycle does, all of them joined end to end do).
     name : str
         Machine name.
+    actuator_codes, valve_codes : mapping of str to str, optional
+        Order codes by actuator id (``{"PRESS": "DSBC-63-100-PPVA-N3"}``): the values
+        they give replace the assumed ones, each marked in the TOML with its catalogue
+        source (:mod:`pneufdd.calibration.draft_codes`, ``docs/catalogue.md``).
 
     Returns
     -------
@@ -593,12 +603,17 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
     ChannelError
         Without solenoid channels.
     InputError
-        Without two repeating cycles.
+        Without two repeating cycles; for a code of an actuator the signals do not
+        have, a code that does not resolve, or a valve code contradicting the solenoids.
     """
     if not recordings:
         raise InputError(describe("recordings", 0, "at least one"))
     rec = gaps_repaired(recordings[0])  # the gap rule: no inf or 1e308 reaches a statistic
     ids, vacuum = _actuators(rec)
+    actuator_codes = dict(actuator_codes or {})
+    valve_codes = dict(valve_codes or {})
+    check_code_ids(actuator_codes, ids, "--actuator")
+    check_code_ids(valve_codes, ids, "--valve")
     try:
         sequence: tuple[StepSpec, ...] = learn_sequence(rec, release=_releases(rec, ids))
     except InputError:
@@ -615,6 +630,13 @@ def draft_machine(recordings: Sequence[Recording], name: str = "drafted") -> Dra
     if vacuum is not None:
         data["vacuum"] = _draft_vacuum(vacuum, notes)
     data["actuator"] = [_draft_actuator(rec, i, ident, notes) for i, ident in enumerate(ids)]
+    for i, act in enumerate(data["actuator"]):
+        if act["id"] in actuator_codes:
+            measured = notes[f"actuator[{i}].stroke_mm"].startswith("from X_")
+            stroke = float(act["stroke_mm"]) if measured else None
+            apply_actuator_code(act, i, actuator_codes[act["id"]], notes, stroke)
+        if act["id"] in valve_codes:
+            apply_valve_code(act, i, valve_codes[act["id"]], notes)
     data["sensor"] = _draft_sensors(rec, ids, notes)
     data["step"] = [
         _draft_step(rec, j, spec, ids, starts[:, j], ends[:, j]) for j, spec in enumerate(sequence)

@@ -186,6 +186,11 @@ def machine_parameters(
     its lines in the twin (on a press-fit-cell plant: Cv 0.041 where the plant's
     valve had 0.46). Speed is set by the throttles, as on most machines.
 
+    An actuator drafted with an order code (:attr:`~pneufdd.sim.description.Actuator.
+    code_drafted`: its bore, rod and stroke the catalogue's; dead volumes, tube and
+    throttles assumed) gets a volume of prior 0.3, throttles of prior 1.0, and a valve
+    parameter of prior 0.3 only when its valve has a code too.
+
     Friction is fitted only for an actuator with a line pressure sensor whose
     friction was not identified from its strokes (``friction_known``,
     :mod:`pneufdd.calibration.friction`). Where the fill path (valve and tube in
@@ -201,18 +206,25 @@ def machine_parameters(
     ]
     for a in machine.actuators:
         drafted = a.drafted
+        assumed = drafted or a.code_drafted  # throttles set by hand, not described
         if drafted:  # its valve follows its size (_size)
             params.append(Parameter(f"{a.id}.volume", 1.0, _size(a.id)))
         else:
-            params.append(Parameter(f"{a.id}.volume", 0.2, _volume(a.id)))
-            if a.id not in (paths or {}):
+            # a code-drafted actuator: the code's bore, assumed dead volumes and tube
+            params.append(
+                Parameter(f"{a.id}.volume", 0.3 if a.code_drafted else 0.2, _volume(a.id))
+            )
+            # a code-drafted actuator's valve without a code of its own is sized to the
+            # port (calibration.draft_codes) and not fitted to the durations (stop 23)
+            valve_known = not a.code_drafted or bool(a.valve.catalogue)
+            if a.id not in (paths or {}) and valve_known:
                 params.append(Parameter(f"{a.id}.valve_cv", 0.3, _valve_cv(a.id)))
         for side, value in (("A", a.meter_out_cv_a), ("B", a.meter_out_cv_b)):
             if value < 50.0:  # a throttle on that line (none: free exhaust)
                 params.append(
                     Parameter(
                         f"{a.id}.meter_out_cv_{side.lower()}",
-                        1.0 if drafted else 0.8,
+                        1.0 if assumed else 0.8,
                         _meter_out(a.id, side),
                     )
                 )

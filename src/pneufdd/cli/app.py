@@ -27,6 +27,7 @@ from pneufdd.cli import (
     reference,
     serve,
     simulate,
+    standstill,
     steps,
     users,
 )
@@ -49,7 +50,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data, evaluate, monitor, history, serve, users, build_twin):
+for module in (import_data, evaluate, monitor, history, serve, users, build_twin, standstill):
     module.register(app)
 
 _STATE = {"debug": False}

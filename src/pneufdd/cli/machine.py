@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -14,6 +16,7 @@ from pneufdd.errors import InputError, describe, naming
 
 if TYPE_CHECKING:
     from pneufdd.recording.model import Recording
+    from pneufdd.sim import MachineDescription
 
 __all__ = ["register"]
 
@@ -106,6 +109,22 @@ def draft(
     out: Annotated[Path, typer.Option("--out", help="Draft description to write (.toml).")],
     name: Annotated[str, typer.Option(help="Machine name.")] = "drafted",
     tag_map: MapOption = None,
+    actuator: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--actuator",
+            help="An actuator's order code, ID=CODE (e.g. PRESS=DSBC-63-100-PPVA-N3); "
+            "repeat per actuator. Forms: docs/catalogue.md.",
+        ),
+    ] = None,
+    valve: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--valve",
+            help="The order code of an actuator's valve, ID=CODE (e.g. PRESS=VUVG-L14-P53C); "
+            "repeat per valve.",
+        ),
+    ] = None,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace an existing OUT.")
     ] = False,
@@ -113,9 +132,11 @@ def draft(
     """Draft a machine description from RECORDINGS (what the signals cannot tell: assumed).
 
     Actuators, valve kinds, the PLC sequence and the sensors come from the signals;
-    bore, stroke, tubes and valve sizes are documented defaults marked '# assumed'.
+    bore, stroke, tubes and valve sizes are documented defaults marked '# assumed',
+    or the catalogue's for the order codes given (--actuator, --valve), each line
+    marked with its source. It lists the actuators found and the codes still missing.
 
-    Rules and defaults: docs/calibration.md.
+    Rules and defaults: docs/calibration.md; order codes: docs/catalogue.md.
     """
     from rich.console import Console
 
@@ -125,27 +146,86 @@ def draft(
 
     inputs: dict[str, Path | None] = {f"RECORDINGS[{k}]": p for k, p in enumerate(recordings)}
     check_outputs({"--out": out}, {**inputs, "--map": tag_map}, overwrite)
-    if not name.strip() or any(c in name for c in '"\\\n\r\t[]'):
+    if not name.strip() or any(c in name for c in _NAME_FORBIDDEN):
         raise InputError(
             describe("--name", name, "a machine name without quotes, brackets or line breaks")
         )
+    from pneufdd.catalogue import actuator_from_code, valve_from_code
+
+    actuator_codes = _codes(actuator or [], "--actuator", actuator_from_code)
+    valve_codes = _codes(valve or [], "--valve", valve_from_code)
     recs = _checked(recordings, tag_map)
     try:
-        drafted = draft_machine(recs, name=name)
+        drafted = draft_machine(recs, name, actuator_codes, valve_codes)
     except InputError as exc:
         raise naming(exc, ", ".join(str(p) for p in recordings)) from exc
     machine = load_machine(drafted.data)  # the draft is a valid description
     sources = ", ".join(p.name for p in recordings)
     text = drafted.to_toml(f"drafted from {sources} by pneufdd {__version__}")
     write_text_atomic(out, text)
-    assumed = sum(line.rstrip().endswith("# assumed") for line in text.splitlines())
-    Console(stderr=True).print(
+    lines = text.splitlines()
+    assumed = sum(line.rstrip().endswith("# assumed") for line in lines)
+    coded = sum("# from catalogue" in line or "# assumed by the" in line for line in lines)
+    console = Console(stderr=True)
+    say = partial(console.print, highlight=False, markup=False, soft_wrap=True)
+    say(
         f"wrote {out}: {len(machine.actuators)} actuators, {len(machine.steps)} steps, "
-        f"{len(machine.sensors)} sensors; {assumed} lines assumed (marked '# assumed')",
-        highlight=False,
-        markup=False,
-        soft_wrap=True,
+        f"{len(machine.sensors)} sensors; {assumed} lines assumed (marked '# assumed'), "
+        f"{coded} from order codes (marked '# from catalogue' or '# assumed by the ... rule')"
     )
+    for line in _code_report(machine, actuator_codes, valve_codes):
+        say(line)
+
+
+_NAME_FORBIDDEN = '"\\\n\r\t[]'
+
+
+def _codes(pairs: list[str], option: str, lookup: Callable[[str], object]) -> dict[str, str]:
+    """``ID=CODE`` options as a mapping, each code resolved in the catalogue first.
+
+    Raises
+    ------
+    InputError
+        For a pair without ``=``, an id given twice, or a code that does not resolve
+        (naming the option, the code, the part that failed and the forms allowed).
+    """
+    out: dict[str, str] = {}
+    for pair in pairs:
+        ident, sep, code = pair.partition("=")
+        ident, code = ident.strip().upper(), code.strip()
+        if not sep or not ident or not code:
+            raise InputError(describe(option, pair, "ID=CODE, e.g. PRESS=DSBC-63-100-PPVA-N3"))
+        if ident in out:
+            raise InputError(describe(f"{option} for actuator {ident}", "given twice", "once"))
+        try:
+            lookup(code)
+        except InputError as exc:
+            raise InputError(f"{option} {ident}={code}: {exc}") from exc
+        out[ident] = code
+    return out
+
+
+def _code_report(
+    machine: MachineDescription, actuator_codes: dict[str, str], valve_codes: dict[str, str]
+) -> list[str]:
+    """The actuators found, and the exact options for the codes still missing."""
+    ids = machine.actuator_ids
+    lines = ["actuators found: " + ", ".join(
+        f"{i} ({'code ' + actuator_codes[i] if i in actuator_codes else 'no order code'})"
+        for i in ids
+    )]  # fmt: skip
+    missing = [i for i in ids if i not in actuator_codes]
+    missing_valves = [i for i in ids if i not in valve_codes]
+    if missing or missing_valves:
+        lines.append(
+            "their geometry and valves stay assumed; add the codes from their nameplates "
+            "(forms: docs/catalogue.md):"
+        )
+        lines += [f"  --actuator {i}=<order code>" for i in missing]
+        lines += [f"  --valve {i}=<order code>" for i in missing_valves]
+    else:
+        lines.append("every actuator and valve has its order code")
+    return lines
 
 
 @machine_app.command("calibrate")

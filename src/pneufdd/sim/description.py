@@ -7,13 +7,14 @@ naming the file, the key path, the value received and what is allowed.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from pneufdd.errors import MachineError, describe
+from pneufdd.errors import InputError, MachineError, describe
 from pneufdd.limits import MAX_ACTUATORS, MAX_STEPS
 
 __all__ = [
@@ -36,6 +37,10 @@ __all__ = [
 DRAFT_MODEL = "unknown (drafted from the PLC signals; geometry assumed)"
 """The ``model`` of every drafted actuator (``pneufdd machine draft``): calibration
 widens its priors and the signatures' model uncertainty varies it more on seeing it."""
+CODE_DRAFT_NOTE = "(drafted; geometry from its order code, the rest assumed)"
+"""The end of the ``model`` of an actuator drafted with an order code (``pneufdd machine
+draft --actuator ID=CODE``): its geometry is the catalogue's, its masses, tube length
+and throttles are assumed (:attr:`Actuator.code_drafted`)."""
 
 ACTUATOR_KINDS = ("linear", "rodless", "slide", "rotary", "gripper")
 VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre")
@@ -179,6 +184,8 @@ class Valve:
     xt: float
     on_delay_s: float
     off_delay_s: float
+    catalogue: str = ""
+    """The valve's order code (``docs/catalogue.md``), empty when not given."""
 
 
 @dataclass(frozen=True)
@@ -207,11 +214,18 @@ class Actuator:
     cushion_length_mm: float = 0.0
     cushion_cv_a: float = 0.0
     cushion_cv_b: float = 0.0
+    catalogue: str = ""
+    """The actuator's order code (``docs/catalogue.md``), empty when not given."""
 
     @property
     def drafted(self) -> bool:
         """Whether the actuator was drafted from PLC signals (its geometry assumed)."""
         return self.model == DRAFT_MODEL
+
+    @property
+    def code_drafted(self) -> bool:
+        """Whether it was drafted with an order code (geometry known, the rest assumed)."""
+        return self.model.endswith(CODE_DRAFT_NOTE)
 
 
 @dataclass(frozen=True)
@@ -377,9 +391,18 @@ def _valve(r: _Reader) -> Valve:
         xt=r.number("xt", 1.0, low=MIN_XT, high=1.0),
         on_delay_s=r.number("on_delay_s", 0.020, low=0.0, high=1.0),
         off_delay_s=r.number("off_delay_s", 0.042, low=0.0, high=1.0),
+        catalogue=_code(r),
     )
     r.finish()
     return v
+
+
+def _code(r: _Reader) -> str:
+    """The table's ``catalogue`` order code ('' when absent)."""
+    code = r.raw("catalogue", "")
+    if not isinstance(code, str):
+        raise r.fail("catalogue", code, "an order code (docs/catalogue.md)")
+    return code
 
 
 def _actuator(r: _Reader) -> Actuator:
@@ -427,6 +450,7 @@ def _actuator(r: _Reader) -> Actuator:
         cushion_length_mm=cushion[0],
         cushion_cv_a=cushion[1],
         cushion_cv_b=cushion[2],
+        catalogue=_code(r),
     )
     if act.valve.kind == "5/2-monostable" and act.initial != "retracted":
         raise r.fail(
@@ -543,6 +567,70 @@ def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: 
     return step
 
 
+def _from_catalogue(table: object, where: str, part: str) -> dict[str, Any]:
+    """The keys an order code gives that ``table`` lacks, with the code's values.
+
+    ``part`` is ``"actuator"`` or ``"valve"`` (:func:`~pneufdd.catalogue.
+    description_values`); a code that does not resolve raises a :class:`MachineError`
+    naming ``where``. Values given in the table win over the code's (a measured dead
+    volume, a Cv identified on a bench); a ``kind`` that contradicts the code's is
+    refused.
+    """
+    from pneufdd.catalogue import description_values
+
+    if not isinstance(table, Mapping) or not isinstance(table.get("catalogue"), str):
+        return {}  # no code, or one refused with its key path by the reader
+    code = table["catalogue"]
+    try:
+        values = description_values(code, part)
+    except InputError as exc:
+        raise MachineError(f"{where}.catalogue: {exc}") from exc
+    fill: dict[str, Any] = {}
+    for key, value in values:
+        if key == "kind" and "kind" in table and table["kind"] != value:
+            raise MachineError(
+                describe(f"{where}.kind", table["kind"], [value])
+                + f" (order code {code!r} is a {value}; remove kind or the code)"
+            )
+        if key in ("stroke_mm", "angle_deg", "lever_mm") and (
+            "stroke_mm" in table or "angle_deg" in table
+        ):
+            continue  # the table states the stroke (or the angle and lever) itself
+        if key not in table:
+            fill[key] = value
+    return fill
+
+
+def _with_catalogue(data: Mapping[str, Any], source: str) -> Mapping[str, Any]:
+    """``data`` with every value an actuator's or valve's order code gives filled in.
+
+    A copy where a code fills a key (the caller's mapping is not changed), so the
+    description's raw mapping states every value explicitly, as if written by hand;
+    ``data`` itself when the tables state them all (the built-in machines).
+    """
+    actuators = data.get("actuator")
+    if not isinstance(actuators, list):
+        return data
+    fills = []
+    for i, table in enumerate(actuators):
+        valve = table.get("valve") if isinstance(table, Mapping) else None
+        fills.append(
+            (
+                _from_catalogue(table, f"{source}: actuator[{i}]", "actuator"),
+                _from_catalogue(valve, f"{source}: actuator[{i}].valve", "valve"),
+            )
+        )
+    if not any(a or v for a, v in fills):
+        return data
+    out = dict(data)  # only the actuator tables are copied: the steps are large
+    out["actuator"] = copy.deepcopy(actuators)
+    for table, (act_fill, valve_fill) in zip(out["actuator"], fills, strict=True):
+        table.update(act_fill)
+        if valve_fill:
+            table["valve"].update(valve_fill)
+    return out
+
+
 def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> MachineDescription:
     """Validate a parsed TOML mapping and return a :class:`MachineDescription`.
 
@@ -561,7 +649,16 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     ------
     MachineError
         On any invalid field, naming ``source``, the key path, the value and what is allowed.
+
+    Notes
+    -----
+    An ``[[actuator]]`` or its ``valve`` may give an order code (``catalogue =
+    "DSBC-63-100-PPVA-N3"``, ``docs/catalogue.md``): the keys it gives (geometry and
+    the family's rules for an actuator; kind, Cv and xT for a valve) default to the
+    code's, and the returned description's ``raw`` mapping states them.
     """
+    if isinstance(data, Mapping):
+        data = _with_catalogue(data, source)
     top = _Reader(data, "", source)
     m = top.table("machine")
     name = m.text("name")

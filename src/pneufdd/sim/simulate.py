@@ -344,6 +344,7 @@ def run_simulation(
     channels: Sequence[str] | None = None,
     faults: FaultsLike = None,
     nuisances: Nuisances | None = None,
+    supply_open: Sequence[bool] | None = None,
 ) -> SimulationResult:
     """Simulate ``cycles`` machine cycles and return true states plus the recording.
 
@@ -385,6 +386,11 @@ def run_simulation(
     nuisances : Nuisances, optional
         Ambient temperature, payloads, header dips (:mod:`pneufdd.sim.nuisances`);
         recorded in the metadata (``nuisances``, ``nuisance_timeline``, ``header_dips``).
+    supply_open : sequence of bool, optional
+        Per cycle, whether the supply shut-off valve at the regulator's outlet is open
+        (None: always). Closed, the regulator passes no air: the reservoir, the manifold
+        and the lines connected to it keep their air and lose it through their leaks
+        (the standstill test's pressure decay, ``docs/standstill.md``).
 
     Returns
     -------
@@ -402,8 +408,13 @@ def run_simulation(
     state = initial_state(desc, plant)
     plant.sp[lay.SP_COMP_PHASE] = rng.uniform()
     run = _CycleLoop(desc, plant, state, sensors, rng, cycles, max_cycle_s, conditions)
+    regulator_cv = float(plant.sp[lay.SP_REG_CV])
+    if supply_open is not None and len(supply_open) != cycles:
+        raise InputError(describe("supply_open", f"{len(supply_open)} flags", f"{cycles}"))
     try:
         for cyc in range(cycles):
+            if supply_open is not None:  # a closed shut-off valve: no flow from the regulator
+                plant.sp[lay.SP_REG_CV] = regulator_cv if supply_open[cyc] else 0.0
             run.cycle(cyc, specs, schedule, keep_outputs)
             if progress is not None:
                 progress(cyc + 1, cycles)
