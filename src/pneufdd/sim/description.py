@@ -20,6 +20,7 @@ __all__ = [
     "ACTUATOR_KINDS",
     "DRAFT_MODEL",
     "SENSOR_KINDS",
+    "SINGLE_SOLENOID_VALVES",
     "VALVE_KINDS",
     "Action",
     "Actuator",
@@ -38,7 +39,10 @@ DRAFT_MODEL = "unknown (drafted from the PLC signals; geometry assumed)"
 widens its priors and the signatures' model uncertainty varies it more on seeing it."""
 
 ACTUATOR_KINDS = ("linear", "rodless", "slide", "rotary", "gripper")
-VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre")
+VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre", "3/2-monostable")
+SINGLE_SOLENOID_VALVES = ("5/2-monostable", "3/2-monostable")
+"""Valves with one solenoid, ``U_<id>_A``, and a spring that returns the spool: the
+3/2 drives a single-acting cylinder whose own spring returns it (B side vented)."""
 SENSOR_KINDS = ("pressure", "flow", "position")
 SENSOR_UNITS = {"pressure": "bar(g)", "flow": "SLPM", "position": "mm"}
 METER_DIRECTIONS = ("forward", "bidirectional")
@@ -204,6 +208,15 @@ class Actuator:
     meter_out_cv_b: float
     initial: str
     valve: Valve
+    spring_preload_n: float = 0.0
+    spring_rate_n_per_mm: float = 0.0
+    line_pressure_psig_a: float = 0.0
+    line_pressure_psig_b: float = 0.0
+    booster: bool = False
+
+    def spring_force(self, position_m: float) -> float:
+        """Force of the return spring at ``position_m`` from the home end [N]."""
+        return self.spring_preload_n + self.spring_rate_n_per_mm * position_m * 1e3
 
     @property
     def drafted(self) -> bool:
@@ -223,6 +236,7 @@ class Vacuum:
     switch_level: float
     on_delay_s: float
     off_delay_s: float
+    rated_psig: float | None = None
 
 
 @dataclass(frozen=True)
@@ -266,6 +280,9 @@ class ProgramStep:
     wait: tuple[str, ...]
     wait_off: tuple[str, ...]
     dwell_s: float
+    required_force_n: float = 0.0
+    force_actuator: str = ""
+    force_direction: int = 0
 
 
 @dataclass(frozen=True)
@@ -332,7 +349,7 @@ def solenoid_slots(machine: MachineDescription) -> tuple[str | None, ...]:
     slots: list[str | None] = []
     for a in machine.actuators:
         slots.append(f"U_{a.id}_A")
-        slots.append(None if a.valve.kind == "5/2-monostable" else f"U_{a.id}_B")
+        slots.append(None if a.valve.kind in SINGLE_SOLENOID_VALVES else f"U_{a.id}_B")
     if machine.vacuum is not None:
         slots.append(f"U_{machine.vacuum.id}")
     return tuple(slots)
@@ -420,16 +437,45 @@ def _actuator(r: _Reader) -> Actuator:
         meter_out_cv_b=r.number("meter_out_cv_b", meter_out or 50.0, low=MIN_CV, high=50.0),
         initial=r.text("initial", "retracted", choices=("retracted", "extended")),
         valve=_valve(r.table("valve")),
+        **_energy_keys(r),
     )
-    if act.valve.kind == "5/2-monostable" and act.initial != "retracted":
+    if act.valve.kind in SINGLE_SOLENOID_VALVES and act.initial != "retracted":
         raise r.fail(
             "initial",
             act.initial,
-            "'retracted' (a 5/2-monostable valve's spring holds the actuator retracted "
+            f"'retracted' (a {act.valve.kind} valve's spring holds the actuator retracted "
             "while no solenoid is energised)",
+        )
+    if act.valve.kind == "3/2-monostable" and act.spring_preload_n <= 0.0:
+        raise r.fail(
+            "spring_preload_n",
+            act.spring_preload_n,
+            "> 0 N with a 3/2-monostable valve (a single-acting cylinder returns by its spring)",
         )
     r.finish()
     return act
+
+
+def _energy_keys(r: _Reader) -> dict[str, Any]:
+    """The optional return spring and the lines' own pressures of an ``[[actuator]]``."""
+    both = r.number("line_pressure_psig", 0.0, low=0.0, high=MAX_SUPPLY_PSIG)
+    keys: dict[str, Any] = {
+        "spring_preload_n": r.number("spring_preload_n", 0.0, low=0.0, high=1e6),
+        "spring_rate_n_per_mm": r.number("spring_rate_n_per_mm", 0.0, low=0.0, high=1e6),
+        "line_pressure_psig_a": r.number(
+            "line_pressure_psig_a", both, low=0.0, high=MAX_SUPPLY_PSIG
+        ),
+        "line_pressure_psig_b": r.number(
+            "line_pressure_psig_b", both, low=0.0, high=MAX_SUPPLY_PSIG
+        ),
+    }
+    booster = r.raw("booster", False)
+    if not isinstance(booster, bool):
+        raise r.fail("booster", booster, "true or false")
+    if booster and keys["line_pressure_psig_a"] <= 0 and keys["line_pressure_psig_b"] <= 0:
+        raise r.fail("booster", booster, "false, or true with line_pressure_psig (> 0)")
+    keys["booster"] = booster
+    return keys
 
 
 def _vacuum(r: _Reader) -> Vacuum:
@@ -442,6 +488,11 @@ def _vacuum(r: _Reader) -> Vacuum:
         switch_level=r.number("switch_level", 0.6, low=0.0, low_open=True, high=0.99),
         on_delay_s=r.number("on_delay_s", 0.020, low=0.0, high=1.0),
         off_delay_s=r.number("off_delay_s", 0.042, low=0.0, high=1.0),
+        rated_psig=(
+            r.number("rated_psig", low=0.0, low_open=True, high=MAX_SUPPLY_PSIG)
+            if r.has("rated_psig")
+            else None
+        ),
     )
     r.finish()
     return v
@@ -515,11 +566,37 @@ def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: 
         wait=tuple(wait),
         wait_off=tuple(wait_off),
         dwell_s=r.number("dwell_s", 0.0, low=0.0, high=600.0),
+        **_required_force(r, actions),
     )
     if not step.actions and not step.wait and not step.wait_off and step.dwell_s == 0.0:
         raise r.fail("do", [], "at least one action, wait or dwell_s")
     r.finish()
     return step
+
+
+def _required_force(r: _Reader, actions: Sequence[Action]) -> dict[str, Any]:
+    """A force-holding step's ``required_force_n``, its actuator and direction (+1 extend).
+
+    The actuator defaults to the one the step commands when it commands one; the
+    direction to the one that command drives it (``U_<id>_A`` set: extend; ``U_<id>_B``
+    set or ``U_<id>_A`` reset: retract).
+    """
+    force = r.number("required_force_n", 0.0, low=0.0, high=1e7)
+    if not r.has("required_force_n"):
+        return {}
+    commanded: dict[str, int] = {}
+    for act in actions:
+        ident, _, side = act.solenoid[2:].rpartition("_")
+        if ident and side in "AB":
+            extend = (side == "A") == (act.mode != "reset")
+            commanded[ident] = 1 if extend else -1
+    default = next(iter(commanded)) if len(commanded) == 1 else None
+    ident = r.text("force_actuator") if r.has("force_actuator") or default is None else default
+    direction = commanded.get(ident, 0)
+    if r.has("force_direction") or direction == 0:
+        text = r.text("force_direction", choices=("extend", "retract"))
+        direction = 1 if text == "extend" else -1
+    return {"required_force_n": force, "force_actuator": ident, "force_direction": direction}
 
 
 def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> MachineDescription:
@@ -568,23 +645,28 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     if dupc:
         raise MachineError(describe(f"{source}: sensor channel", sorted(dupc)[0], "unique"))
     solenoids = [f"U_{a.id}_A" for a in actuators] + [
-        f"U_{a.id}_B" for a in actuators if a.valve.kind != "5/2-monostable"
+        f"U_{a.id}_B" for a in actuators if a.valve.kind not in SINGLE_SOLENOID_VALVES
     ]
     switches = [f"S_{i}_{s}" for i in ids for s in "AB"]
     if vacuum is not None:
         solenoids.append(f"U_{vacuum.id}")
         switches.append(f"S_{vacuum.id}")
-    monostable = {f"U_{a.id}_B": a.id for a in actuators if a.valve.kind == "5/2-monostable"}
+    monostable = {
+        f"U_{a.id}_B": (a.id, a.valve.kind)
+        for a in actuators
+        if a.valve.kind in SINGLE_SOLENOID_VALVES
+    }
     for k, raw_step in enumerate(top.tables("step", MAX_STEPS)):
         for a, raw_action in enumerate(raw_step.tables("do")):
             for verb in ("set", "reset"):
                 sol = raw_action.data.get(verb)
                 if isinstance(sol, str) and sol in monostable:
+                    ident, kind = monostable[sol]
                     raise MachineError(
                         describe(f"{source}: step[{k}].do[{a}].{verb}", sol, "an existing solenoid")
-                        + f"; actuator {monostable[sol]}'s 5/2-monostable valve has one "
-                        f"solenoid, U_{monostable[sol]}_A: it retracts by spring when that "
-                        f'solenoid is released ({{ reset = "U_{monostable[sol]}_A" }})'
+                        + f"; actuator {ident}'s {kind} valve has one "
+                        f"solenoid, U_{ident}_A: it retracts by spring when that "
+                        f'solenoid is released ({{ reset = "U_{ident}_A" }})'
                     )
     steps = tuple(_step(s, solenoids, switches, i) for i, s in enumerate(top.tables("step")))
     for k, step in enumerate(steps):
@@ -604,6 +686,11 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
                 )
     if not steps:
         raise MachineError(describe(f"{source}: step", [], "at least one [[step]]"))
+    for k, step in enumerate(steps):
+        if step.force_actuator and step.force_actuator not in ids:
+            raise MachineError(
+                describe(f"{source}: step[{k}].force_actuator", step.force_actuator, ids)
+            )
     top.finish()
     return MachineDescription(
         name=name,

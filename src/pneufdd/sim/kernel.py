@@ -129,6 +129,19 @@ def _orifice_g(p1: float, p2: float, area: float, t1: float, t2: float) -> float
 
 
 @njit(cache=True, inline="always")
+def _line_source(p_manifold: float, p_line: float, boost: float) -> float:
+    """Pressure a connected line is fed from [Pa]: the manifold's, or its own source's.
+
+    A line with its own pressure regulator (``p_line`` > 0) is fed at ``p_line`` while
+    the manifold is above it (below, the regulator is wide open: the manifold feeds
+    it); a booster (``boost`` > 0) feeds it at ``p_line`` whatever the manifold's.
+    """
+    if p_line > 0.0 and (boost > 0.0 or p_manifold > p_line):
+        return p_line
+    return p_manifold
+
+
+@njit(cache=True, inline="always")
 def _house_pressure(
     t: float, period: float, phase: float, p_house: float, band: float, drift: float
 ) -> float:
@@ -205,6 +218,7 @@ def run_cycle(
     g_fill = np.zeros(nc)
     g_exh = np.zeros(nc)
     g_leak = np.zeros(nc)
+    src = np.zeros(nc)  # a line fed by its own regulator or booster: its pressure; else 0
     conn = np.zeros(nc, dtype=np.int64)  # 0 closed, 1 manifold, 2 exhaust
     awake = np.ones(nc, dtype=np.int64)
     aw = np.zeros(nc, dtype=np.int64)
@@ -330,7 +344,7 @@ def run_cycle(
                     spool[i] = 1
                 elif eb == 1 and ea == 0:
                     spool[i] = -1
-            elif vkind[i] == lay.VK_MONOSTABLE:
+            elif vkind[i] == lay.VK_MONOSTABLE or vkind[i] == lay.VK_SINGLE_ACTING:
                 spool[i] = 1 if ea == 1 else -1
             elif vkind[i] == lay.VK_CLOSED_CENTRE:
                 if ea == 1 and eb == 0:
@@ -348,7 +362,8 @@ def run_cycle(
                 conn[2 * i + 1] = 2
             elif spool[i] == -1:
                 conn[2 * i] = 2
-                conn[2 * i + 1] = 1
+                # a single-acting cylinder's spring side is vented, never supplied
+                conn[2 * i + 1] = 2 if vkind[i] == lay.VK_SINGLE_ACTING else 1
             else:
                 conn[2 * i] = 0
                 conn[2 * i + 1] = 0
@@ -384,7 +399,7 @@ def run_cycle(
                 awake[c] = 1
                 continue
             if conn[c] == 1:
-                d = abs(p[2 + c] - p[1])
+                d = abs(p[2 + c] - _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST]))
             elif conn[c] == 2:
                 d = abs(p[2 + c] - P_ATM)
             else:
@@ -458,10 +473,26 @@ def run_cycle(
                 j = 2 + c
                 g_fill[c] = 0.0
                 g_exh[c] = 0.0
+                src[c] = 0.0
                 if conn[c] == 1:
-                    g_fill[c] = _isa_g(
-                        p[1], p[j], cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT], temp[1], temp[j]
-                    )
+                    p_up = _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST])
+                    if p_up != p[1]:
+                        # fed by its own regulator (or booster): a source at its pressure
+                        # that does not relieve (no flow back from a fuller chamber)
+                        src[c] = p_up
+                        if p[j] < p_up:
+                            g_fill[c] = _isa_g(
+                                p_up,
+                                p[j],
+                                cp[c, lay.CP_CV_FILL],
+                                cp[c, lay.CP_XT],
+                                temp[1],
+                                temp[j],
+                            )
+                    else:
+                        g_fill[c] = _isa_g(
+                            p[1], p[j], cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT], temp[1], temp[j]
+                        )
                 elif conn[c] == 2:
                     g_exh[c] = _isa_g(
                         p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], temp[j], t_wall
@@ -473,10 +504,17 @@ def run_cycle(
                 a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
                 s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
                 den = a_c + g_fill[c] + g_exh[c] + g_leak[c]
-                alpha[c] = (a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM) / den
-                beta[c] = g_fill[c] / den
-                lhs_m += g_fill[c] * (1.0 - beta[c])
-                rhs_m += g_fill[c] * alpha[c]
+                if src[c] > 0.0:  # filled from its own source: a fixed draw on the manifold
+                    alpha[c] = (
+                        a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM + g_fill[c] * src[c]
+                    ) / den
+                    beta[c] = 0.0
+                    rhs_m -= g_fill[c] * (src[c] - alpha[c])
+                else:
+                    alpha[c] = (a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM) / den
+                    beta[c] = g_fill[c] / den
+                    lhs_m += g_fill[c] * (1.0 - beta[c])
+                    rhs_m += g_fill[c] * alpha[c]
             # 2x2: reservoir and manifold
             a11 = a_r + g_sr + g_rm
             b1 = a_r * p[0] + g_sr * p_src
@@ -503,7 +541,7 @@ def run_cycle(
                 c = aw[q]
                 j = 2 + c
                 pc_new = alpha[c] + beta[c] * pm_new
-                f_in = g_fill[c] * (pm_new - pc_new)
+                f_in = g_fill[c] * ((pm_new if src[c] == 0.0 else src[c]) - pc_new)
                 f_ex = g_exh[c] * (pc_new - P_ATM)
                 f_lk = g_leak[c] * (pc_new - P_ATM)
                 dm[1] -= f_in
@@ -539,6 +577,9 @@ def run_cycle(
                     cp[2 * i + 1, lay.CP_AREA],
                     ap[i, lay.AP_AROD],
                 )
+                if ap[i, lay.AP_SPRING_F0] != 0.0 or ap[i, lay.AP_SPRING_K] != 0.0:
+                    # a return spring pushes towards the home end (x = 0)
+                    force -= ap[i, lay.AP_SPRING_F0] + ap[i, lay.AP_SPRING_K] * x[i]
                 fs = ap[i, lay.AP_FS] * fric[i]
                 fc = ap[i, lay.AP_FC] * fric[i]
                 cvf = ap[i, lay.AP_CVF]
@@ -613,7 +654,7 @@ def run_cycle(
                 if vac_on:
                     # an ejector reaches its full vacuum from ~50 % of the nominal supply
                     # gauge pressure on; below that the attainable vacuum falls linearly
-                    drive = 2.0 * (pm_new - P_ATM) / (sp[lay.SP_P_SET] - P_ATM)
+                    drive = 2.0 * (pm_new - P_ATM) / (sp[lay.SP_VAC_P_RATED] - P_ATM)
                     drive = min(max(drive, 0.0), 1.0)
                     ss[lay.SS_VAC] += dt * (drive - ss[lay.SS_VAC]) / sp[lay.SP_VAC_TAU_ON]
                 else:

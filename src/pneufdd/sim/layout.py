@@ -44,7 +44,8 @@ SP_OU_DT = 24  # grid of the house-pressure drift array [s]
 SP_N_MOVE = 25  # minimum sub-steps per ms while a piston moves [-]
 SP_DP_TOL = 26  # target pressure change per sub-step [Pa]
 SP_N_MAX = 27  # maximum sub-steps per ms [-]
-SP_SIZE = 28
+SP_VAC_P_RATED = 28  # supply pressure the ejector is rated at [Pa abs]
+SP_SIZE = 29
 
 # actuator parameters (float array, one row per actuator)
 AP_STROKE = 0  # [m]
@@ -55,12 +56,15 @@ AP_CVF = 4  # viscous friction [N s/m]
 AP_AROD = 5  # rod area exposed to atmosphere [m^2]
 AP_ON_DELAY = 6  # [s]
 AP_OFF_DELAY = 7  # [s]
-AP_SIZE = 8
+AP_SPRING_F0 = 8  # return spring force at the home end (x = 0) [N]
+AP_SPRING_K = 9  # return spring rate [N/m]
+AP_SIZE = 10
 
 # actuator valve kinds (int)
 VK_BISTABLE = 0
 VK_MONOSTABLE = 1
 VK_CLOSED_CENTRE = 2
+VK_SINGLE_ACTING = 3  # 3/2 monostable: A filled while energised, B always vented
 
 # chamber parameters (float array, row 2*i + side)
 CP_AREA = 0  # piston area [m^2]
@@ -70,7 +74,9 @@ CP_CV_EXH = 3  # valve + tube + meter-out throttle, series [-]
 CP_XT = 4
 CP_LEAK = 5  # effective leak area [m^2]
 CP_TAU_TH = 6  # thermal time constant [s]
-CP_SIZE = 7
+CP_P_LINE = 7  # line fed at this pressure by its own regulator or booster [Pa abs]; 0: none
+CP_BOOST = 8  # 1: that pressure comes from a booster (also above the manifold's) [-]
+CP_SIZE = 9
 
 # scalar float state
 SS_TIME = 0  # simulated time [s]
