@@ -4,7 +4,7 @@ The layers follow the ISO 13374 chain of the README's package map (acquire, cond
 detect, assess, advise)::
 
     physics -> recording -> identification -> sim -> signals -> features -> diagnosis
-    -> calibration -> classifiers -> evaluation -> monitor -> report -> cli
+    -> calibration -> energy -> classifiers -> evaluation -> monitor -> report -> cli
 
 and inside :mod:`pneufdd.diagnosis`: detection -> effects -> localisation -> reference
 -> the diagnosis's own modules (engine, diagnoser, recordings, cost, ...). A module may
@@ -38,6 +38,7 @@ LAYERS: tuple[str, ...] = (
     "diagnosis.reference",
     "diagnosis",
     "calibration",
+    "energy",
     "classifiers",
     "evaluation",
     "monitor",

@@ -18,6 +18,7 @@ from pneufdd.cli import (
     campaign,
     demo,
     diagnose,
+    energy,
     evaluate,
     features,
     history,
@@ -47,7 +48,7 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data, evaluate, monitor, history, build_twin):
+for module in (import_data, evaluate, monitor, history, build_twin, energy):
     module.register(app)
 
 _STATE = {"debug": False}
