@@ -535,7 +535,13 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
     return s
 
 
-def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: int) -> ProgramStep:
+def _step(
+    r: _Reader,
+    solenoids: Sequence[str],
+    switches: Sequence[str],
+    index: int,
+    actuators: Sequence[str] = (),
+) -> ProgramStep:
     actions: list[Action] = []
     for a in r.tables("do"):
         if a.has("reset"):
@@ -566,7 +572,7 @@ def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: 
         wait=tuple(wait),
         wait_off=tuple(wait_off),
         dwell_s=r.number("dwell_s", 0.0, low=0.0, high=600.0),
-        **_required_force(r, actions),
+        **_required_force(r, actions, actuators),
     )
     if not step.actions and not step.wait and not step.wait_off and step.dwell_s == 0.0:
         raise r.fail("do", [], "at least one action, wait or dwell_s")
@@ -574,7 +580,9 @@ def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: 
     return step
 
 
-def _required_force(r: _Reader, actions: Sequence[Action]) -> dict[str, Any]:
+def _required_force(
+    r: _Reader, actions: Sequence[Action], actuators: Sequence[str]
+) -> dict[str, Any]:
     """A force-holding step's ``required_force_n``, its actuator and direction (+1 extend).
 
     The actuator defaults to the one the step commands when it commands one; the
@@ -591,7 +599,10 @@ def _required_force(r: _Reader, actions: Sequence[Action]) -> dict[str, Any]:
             extend = (side == "A") == (act.mode != "reset")
             commanded[ident] = 1 if extend else -1
     default = next(iter(commanded)) if len(commanded) == 1 else None
-    ident = r.text("force_actuator") if r.has("force_actuator") or default is None else default
+    if r.has("force_actuator") or default is None:
+        ident = r.text("force_actuator", choices=actuators)
+    else:
+        ident = default
     direction = commanded.get(ident, 0)
     if r.has("force_direction") or direction == 0:
         text = r.text("force_direction", choices=("extend", "retract"))
@@ -668,7 +679,7 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
                         f"solenoid, U_{ident}_A: it retracts by spring when that "
                         f'solenoid is released ({{ reset = "U_{ident}_A" }})'
                     )
-    steps = tuple(_step(s, solenoids, switches, i) for i, s in enumerate(top.tables("step")))
+    steps = tuple(_step(s, solenoids, switches, i, ids) for i, s in enumerate(top.tables("step")))
     for k, step in enumerate(steps):
         for a, act in enumerate(step.actions):
             ident, _, side = act.solenoid[2:].rpartition("_")
@@ -686,11 +697,6 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
                 )
     if not steps:
         raise MachineError(describe(f"{source}: step", [], "at least one [[step]]"))
-    for k, step in enumerate(steps):
-        if step.force_actuator and step.force_actuator not in ids:
-            raise MachineError(
-                describe(f"{source}: step[{k}].force_actuator", step.force_actuator, ids)
-            )
     top.finish()
     return MachineDescription(
         name=name,
