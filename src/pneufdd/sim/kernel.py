@@ -17,12 +17,12 @@ sub-steps of a linearly-implicit scheme:
   (eq. 4.7-4.9 with heat exchange to the wall), so mass is conserved exactly:
   each edge flow leaves one node and enters the other.
 * Pistons follow eq. 4.13 with real areas and the atmosphere on the rod,
-  ``P_A A_A - P_B A_B - P_atm A_rod - F_f = M x''``, Karnopp friction (eq. 4.14),
-  and inelastic end stops (semi-implicit Euler).
-* Sub-steps adapt to the activity: 1 per ms when all is quiet, up to 25 during
-  valve transients and strokes. Chambers of actuators at rest whose pressure
-  equals that of the node they connect to (and that have no leak) are frozen
-  until the difference exceeds a wake threshold.
+  ``P_A A_A - P_B A_B - P_atm A_rod - F_f = M x''`` (a return spring a load), Karnopp
+  friction (eq. 4.14), inelastic end stops (semi-implicit Euler). A line may be fed
+  at its own pressure (regulator or booster): a fixed draw on the manifold.
+* Sub-steps adapt: 1 per ms when all is quiet, up to 25 during valve transients and
+  strokes. Chambers of resting actuators at the pressure of the node they connect to
+  (and without leak) are frozen until the difference exceeds a wake threshold.
 
 The kernel takes five typed records (:mod:`pneufdd.sim.records`: plant parameters,
 PLC program, the cycle's random draws, state, outputs). Its physics is the compiled
@@ -130,12 +130,8 @@ def _orifice_g(p1: float, p2: float, area: float, t1: float, t2: float) -> float
 
 @njit(cache=True, inline="always")
 def _line_source(p_manifold: float, p_line: float, boost: float) -> float:
-    """Pressure a connected line is fed from [Pa]: the manifold's, or its own source's.
-
-    A line with its own pressure regulator (``p_line`` > 0) is fed at ``p_line`` while
-    the manifold is above it (below, the regulator is wide open: the manifold feeds
-    it); a booster (``boost`` > 0) feeds it at ``p_line`` whatever the manifold's.
-    """
+    """Pressure a connected line is fed from [Pa]: the manifold's, or its own source's
+    (``p_line`` > 0: a regulator while the manifold is above it; ``boost``: always)."""
     if p_line > 0.0 and (boost > 0.0 or p_manifold > p_line):
         return p_line
     return p_manifold
@@ -219,6 +215,10 @@ def run_cycle(
     g_exh = np.zeros(nc)
     g_leak = np.zeros(nc)
     src = np.zeros(nc)  # a line fed by its own regulator or booster: its pressure; else 0
+    g_own = np.zeros(nc)  # and its fill conductance from there
+    # own line pressures, springs: tested once a cycle; without them, the loops as before
+    own_lines = np.any(cp[:, lay.CP_P_LINE] > 0.0)
+    springs = np.any(ap[:, lay.AP_SPRING_F0] != 0.0) or np.any(ap[:, lay.AP_SPRING_K] != 0.0)
     conn = np.zeros(nc, dtype=np.int64)  # 0 closed, 1 manifold, 2 exhaust
     awake = np.ones(nc, dtype=np.int64)
     aw = np.zeros(nc, dtype=np.int64)
@@ -399,7 +399,8 @@ def run_cycle(
                 awake[c] = 1
                 continue
             if conn[c] == 1:
-                d = abs(p[2 + c] - _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST]))
+                p_up = _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST])
+                d = abs(p[2 + c] - (p_up if own_lines else p[1]))
             elif conn[c] == 2:
                 d = abs(p[2 + c] - P_ATM)
             else:
@@ -473,48 +474,52 @@ def run_cycle(
                 j = 2 + c
                 g_fill[c] = 0.0
                 g_exh[c] = 0.0
-                src[c] = 0.0
                 if conn[c] == 1:
-                    p_up = _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST])
-                    if p_up != p[1]:
-                        # fed by its own regulator (or booster): a source at its pressure
-                        # that does not relieve (no flow back from a fuller chamber)
-                        src[c] = p_up
-                        if p[j] < p_up:
-                            g_fill[c] = _isa_g(
-                                p_up,
-                                p[j],
-                                cp[c, lay.CP_CV_FILL],
-                                cp[c, lay.CP_XT],
-                                temp[1],
-                                temp[j],
-                            )
-                    else:
-                        g_fill[c] = _isa_g(
-                            p[1], p[j], cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT], temp[1], temp[j]
-                        )
+                    g_fill[c] = _isa_g(
+                        p[1], p[j], cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT], temp[1], temp[j]
+                    )
                 elif conn[c] == 2:
                     g_exh[c] = _isa_g(
                         p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], temp[j], t_wall
                     )
                 g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, lay.CP_LEAK], temp[j], t_wall)
+            if own_lines:
+                # own regulator or booster: a non-relieving source, not the manifold
+                for q in range(n_aw):
+                    c = aw[q]
+                    j = 2 + c
+                    src[c] = 0.0
+                    g_own[c] = 0.0
+                    if conn[c] == 1:
+                        p_up = _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST])
+                        if p_up != p[1]:
+                            src[c] = p_up
+                            g_fill[c] = 0.0
+                            cv, xt = cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT]
+                            if p[j] < p_up:
+                                g_own[c] = _isa_g(p_up, p[j], cv, xt, temp[1], temp[j])
             for q in range(n_aw):
                 c = aw[q]
                 j = 2 + c
                 a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
                 s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
                 den = a_c + g_fill[c] + g_exh[c] + g_leak[c]
-                if src[c] > 0.0:  # filled from its own source: a fixed draw on the manifold
-                    alpha[c] = (
-                        a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM + g_fill[c] * src[c]
-                    ) / den
-                    beta[c] = 0.0
-                    rhs_m -= g_fill[c] * (src[c] - alpha[c])
-                else:
-                    alpha[c] = (a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM) / den
-                    beta[c] = g_fill[c] / den
-                    lhs_m += g_fill[c] * (1.0 - beta[c])
-                    rhs_m += g_fill[c] * alpha[c]
+                alpha[c] = (a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM) / den
+                beta[c] = g_fill[c] / den
+                lhs_m += g_fill[c] * (1.0 - beta[c])
+                rhs_m += g_fill[c] * alpha[c]
+            if own_lines:  # the own sources: a fixed draw on the manifold
+                for q in range(n_aw):
+                    c = aw[q]
+                    if src[c] > 0.0:
+                        j = 2 + c
+                        a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
+                        s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
+                        den = a_c + g_own[c] + g_exh[c] + g_leak[c]
+                        alpha[c] = (
+                            a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM + g_own[c] * src[c]
+                        ) / den
+                        rhs_m -= g_own[c] * (src[c] - alpha[c])
             # 2x2: reservoir and manifold
             a11 = a_r + g_sr + g_rm
             b1 = a_r * p[0] + g_sr * p_src
@@ -541,7 +546,7 @@ def run_cycle(
                 c = aw[q]
                 j = 2 + c
                 pc_new = alpha[c] + beta[c] * pm_new
-                f_in = g_fill[c] * ((pm_new if src[c] == 0.0 else src[c]) - pc_new)
+                f_in = g_fill[c] * (pm_new - pc_new)
                 f_ex = g_exh[c] * (pc_new - P_ATM)
                 f_lk = g_leak[c] * (pc_new - P_ATM)
                 dm[1] -= f_in
@@ -555,6 +560,18 @@ def run_cycle(
                 out_fleak[n_out, c] += f_lk
                 cum[lay.CM_EXHAUST] += f_ex * dt
                 cum[lay.CM_LEAK] += f_lk * dt
+            if own_lines:  # the own sources' inflow, drawn from the manifold
+                for q in range(n_aw):
+                    c = aw[q]
+                    if src[c] > 0.0:
+                        j = 2 + c
+                        f_in = g_own[c] * (src[c] - alpha[c])
+                        dm[1] -= f_in
+                        dm[j] += f_in
+                        h = enthalpy_flow_kernel(f_in, temp[1], temp[j])
+                        energy_in[1] -= h
+                        energy_in[j] += h
+                        out_fch[n_out, c] += f_in
             cum[lay.CM_REG] += f_reg * dt
             cum[lay.CM_LINE] += f_line * dt
             cum[lay.CM_LEAK] += f_sl * dt
@@ -577,7 +594,7 @@ def run_cycle(
                     cp[2 * i + 1, lay.CP_AREA],
                     ap[i, lay.AP_AROD],
                 )
-                if ap[i, lay.AP_SPRING_F0] != 0.0 or ap[i, lay.AP_SPRING_K] != 0.0:
+                if springs:
                     # a return spring pushes towards the home end (x = 0)
                     force -= ap[i, lay.AP_SPRING_F0] + ap[i, lay.AP_SPRING_K] * x[i]
                 fs = ap[i, lay.AP_FS] * fric[i]
