@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from pneufdd.cli.cost_options import HoursOption, JsonOption, KwOption, PriceOption, ReportOption
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption, read_recordings
 from pneufdd.errors import InputError, describe
@@ -60,15 +61,11 @@ def energy(
             help="A description overriding the reference's (calibrated.toml, or a built-in name).",
         ),
     ] = None,
-    json_out: Annotated[
-        Path | None, typer.Option("--json", help="Write the result as JSON.")
-    ] = None,
-    report: Annotated[Path | None, typer.Option("--report", help="Write an HTML report.")] = None,
-    hours: Annotated[float, typer.Option(help="Operating hours per year (eq. 1.1).")] = 7000.0,
-    price: Annotated[float, typer.Option(help="Electricity price [$/kWh] (eq. 1.1).")] = 0.05,
-    kw_per_100cfm: Annotated[
-        float, typer.Option("--kw-per-100cfm", help="Compressor kW per 100 cfm (eq. 1.1).")
-    ] = 18.0,
+    json_out: JsonOption = None,
+    report: ReportOption = None,
+    hours: HoursOption = 7000.0,
+    price: PriceOption = 0.05,
+    kw_per_100cfm: KwOption = 18.0,
     tolerance: Annotated[
         float,
         typer.Option(help="How much longer each step may take, as a fraction of the cycle time."),
