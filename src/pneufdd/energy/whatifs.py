@@ -81,24 +81,12 @@ chamber fills with the inlet air once per stroke while the compression chamber
 delivers the air it drew in (docs/energy.md)."""
 
 
-def _price(
-    name: str,
-    kind: str,
-    changes: Sequence[Change],
-    base: TwinRun,
-    run: TwinRun,
-    settings: EnergySettings,
-    **kw: object,
-) -> Measure:
-    return price_measure(name, kind, changes, base, run, settings, **kw)  # type: ignore[arg-type]
-
-
 def set_point_measure(search: SetPointSearch, settings: EnergySettings) -> Measure:
     """The lowest set point as a measure (with the DOE compressor-side saving)."""
     change = Change("set_point", "", {"psig": search.min_psig})
     drop = search.now_psig - search.min_psig
     limit = search.limit.reason if search.limit is not None else "the search floor was feasible"
-    return _price(
+    return price_measure(
         "lower the set point", "set_point", [change], search.base, search.best, settings,
         header_drop_psi=drop,
         note=f"limited by {search.limiting_actuator or 'the search floor'}: {limit}",
@@ -147,13 +135,13 @@ def throttle_measure(
         else:
             lo = mid
     if best is None:
-        return _price(
+        return price_measure(
             "flow controls set for the cycle time", "throttles", [], base, search.best, settings,
             note="opening the flow controls does not let the pressure go lower than the "
             "set point alone: the valves and tubes, not the flow controls, limit the strokes",
         )  # fmt: skip
     psig, changes, run = best
-    return _price(
+    return price_measure(
         "flow controls set for the cycle time", "throttles", changes, base, run, settings,
         header_drop_psi=search.now_psig - psig,
         note=f"the set point goes to {bar_g(psig):.2f} bar(g) instead of "
@@ -234,7 +222,7 @@ def spring_measures(
         assert found is not None
         changes, fit = found
         out.append(
-            _price(
+            price_measure(
                 f"spring return: {ident}",
                 "spring_return",
                 changes,
@@ -259,7 +247,7 @@ def tube_measure(
         if a.tube_length_m > settings.tube_length_m * 1.01
     ]
     run = _candidate(machine, changes, leaks, settings, base) if changes else base
-    return _price(
+    return price_measure(
         "shorter tubes", "tubes", changes, base, run, settings,
         note=f"valves mounted next to their cylinders ({settings.tube_length_m:g} m of tube); "
         "the tube volume is filled and exhausted at every stroke",
@@ -285,7 +273,7 @@ def valve_measure(
         if judge(run, base, allowed, settings.cycle_time_needed_s).feasible:
             kept += trial
     run = _candidate(machine, kept, leaks, settings, base) if kept else base
-    return _price(
+    return price_measure(
         "smaller valves and tubes", "valves", kept, base, run, settings,
         note="one valve size and one tube size smaller where the steps still keep their time "
         "(less tube volume per stroke); valves with flow to spare are often chosen by habit",
@@ -315,7 +303,7 @@ def zone_measure(
 
     zone = bisect_pressure(machine, at, search.now_psig, leaks, settings, search.base)
     changes = at(zone.min_psig)
-    return _price(
+    return price_measure(
         "pressure zone", "pressure_zone", changes, search.base, zone.best, settings,
         note=f"{limiting} keeps {bar_g(search.now_psig):.2f} bar(g); "
         f"{len(group)} other actuator(s) in a zone at {bar_g(zone.min_psig):.2f} bar(g) "
@@ -343,7 +331,7 @@ def remedy_measures(
         changes = [bore, Change("set_point", "", {"psig": found.min_psig})]
         verdict = "lowers" if found.min_psig < search.min_psig - 1e-9 else "does not lower"
         out.append(
-            _price(
+            price_measure(
                 f"larger bore: {limiting}",
                 "larger_bore",
                 changes,
@@ -371,7 +359,7 @@ def remedy_measures(
         run = _candidate(machine, changes, leaks, settings, search.base)
     drive = BOOSTER_DRIVE_RATIO * run.actuator_air(limiting) if run.air is not None else 0.0
     out.append(
-        _price(
+        price_measure(
             f"booster: {limiting}",
             "booster",
             changes,
