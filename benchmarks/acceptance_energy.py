@@ -64,7 +64,7 @@ def _breakdown(data: dict[str, Any], truth: Any, run_supply: float) -> dict[str,
             continue
         true = truth.actuator_kg(actuator)
         per[actuator] = {"reported_g": 1e3 * value, "plant_g": 1e3 * true, "rel": _rel(value, true)}
-    leak = b["by_actuator_kg"].get("leak.supply", 0.0)
+    leak = b["by_group_kg"].get("leak.supply", 0.0)
     return {
         "measured_g": 1e3 * air["measured"],
         "explained_g": 1e3 * air["explained"],

@@ -207,12 +207,18 @@ def test_required_force_bounds_the_set_point(press, search):
     assert found.min_psig > search.min_psig
 
 
-def test_reconcile_moves_each_actuator_to_the_meter(press):
-    air = twin_air(run_simulation(press, cycles=3, seed=1))
-    feed = np.array([c.startswith("FEED.") for c in air.components])
-    measured = air.air_kg.sum(axis=1) + 0.2 * air.air_kg[:, feed].sum(axis=1)
-    factors, scaled = reconcile(air, measured)
-    assert factors["FEED"] == pytest.approx(1.2, abs=0.02)
-    for other in ("CLAMP", "PRESS", "EJECT"):
-        assert factors[other] == pytest.approx(1.0, abs=0.02)
-    assert scaled.sum() == pytest.approx(measured.sum(), rel=0.01)
+def test_reconcile_takes_line_meters_and_leaks_from_the_meters(press, leaky_run):
+    """A line-metered actuator takes the meters' air; a leak's size follows the supply meter."""
+    air = twin_air(leaky_run)
+    press_cols = np.array([c.startswith("PRESS.") for c in air.components])
+    leak_cols = np.array([c == "leak.supply" for c in air.components])
+    truth = air.air_kg.copy()
+    truth[:, press_cols] *= 1.1
+    truth[:, leak_cols] *= 1.4
+    lines = {line: 1.1 * air.lines_kg[line] for line in ("PRESS_A", "PRESS_B")}
+    factors, scaled = reconcile(air, truth.sum(axis=1), lines)
+    assert factors["PRESS"] == pytest.approx(1.1, rel=1e-9)  # the line meters' own figure
+    assert factors["leak.supply"] == pytest.approx(1.4, abs=0.03)
+    for other in ("FEED", "CLAMP", "EJECT"):
+        assert factors[other] == pytest.approx(1.0, abs=0.03)
+    assert scaled.sum() == pytest.approx(truth.sum(), rel=0.01)

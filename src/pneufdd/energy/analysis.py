@@ -203,10 +203,10 @@ def _breakdown(
     settings: EnergySettings,
 ) -> AirBreakdown:
     assert base.air is not None
-    measured, durations, cycles = measured_air(recordings, machine)
+    measured, durations, cycles, lines = measured_air(recordings, machine)
     twin_kg = base.air.air_kg.sum(axis=0)
     if np.all(np.isfinite(measured)):
-        factors, scaled = reconcile(base.air, measured)
+        factors, scaled = reconcile(base.air, measured, lines)
         air_kg, source, total = scaled.sum(axis=0), "supply meter", float(np.sum(measured))
     else:
         factors = {}

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -79,6 +79,9 @@ class TwinAir:
         Mean step duration [s].
     cycles : int
         Cycles averaged.
+    lines_kg : dict of str to float
+        Air each line ``<ACT>_A``/``_B`` drew from the manifold per cycle (what a line
+        flow meter between valve and cylinder sees) [kg].
     """
 
     components: tuple[str, ...]
@@ -86,6 +89,7 @@ class TwinAir:
     supply_kg: FloatArray
     duration_s: FloatArray
     cycles: int
+    lines_kg: dict[str, float] = field(default_factory=dict)
 
     @property
     def cycle_time_s(self) -> float:
@@ -223,11 +227,14 @@ def twin_air(result: SimulationResult, skip_first: bool = True) -> TwinAir:
     mass0 = initial_state(machine, plant)["m"]
     names: list[str] = []
     series: list[FloatArray] = []
+    lines: dict[str, float] = {}
     for i, a in enumerate(machine.actuators):
         parts = np.zeros((3, result.time.size))
         for side, label in enumerate("AB"):
             c = 2 * i + side
             inflow = np.asarray(out[f"mdot_in_{a.id}_{label}"], np.float64)
+            drawn = _window_sum(inflow, start.ravel(), end.ravel())
+            lines[f"{a.id}_{label}"] = float(np.sum(drawn) / start.shape[0])
             exhaust = np.asarray(out[f"mdot_exhaust_{a.id}_{label}"], np.float64)
             leak = np.asarray(out[f"mdot_leak_{a.id}_{label}"], np.float64)
             net = (inflow - exhaust - leak) * lay.SAMPLE_DT
@@ -269,6 +276,7 @@ def twin_air(result: SimulationResult, skip_first: bool = True) -> TwinAir:
         supply_kg=supply_kg,
         duration_s=(end - start).mean(axis=0),
         cycles=int(start.shape[0]),
+        lines_kg=lines,
     )
 
 

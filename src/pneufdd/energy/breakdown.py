@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -47,9 +47,14 @@ __all__ = [
     "reconcile",
 ]
 
-PRIOR_SIGMA = {"actuator": 0.15, "leak": 0.5, "vacuum": 0.15}
-"""Prior standard deviation of each group's log factor: the calibrated twin's
-actuators and ejector within about 15 %, a diagnosed leak's size within about 50 %."""
+PRIOR_SIGMA = {"actuator": 0.05, "leak": 0.5, "vacuum": 0.15}
+"""Prior standard deviation of each group's log factor. An actuator's: the twin was
+calibrated to this meter's air per step within about 5 % (docs/calibration.md), and
+actuators that move in the same steps cannot be told apart by it, so one run moves them
+little (0.15, tried first on a development plant, moved festo-dsd's small gripper from
++29 % to +55 % of its true air). A diagnosed leak's size is known to about 50 %; the
+ejector's nozzle as an actuator's volume (0.15). Actuators with a flow meter on every
+line they draw from take their factor from those meters."""
 IDLE_MIN_S = 5.0
 """A stretch without a machine cycle at least this long counts as standby [s]; the
 first 2 s after a cycle are left out (the held lines settle)."""
@@ -87,7 +92,32 @@ def _prior(group: str) -> float:
     return PRIOR_SIGMA["vacuum" if group == "vacuum" else "actuator"]
 
 
-def reconcile(air: TwinAir, measured_kg: FloatArray) -> tuple[dict[str, float], FloatArray]:
+def metered_factors(air: TwinAir, lines_kg: Mapping[str, float]) -> dict[str, float]:
+    """Factors of the actuators whose every supplied line has a flow meter [-].
+
+    Their air is measured directly: the meters' air per cycle over the twin's.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> air = TwinAir(("A.stroke",), np.ones((1, 1)), np.ones(1), np.ones(1), 1,
+    ...               {"A_A": 0.5, "A_B": 0.5})
+    >>> metered_factors(air, {"A_A": 0.6, "A_B": 0.6}), metered_factors(air, {"A_A": 0.6})
+    ({'A': 1.2}, {})
+    """
+    out: dict[str, float] = {}
+    groups = {group_of(c) for c in air.components if "." in c and not c.startswith("leak.")}
+    for group in sorted(groups):
+        supplied = [f"{group}_{s}" for s in "AB" if air.lines_kg.get(f"{group}_{s}", 0.0) > 0.0]
+        if supplied and all(np.isfinite(lines_kg.get(line, np.nan)) for line in supplied):
+            twin = sum(air.lines_kg[line] for line in supplied)
+            out[group] = sum(lines_kg[line] for line in supplied) / twin
+    return out
+
+
+def reconcile(
+    air: TwinAir, measured_kg: FloatArray, lines_kg: Mapping[str, float] | None = None
+) -> tuple[dict[str, float], FloatArray]:
     """Factors that fit the twin's per-step air to the meter's, and the scaled air.
 
     Parameters
@@ -95,7 +125,11 @@ def reconcile(air: TwinAir, measured_kg: FloatArray) -> tuple[dict[str, float], 
     air : TwinAir
         The twin's air per step and component.
     measured_kg : ndarray
-        The meter's mean air per step [kg].
+        The supply meter's mean air per step [kg].
+    lines_kg : mapping of str to float, optional
+        Air per cycle a line flow meter measured, by line (``<ACT>_A``) [kg]. An
+        actuator whose every supplied line has one takes its factor from them
+        (:func:`metered_factors`); the supply meter's steps fit the others.
 
     Returns
     -------
@@ -109,12 +143,15 @@ def reconcile(air: TwinAir, measured_kg: FloatArray) -> tuple[dict[str, float], 
         [air.air_kg[:, [group_of(c) == g for c in air.components]].sum(axis=1) for g in groups],
         axis=1,
     )
+    factors = {g: 1.0 for g in groups}
+    known = metered_factors(air, lines_kg or {})
+    factors.update(known)
     fixed = air.air_kg[:, [group_of(c) == "storage" for c in air.components]].sum(axis=1)
+    fixed = fixed + sum(share[:, groups.index(g)] * factors[g] for g in known)
     scale = AIR_REL_SIGMA * np.abs(measured_kg) + AIR_ABS_SIGMA_FRACTION * np.mean(
         np.abs(measured_kg)
     )
-    used = [k for k in range(len(groups)) if np.any(share[:, k] > 0.0)]
-    factors = {g: 1.0 for g in groups}
+    used = [k for k in range(len(groups)) if np.any(share[:, k] > 0.0) and groups[k] not in known]
     if used:
         sigma = np.array([_prior(groups[k]) for k in used])
         matrix = np.vstack([share[:, used] / scale[:, None], np.diag(1.0 / sigma)])
@@ -263,7 +300,12 @@ class AirBreakdown:
                     self.components, self.air_kg, self.twin_kg, strict=True
                 )
             ],
-            "by_actuator_kg": {k: v for k, v in self.by_group().items()},
+            "by_actuator_kg": {
+                k: v
+                for k, v in self.by_group().items()
+                if not k.startswith(("leak.", "vacuum", "storage"))
+            },
+            "by_group_kg": self.by_group(),
             "by_kind_kg": self.by_kind(),
             "factors": self.factors,
             "leaks": list(self.leaks),
@@ -274,15 +316,32 @@ class AirBreakdown:
 
 def measured_air(
     recordings: Sequence[Recording], machine: MachineDescription
-) -> tuple[FloatArray, FloatArray, int]:
-    """The recordings' mean supply air and duration per step, and the cycles averaged.
+) -> tuple[FloatArray, FloatArray, int, dict[str, float]]:
+    """The recordings' mean supply air and duration per step, the cycles averaged, and
+    the air per cycle of each line with a flow meter.
 
     The calibration's evidence (:func:`pneufdd.calibration.calibrate.measure_evidence`):
     segmented with the machine's sequence, the first cycle of a recording with three
-    or more left out, the gap rule applied. Air is NaN without ``Q_In``.
+    or more left out, the gap rule applied. Supply air is NaN without ``Q_In``. A line
+    meter (``Q_<ACT>_A/B``, one that measures towards the cylinder only, like the SFE1)
+    reads its zero error while the line is still: the median of its step means is taken
+    as that and subtracted, what is left is integrated over the steps.
     """
-    evidence = measure_evidence(recordings, machine)
-    return evidence.supply_air_kg, evidence.duration_s, evidence.cycles
+    meters = {
+        s.channel: s.location
+        for s in machine.sensors
+        if s.kind == "flow"
+        and s.location != "supply"
+        and s.direction == "forward"
+        and all(s.channel in r.channels for r in recordings)
+    }
+    evidence = measure_evidence(recordings, machine, tuple(meters))
+    lines: dict[str, float] = {}
+    for channel, line in meters.items():
+        means = evidence.line_pressure_pa[channel]  # any channel's step means
+        zero = float(np.median(means))
+        lines[line] = float(np.sum(np.clip(means - zero, 0.0, None) * evidence.duration_s))
+    return evidence.supply_air_kg, evidence.duration_s, evidence.cycles, lines
 
 
 def _idle_stretches(rec: Recording, sequence: Any) -> list[tuple[float, float]]:

@@ -18,7 +18,7 @@ from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.errors import InputError, describe
 from pneufdd.limits import MAX_HOURS_PER_YEAR
 from pneufdd.physics.economics import leak_annual_cost
-from pneufdd.physics.units import kg_s_to_scfm
+from pneufdd.physics.units import kg_s_to_l_min_anr, kg_s_to_scfm
 
 __all__ = ["DOE_PSI_PER_PERCENT", "EnergySettings", "Money"]
 
@@ -53,15 +53,19 @@ class Money:
 
     @property
     def air_m3_anr(self) -> float:
-        """Air a year [m^3 at ISO 8778 ANR: 20 degC, 100 kPa] (1.189 kg/m^3)."""
-        return self.mass_flow_kg_s * self.hours * 3600.0 / 1.1889
+        """Air a year [m^3 at ISO 8778 ANR: 20 degC, 100 kPa]."""
+        litres_per_min = math.copysign(
+            float(kg_s_to_l_min_anr(abs(self.mass_flow_kg_s))), self.mass_flow_kg_s
+        )
+        return litres_per_min * 60.0 * self.hours / 1000.0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form: kg/s, scfm, m^3 ANR, kWh and money a year."""
         return {
             "mass_flow_kg_s": self.mass_flow_kg_s,
-            "scfm": float(kg_s_to_scfm(max(self.mass_flow_kg_s, 0.0)))
-            * math.copysign(1.0, self.mass_flow_kg_s),
+            "scfm": math.copysign(
+                float(kg_s_to_scfm(abs(self.mass_flow_kg_s))), self.mass_flow_kg_s
+            ),
             "air_m3_anr_per_year": self.air_m3_anr,
             "kwh_per_year": self.kwh,
             "cost_per_year": self.cost,
