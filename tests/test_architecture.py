@@ -4,8 +4,8 @@ The layers follow the ISO 13374 chain of the README's package map (acquire, cond
 detect, assess, advise)::
 
     physics -> catalogue -> recording -> identification -> sim -> signals -> features
-    -> diagnosis -> standstill -> calibration -> classifiers -> evaluation -> monitor
-    -> report -> web -> cli
+    -> diagnosis -> standstill -> calibration -> energy -> classifiers -> evaluation
+    -> monitor -> report -> web -> cli
 
 and inside :mod:`pneufdd.diagnosis`: detection -> effects -> localisation -> reference
 -> the diagnosis's own modules (engine, diagnoser, recordings, cost, ...). A module may
@@ -41,6 +41,7 @@ LAYERS: tuple[str, ...] = (
     "diagnosis",
     "standstill",
     "calibration",
+    "energy",
     "classifiers",
     "evaluation",
     "monitor",

@@ -46,6 +46,8 @@ def dnc_rig(
     raw.pop("vacuum")
     dnc = raw["actuator"][0]
     dnc["initial"] = "retracted"
+    if valve != dnc["valve"]["kind"]:  # another valve: its order code no longer applies
+        dnc["valve"].pop("catalogue", None)
     dnc["valve"]["kind"] = valve
     raw["actuator"] = [dnc]
     raw["sensor"] = [

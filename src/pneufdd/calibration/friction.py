@@ -43,7 +43,7 @@ from pneufdd.recording.model import Recording
 from pneufdd.signals.digital import edge_times
 from pneufdd.sim import MachineDescription
 from pneufdd.sim.compile import piston_areas
-from pneufdd.sim.description import Actuator
+from pneufdd.sim.description import SINGLE_SOLENOID_VALVES, Actuator
 
 __all__ = ["FrictionIdentification", "actuator_strokes", "identify_friction", "stroke_speed"]
 
@@ -118,7 +118,7 @@ def _motion_starts(rec: Recording, actuator: Actuator) -> FloatArray:
     ident = actuator.id
     a_on, a_off = edge_times(rec, f"U_{ident}_A")
     starts = [a_on, edge_times(rec, f"U_{ident}_B")[0]]
-    if actuator.valve.kind == "5/2-monostable":
+    if actuator.valve.kind in SINGLE_SOLENOID_VALVES:  # released: the spring returns it
         starts.append(a_off)
     out: FloatArray = np.sort(np.concatenate(starts))
     return out

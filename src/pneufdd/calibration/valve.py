@@ -126,9 +126,9 @@ def connected_to_supply(
     """Whether line ``side`` (``"A"`` or ``"B"``) of ``actuator`` is open to the manifold.
 
     From the solenoids and the valve kind: a 5/2 monostable supplies A while its
-    solenoid is on and B otherwise; a 5/3 closed-centre supplies the side whose
-    solenoid alone is on; a 5/2 bistable the side of the last solenoid switched on
-    (neither before the first).
+    solenoid is on and B otherwise (a 3/2 single-acting one never B); a 5/3
+    closed-centre supplies the side whose solenoid alone is on; a 5/2 bistable the
+    side of the last solenoid switched on (neither before the first).
     """
     ident = actuator.id
     u_a = _held(rec, f"U_{ident}_A", time)
@@ -136,6 +136,8 @@ def connected_to_supply(
     kind = actuator.valve.kind
     if kind == "5/2-monostable":
         return u_a if side == "A" else ~u_a
+    if kind == "3/2-monostable":  # single-acting: the spring side is vented, never supplied
+        return u_a if side == "A" else np.zeros_like(u_a)
     if kind == "5/3-closed-centre":
         return u_a & ~u_b if side == "A" else u_b & ~u_a
     last_a = _last_pulse_was_a(rec, ident, time)

@@ -22,13 +22,17 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from pneufdd.catalogue.codes import ParsedCode, parse_actuator_code, parse_valve_code
-from pneufdd.catalogue.tables import Family, SizeRow, families, ports, sizes, source, valve_rows
-from pneufdd.errors import InputError, describe
-from pneufdd.physics.valve_rating import (
-    cv_from_nominal_flow,
-    isa_from_sonic_conductance,
-    nominal_flow_from_sonic_conductance,
+from pneufdd.catalogue.tables import (
+    Family,
+    SizeRow,
+    ValveRow,
+    families,
+    ports,
+    sizes,
+    source,
+    valve_rows,
 )
+from pneufdd.errors import InputError, describe
 
 __all__ = [
     "CatalogueActuator",
@@ -36,6 +40,7 @@ __all__ = [
     "actuator_from_code",
     "description_values",
     "valve_from_code",
+    "valve_kind_from_code",
 ]
 
 
@@ -268,6 +273,29 @@ def valve_from_code(code: str) -> CatalogueValve:
     >>> v.kind, round(v.cv, 3), v.xt
     ('5/2-monostable', 0.727, 0.63)
     """
+    # the ratings need the flow laws (and so numba): imported only for a valve's Cv
+    from pneufdd.physics.valve_rating import (
+        cv_from_nominal_flow,
+        isa_from_sonic_conductance,
+        nominal_flow_from_sonic_conductance,
+    )
+
+    parsed, row = _valve_row(code)
+    cv = xt = flow = None
+    if row.nominal_flow_l_min_anr is not None:
+        xt = row.xt if row.xt is not None else 0.9
+        flow = row.nominal_flow_l_min_anr
+        cv = cv_from_nominal_flow(flow, xt)
+    elif row.sonic_conductance_dm3_s_bar is not None and row.critical_ratio_b is not None:
+        cv, xt = isa_from_sonic_conductance(row.sonic_conductance_dm3_s_bar, row.critical_ratio_b)
+        flow = nominal_flow_from_sonic_conductance(
+            row.sonic_conductance_dm3_s_bar, row.critical_ratio_b
+        )
+    return CatalogueValve(parsed, row.kind, cv, xt, flow, row.port, row.source, row.status)
+
+
+def _valve_row(code: str) -> tuple[ParsedCode, ValveRow]:
+    """The parsed code and the table row of a valve's order code."""
     parsed = parse_valve_code(code)
     table = valve_rows()
     key = (parsed.family, parsed.size, parsed.function)
@@ -281,18 +309,18 @@ def valve_from_code(code: str) -> CatalogueValve:
             )
             + "; the twin's valves are 5/2 monostable, 5/2 bistable and 5/3 closed centre"
         )
-    row = table[key]
-    cv = xt = flow = None
-    if row.nominal_flow_l_min_anr is not None:
-        xt = row.xt if row.xt is not None else 0.9
-        flow = row.nominal_flow_l_min_anr
-        cv = cv_from_nominal_flow(flow, xt)
-    elif row.sonic_conductance_dm3_s_bar is not None and row.critical_ratio_b is not None:
-        cv, xt = isa_from_sonic_conductance(row.sonic_conductance_dm3_s_bar, row.critical_ratio_b)
-        flow = nominal_flow_from_sonic_conductance(
-            row.sonic_conductance_dm3_s_bar, row.critical_ratio_b
-        )
-    return CatalogueValve(parsed, row.kind, cv, xt, flow, row.port, row.source, row.status)
+    return parsed, table[key]
+
+
+def valve_kind_from_code(code: str) -> str:
+    """A directional valve's kind from its order code, without its flow rating.
+
+    Examples
+    --------
+    >>> valve_kind_from_code("VUVG-L14-B52-T-G18")
+    '5/2-bistable'
+    """
+    return _valve_row(code)[1].kind
 
 
 @lru_cache(maxsize=512)

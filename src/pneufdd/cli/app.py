@@ -18,6 +18,7 @@ from pneufdd.cli import (
     campaign,
     demo,
     diagnose,
+    energy,
     evaluate,
     features,
     history,
@@ -50,7 +51,17 @@ app = typer.Typer(
 
 for module in (demo, simulate, machine, steps, features, reference, diagnose, campaign):
     module.register(app)
-for module in (import_data, evaluate, monitor, history, serve, users, build_twin, standstill):
+for module in (
+    import_data,
+    evaluate,
+    monitor,
+    history,
+    serve,
+    users,
+    build_twin,
+    standstill,
+    energy,
+):
     module.register(app)
 
 _STATE = {"debug": False}

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from pneufdd.cli.cost_options import HoursOption, JsonOption, KwOption, PriceOption, ReportOption
 from pneufdd.cli.exit_codes import ExitCode
 from pneufdd.cli.outputs import check_outputs
 from pneufdd.cli.recordings import MapOption, read_recording
@@ -89,15 +90,11 @@ def diagnose(
         ),
     ],
     reference: Annotated[Path, typer.Option("--reference", help="Reference file (.pnref).")],
-    json_out: Annotated[
-        Path | None, typer.Option("--json", help="Write the result as JSON.")
-    ] = None,
-    report: Annotated[Path | None, typer.Option("--report", help="Write an HTML report.")] = None,
-    hours: Annotated[float, typer.Option(help="Operating hours per year (eq. 1.1).")] = 7000.0,
-    price: Annotated[float, typer.Option(help="Electricity price [$/kWh] (eq. 1.1).")] = 0.05,
-    kw_per_100cfm: Annotated[
-        float, typer.Option("--kw-per-100cfm", help="Compressor kW per 100 cfm (eq. 1.1).")
-    ] = 18.0,
+    json_out: JsonOption = None,
+    report: ReportOption = None,
+    hours: HoursOption = 7000.0,
+    price: PriceOption = 0.05,
+    kw_per_100cfm: KwOption = 18.0,
     max_leaks: Annotated[
         int | None,
         typer.Option(help="Most simultaneous leaks considered, 1 or 2 (default: the reference's)."),

@@ -36,8 +36,12 @@ _VALVE_KIND = {
     "5/2-bistable": lay.VK_BISTABLE,
     "5/2-monostable": lay.VK_MONOSTABLE,
     "5/3-closed-centre": lay.VK_CLOSED_CENTRE,
+    "3/2-monostable": lay.VK_SINGLE_ACTING,
 }
 _MODE = {"until": 0, "pulse": 1, "hold": 2, "reset": 3}
+BREATHER_CV = 0.5
+"""Flow coefficient of the vent of a single-acting cylinder's spring side (a sintered
+breather in its port, about 500 l/min ANR; assumption, docs/energy.md) [-]."""
 
 
 def tube_cv(length_m: float, inner_diameter_mm: float) -> float:
@@ -154,9 +158,12 @@ def compile_plant(
         sp[lay.SP_VAC_LEVEL] = vac.switch_level
         sp[lay.SP_VAC_ON_DELAY] = vac.on_delay_s
         sp[lay.SP_VAC_OFF_DELAY] = vac.off_delay_s
+        rated = s.regulator_set_psig if vac.rated_psig is None else vac.rated_psig
+        sp[lay.SP_VAC_P_RATED] = psig_to_pa(rated)
     else:
         sp[lay.SP_VAC_TAU_ON] = sp[lay.SP_VAC_TAU_OFF] = 1.0
         sp[lay.SP_VAC_LEVEL] = 0.5
+        sp[lay.SP_VAC_P_RATED] = sp[lay.SP_P_SET]
     na = len(machine.actuators)
     ap = np.zeros((na, lay.AP_SIZE))
     cp = np.zeros((2 * na, lay.CP_SIZE))
@@ -174,12 +181,28 @@ def compile_plant(
         ap[i, lay.AP_ON_DELAY] = a.valve.on_delay_s
         ap[i, lay.AP_OFF_DELAY] = a.valve.off_delay_s
         ap[i, lay.AP_CUSH_LEN] = a.cushion_length_mm * 1e-3
+        ap[i, lay.AP_SPRING_F0] = a.spring_preload_n
+        ap[i, lay.AP_SPRING_K] = a.spring_rate_n_per_mm * 1e3
         vkind[i] = _VALVE_KIND[a.valve.kind]
         tube = tube_cv(a.tube_length_m, a.tube_inner_diameter_mm)
         tube_vol = math.pi * (a.tube_inner_diameter_mm * 1e-3) ** 2 / 4 * a.tube_length_m
-        for side, area, dead, meter, cushion in (
-            (0, area_a, a.dead_volume_a_cm3, a.meter_out_cv_a, a.cushion_cv_a),
-            (1, area_b, a.dead_volume_b_cm3, a.meter_out_cv_b, a.cushion_cv_b),
+        for side, area, dead, meter, cushion, line_psig in (
+            (
+                0,
+                area_a,
+                a.dead_volume_a_cm3,
+                a.meter_out_cv_a,
+                a.cushion_cv_a,
+                a.line_pressure_psig_a,
+            ),
+            (
+                1,
+                area_b,
+                a.dead_volume_b_cm3,
+                a.meter_out_cv_b,
+                a.cushion_cv_b,
+                a.line_pressure_psig_b,
+            ),
         ):
             c = 2 * i + side
             cp[c, lay.CP_AREA] = area
@@ -194,6 +217,32 @@ def compile_plant(
             cp[c, lay.CP_XT] = a.valve.xt
             cp[c, lay.CP_LEAK] = leak_by_loc.get(f"{a.id}_{'AB'[side]}", 0.0)
             cp[c, lay.CP_TAU_TH] = a.thermal_time_s
+            if line_psig > 0.0:
+                cp[c, lay.CP_P_LINE] = psig_to_pa(line_psig)
+                cp[c, lay.CP_BOOST] = 1.0 if a.booster else 0.0
+        if a.valve.kind == "3/2-monostable":
+            # the spring side has no line: vented at the cylinder through its breather
+            c = 2 * i + 1
+            cp[c, lay.CP_DEAD] = a.dead_volume_b_cm3 * 1e-6
+            cp[c, lay.CP_CV_FILL] = 0.0
+            cp[c, lay.CP_CV_EXH] = BREATHER_CV
+            cp[c, lay.CP_CV_CUSH] = BREATHER_CV
+    program = _program_arrays(machine)
+    return Plant(
+        sp=sp,
+        ap=ap,
+        vkind=vkind,
+        cp=cp,
+        **program,  # type: ignore[arg-type]
+        dwell=np.asarray([st.dwell_s for st in machine.steps], dtype=np.float64),
+        n_solenoids=len(solenoid_slots(machine)),
+        n_switches=len(machine.switches),
+        t_wall=t_wall,
+    )
+
+
+def _program_arrays(machine: MachineDescription) -> dict[str, I64 | F64]:
+    """The PLC program as the kernel's flat arrays: each step's actions and waits."""
     solenoids = solenoid_slots(machine)
     switches = machine.switches
     act_start = [0]
@@ -222,24 +271,24 @@ def compile_plant(
     def ints(v: list[int]) -> I64:
         return np.asarray(v, dtype=np.int64).reshape(-1)
 
-    return Plant(
-        sp=sp,
-        ap=ap,
-        vkind=vkind,
-        cp=cp,
-        act_start=ints(act_start),
-        act_sol=ints(act_sol),
-        act_mode=ints(act_mode),
-        act_sw=ints(act_sw),
-        act_dur=np.asarray(act_dur, dtype=np.float64).reshape(-1),
-        wait_start=ints(wait_start),
-        wait_sw=ints(wait_sw),
-        wait_val=ints(wait_val),
-        dwell=np.asarray([st.dwell_s for st in machine.steps], dtype=np.float64),
-        n_solenoids=len(solenoids),
-        n_switches=len(switches),
-        t_wall=t_wall,
-    )
+    return {
+        "act_start": ints(act_start),
+        "act_sol": ints(act_sol),
+        "act_mode": ints(act_mode),
+        "act_sw": ints(act_sw),
+        "act_dur": np.asarray(act_dur, dtype=np.float64).reshape(-1),
+        "wait_start": ints(wait_start),
+        "wait_sw": ints(wait_sw),
+        "wait_val": ints(wait_val),
+    }
+
+
+def _line_pressure(p_set: float, chamber: F64) -> float:
+    """Pressure a line settles at: the set point, or its own regulator's or booster's [Pa]."""
+    p_line = float(chamber[lay.CP_P_LINE])
+    if p_line > 0.0 and (chamber[lay.CP_BOOST] > 0.0 or p_line < p_set):
+        return p_line
+    return p_set
 
 
 def initial_state(machine: MachineDescription, plant: Plant) -> dict[str, F64 | I64]:
@@ -266,8 +315,11 @@ def initial_state(machine: MachineDescription, plant: Plant) -> dict[str, F64 | 
         x[i] = plant.ap[i, lay.AP_STROKE] if ext else 0.0
         if a.valve.kind != "5/3-closed-centre":
             spool[i] = 1 if ext else -1
-        pressure[2 + 2 * i] = p_set if ext else p_atm
-        pressure[3 + 2 * i] = p_atm if ext else p_set
+        fed = [_line_pressure(p_set, plant.cp[2 * i + side]) for side in (0, 1)]
+        if a.valve.kind == "3/2-monostable":
+            fed[1] = p_atm  # the spring side is vented
+        pressure[2 + 2 * i] = fed[0] if ext else p_atm
+        pressure[3 + 2 * i] = p_atm if ext else fed[1]
         vol[2 + 2 * i] = plant.cp[2 * i, lay.CP_DEAD] + plant.cp[2 * i, lay.CP_AREA] * x[i]
         vol[3 + 2 * i] = plant.cp[2 * i + 1, lay.CP_DEAD] + plant.cp[2 * i + 1, lay.CP_AREA] * (
             plant.ap[i, lay.AP_STROKE] - x[i]

@@ -346,6 +346,15 @@ def check_conditions(
                     describe(f"throttle fault on {fault.location}", fault.size,
                              "a line with a meter-out throttle (its meter_out_cv is 50, free)")
                 )  # fmt: skip
+        if fault.kind in ("piston-leak", "valve-leak-in", "valve-leak-out"):
+            ident = fault.location if fault.location in desc.actuator_ids else fault.location[:-2]
+            act = desc.actuators[desc.actuator_ids.index(ident)]
+            if act.line_pressure_psig_a > 0.0 or act.line_pressure_psig_b > 0.0:
+                raise InputError(
+                    describe(f"{fault.kind} fault on {fault.location}", ident,
+                             "an actuator fed by the manifold (the twin does not model this "
+                             "fault on a line with its own regulator or booster)")
+                )  # fmt: skip
         if math.isfinite(fault.size) and fault.kind == "friction" and fault.unit == "N":
             act = desc.actuators[desc.actuator_ids.index(fault.location)]
             worn_friction(act.static_friction_n, act.coulomb_friction_n, 0.0, fault.size)

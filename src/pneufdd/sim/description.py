@@ -7,20 +7,20 @@ naming the file, the key path, the value received and what is allowed.
 
 from __future__ import annotations
 
-import copy
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from pneufdd.errors import InputError, MachineError, describe
+from pneufdd.errors import MachineError, describe
 from pneufdd.limits import MAX_ACTUATORS, MAX_STEPS
 
 __all__ = [
     "ACTUATOR_KINDS",
     "DRAFT_MODEL",
     "SENSOR_KINDS",
+    "SINGLE_SOLENOID_VALVES",
     "VALVE_KINDS",
     "Action",
     "Actuator",
@@ -43,7 +43,10 @@ draft --actuator ID=CODE``): its geometry is the catalogue's, its masses, tube l
 and throttles are assumed (:attr:`Actuator.code_drafted`)."""
 
 ACTUATOR_KINDS = ("linear", "rodless", "slide", "rotary", "gripper")
-VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre")
+VALVE_KINDS = ("5/2-bistable", "5/2-monostable", "5/3-closed-centre", "3/2-monostable")
+SINGLE_SOLENOID_VALVES = ("5/2-monostable", "3/2-monostable")
+"""Valves with one solenoid, ``U_<id>_A``, and a spring that returns the spool: the
+3/2 drives a single-acting cylinder whose own spring returns it (B side vented)."""
 SENSOR_KINDS = ("pressure", "flow", "position")
 SENSOR_UNITS = {"pressure": "bar(g)", "flow": "SLPM", "position": "mm"}
 METER_DIRECTIONS = ("forward", "bidirectional")
@@ -216,6 +219,15 @@ class Actuator:
     cushion_cv_b: float = 0.0
     catalogue: str = ""
     """The actuator's order code (``docs/catalogue.md``), empty when not given."""
+    spring_preload_n: float = 0.0
+    spring_rate_n_per_mm: float = 0.0
+    line_pressure_psig_a: float = 0.0
+    line_pressure_psig_b: float = 0.0
+    booster: bool = False
+
+    def spring_force(self, position_m: float) -> float:
+        """Force of the return spring at ``position_m`` from the home end [N]."""
+        return self.spring_preload_n + self.spring_rate_n_per_mm * position_m * 1e3
 
     @property
     def drafted(self) -> bool:
@@ -240,6 +252,7 @@ class Vacuum:
     switch_level: float
     on_delay_s: float
     off_delay_s: float
+    rated_psig: float | None = None
 
 
 @dataclass(frozen=True)
@@ -283,6 +296,9 @@ class ProgramStep:
     wait: tuple[str, ...]
     wait_off: tuple[str, ...]
     dwell_s: float
+    required_force_n: float = 0.0
+    force_actuator: str = ""
+    force_direction: int = 0
 
 
 @dataclass(frozen=True)
@@ -349,7 +365,7 @@ def solenoid_slots(machine: MachineDescription) -> tuple[str | None, ...]:
     slots: list[str | None] = []
     for a in machine.actuators:
         slots.append(f"U_{a.id}_A")
-        slots.append(None if a.valve.kind == "5/2-monostable" else f"U_{a.id}_B")
+        slots.append(None if a.valve.kind in SINGLE_SOLENOID_VALVES else f"U_{a.id}_B")
     if machine.vacuum is not None:
         slots.append(f"U_{machine.vacuum.id}")
     return tuple(slots)
@@ -451,13 +467,20 @@ def _actuator(r: _Reader) -> Actuator:
         cushion_cv_a=cushion[1],
         cushion_cv_b=cushion[2],
         catalogue=_code(r),
+        **_energy_keys(r),
     )
-    if act.valve.kind == "5/2-monostable" and act.initial != "retracted":
+    if act.valve.kind in SINGLE_SOLENOID_VALVES and act.initial != "retracted":
         raise r.fail(
             "initial",
             act.initial,
-            "'retracted' (a 5/2-monostable valve's spring holds the actuator retracted "
+            f"'retracted' (a {act.valve.kind} valve's spring holds the actuator retracted "
             "while no solenoid is energised)",
+        )
+    if act.valve.kind == "3/2-monostable" and act.spring_preload_n <= 0.0:
+        raise r.fail(
+            "spring_preload_n",
+            act.spring_preload_n,
+            "> 0 N with a 3/2-monostable valve (a single-acting cylinder returns by its spring)",
         )
     r.finish()
     return act
@@ -477,6 +500,28 @@ def _cushion(r: _Reader, stroke_mm: float) -> tuple[float, float, float]:
     return length, cvs[0], cvs[1]
 
 
+def _energy_keys(r: _Reader) -> dict[str, Any]:
+    """The optional return spring and the lines' own pressures of an ``[[actuator]]``."""
+    both = r.number("line_pressure_psig", 0.0, low=0.0, high=MAX_SUPPLY_PSIG)
+    keys: dict[str, Any] = {
+        "spring_preload_n": r.number("spring_preload_n", 0.0, low=0.0, high=1e6),
+        "spring_rate_n_per_mm": r.number("spring_rate_n_per_mm", 0.0, low=0.0, high=1e6),
+        "line_pressure_psig_a": r.number(
+            "line_pressure_psig_a", both, low=0.0, high=MAX_SUPPLY_PSIG
+        ),
+        "line_pressure_psig_b": r.number(
+            "line_pressure_psig_b", both, low=0.0, high=MAX_SUPPLY_PSIG
+        ),
+    }
+    booster = r.raw("booster", False)
+    if not isinstance(booster, bool):
+        raise r.fail("booster", booster, "true or false")
+    if booster and keys["line_pressure_psig_a"] <= 0 and keys["line_pressure_psig_b"] <= 0:
+        raise r.fail("booster", booster, "false, or true with line_pressure_psig (> 0)")
+    keys["booster"] = booster
+    return keys
+
+
 def _vacuum(r: _Reader) -> Vacuum:
     v = Vacuum(
         id=r.text("id"),
@@ -487,6 +532,11 @@ def _vacuum(r: _Reader) -> Vacuum:
         switch_level=r.number("switch_level", 0.6, low=0.0, low_open=True, high=0.99),
         on_delay_s=r.number("on_delay_s", 0.020, low=0.0, high=1.0),
         off_delay_s=r.number("off_delay_s", 0.042, low=0.0, high=1.0),
+        rated_psig=(
+            r.number("rated_psig", low=0.0, low_open=True, high=MAX_SUPPLY_PSIG)
+            if r.has("rated_psig")
+            else None
+        ),
     )
     r.finish()
     return v
@@ -529,7 +579,13 @@ def _sensor(r: _Reader, locations: Sequence[str], actuators: Sequence[str]) -> S
     return s
 
 
-def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: int) -> ProgramStep:
+def _step(
+    r: _Reader,
+    solenoids: Sequence[str],
+    switches: Sequence[str],
+    index: int,
+    actuators: Sequence[str] = (),
+) -> ProgramStep:
     actions: list[Action] = []
     for a in r.tables("do"):
         if a.has("reset"):
@@ -560,6 +616,7 @@ def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: 
         wait=tuple(wait),
         wait_off=tuple(wait_off),
         dwell_s=r.number("dwell_s", 0.0, low=0.0, high=600.0),
+        **_required_force(r, actions, actuators),
     )
     if not step.actions and not step.wait and not step.wait_off and step.dwell_s == 0.0:
         raise r.fail("do", [], "at least one action, wait or dwell_s")
@@ -567,68 +624,34 @@ def _step(r: _Reader, solenoids: Sequence[str], switches: Sequence[str], index: 
     return step
 
 
-def _from_catalogue(table: object, where: str, part: str) -> dict[str, Any]:
-    """The keys an order code gives that ``table`` lacks, with the code's values.
+def _required_force(
+    r: _Reader, actions: Sequence[Action], actuators: Sequence[str]
+) -> dict[str, Any]:
+    """A force-holding step's ``required_force_n``, its actuator and direction (+1 extend).
 
-    ``part`` is ``"actuator"`` or ``"valve"`` (:func:`~pneufdd.catalogue.
-    description_values`); a code that does not resolve raises a :class:`MachineError`
-    naming ``where``. Values given in the table win over the code's (a measured dead
-    volume, a Cv identified on a bench); a ``kind`` that contradicts the code's is
-    refused.
+    The actuator defaults to the one the step commands when it commands one; the
+    direction to the one that command drives it (``U_<id>_A`` set: extend; ``U_<id>_B``
+    set or ``U_<id>_A`` reset: retract).
     """
-    from pneufdd.catalogue import description_values
-
-    if not isinstance(table, Mapping) or not isinstance(table.get("catalogue"), str):
-        return {}  # no code, or one refused with its key path by the reader
-    code = table["catalogue"]
-    try:
-        values = description_values(code, part)
-    except InputError as exc:
-        raise MachineError(f"{where}.catalogue: {exc}") from exc
-    fill: dict[str, Any] = {}
-    for key, value in values:
-        if key == "kind" and "kind" in table and table["kind"] != value:
-            raise MachineError(
-                describe(f"{where}.kind", table["kind"], [value])
-                + f" (order code {code!r} is a {value}; remove kind or the code)"
-            )
-        if key in ("stroke_mm", "angle_deg", "lever_mm") and (
-            "stroke_mm" in table or "angle_deg" in table
-        ):
-            continue  # the table states the stroke (or the angle and lever) itself
-        if key not in table:
-            fill[key] = value
-    return fill
-
-
-def _with_catalogue(data: Mapping[str, Any], source: str) -> Mapping[str, Any]:
-    """``data`` with every value an actuator's or valve's order code gives filled in.
-
-    A copy where a code fills a key (the caller's mapping is not changed), so the
-    description's raw mapping states every value explicitly, as if written by hand;
-    ``data`` itself when the tables state them all (the built-in machines).
-    """
-    actuators = data.get("actuator")
-    if not isinstance(actuators, list):
-        return data
-    fills = []
-    for i, table in enumerate(actuators):
-        valve = table.get("valve") if isinstance(table, Mapping) else None
-        fills.append(
-            (
-                _from_catalogue(table, f"{source}: actuator[{i}]", "actuator"),
-                _from_catalogue(valve, f"{source}: actuator[{i}].valve", "valve"),
-            )
-        )
-    if not any(a or v for a, v in fills):
-        return data
-    out = dict(data)  # only the actuator tables are copied: the steps are large
-    out["actuator"] = copy.deepcopy(actuators)
-    for table, (act_fill, valve_fill) in zip(out["actuator"], fills, strict=True):
-        table.update(act_fill)
-        if valve_fill:
-            table["valve"].update(valve_fill)
-    return out
+    force = r.number("required_force_n", 0.0, low=0.0, high=1e7)
+    if not r.has("required_force_n"):
+        return {}
+    commanded: dict[str, int] = {}
+    for act in actions:
+        ident, _, side = act.solenoid[2:].rpartition("_")
+        if ident and side in "AB":
+            extend = (side == "A") == (act.mode != "reset")
+            commanded[ident] = 1 if extend else -1
+    default = next(iter(commanded)) if len(commanded) == 1 else None
+    if r.has("force_actuator") or default is None:
+        ident = r.text("force_actuator", choices=actuators)
+    else:
+        ident = default
+    direction = commanded.get(ident, 0)
+    if r.has("force_direction") or direction == 0:
+        text = r.text("force_direction", choices=("extend", "retract"))
+        direction = 1 if text == "extend" else -1
+    return {"required_force_n": force, "force_actuator": ident, "force_direction": direction}
 
 
 def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> MachineDescription:
@@ -658,7 +681,9 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     code's, and the returned description's ``raw`` mapping states them.
     """
     if isinstance(data, Mapping):
-        data = _with_catalogue(data, source)
+        from pneufdd.sim.order_codes import with_catalogue
+
+        data = with_catalogue(data, source)
     top = _Reader(data, "", source)
     m = top.table("machine")
     name = m.text("name")
@@ -686,25 +711,30 @@ def parse_description(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     if dupc:
         raise MachineError(describe(f"{source}: sensor channel", sorted(dupc)[0], "unique"))
     solenoids = [f"U_{a.id}_A" for a in actuators] + [
-        f"U_{a.id}_B" for a in actuators if a.valve.kind != "5/2-monostable"
+        f"U_{a.id}_B" for a in actuators if a.valve.kind not in SINGLE_SOLENOID_VALVES
     ]
     switches = [f"S_{i}_{s}" for i in ids for s in "AB"]
     if vacuum is not None:
         solenoids.append(f"U_{vacuum.id}")
         switches.append(f"S_{vacuum.id}")
-    monostable = {f"U_{a.id}_B": a.id for a in actuators if a.valve.kind == "5/2-monostable"}
+    monostable = {
+        f"U_{a.id}_B": (a.id, a.valve.kind)
+        for a in actuators
+        if a.valve.kind in SINGLE_SOLENOID_VALVES
+    }
     for k, raw_step in enumerate(top.tables("step", MAX_STEPS)):
         for a, raw_action in enumerate(raw_step.tables("do")):
             for verb in ("set", "reset"):
                 sol = raw_action.data.get(verb)
                 if isinstance(sol, str) and sol in monostable:
+                    ident, kind = monostable[sol]
                     raise MachineError(
                         describe(f"{source}: step[{k}].do[{a}].{verb}", sol, "an existing solenoid")
-                        + f"; actuator {monostable[sol]}'s 5/2-monostable valve has one "
-                        f"solenoid, U_{monostable[sol]}_A: it retracts by spring when that "
-                        f'solenoid is released ({{ reset = "U_{monostable[sol]}_A" }})'
+                        + f"; actuator {ident}'s {kind} valve has one "
+                        f"solenoid, U_{ident}_A: it retracts by spring when that "
+                        f'solenoid is released ({{ reset = "U_{ident}_A" }})'
                     )
-    steps = tuple(_step(s, solenoids, switches, i) for i, s in enumerate(top.tables("step")))
+    steps = tuple(_step(s, solenoids, switches, i, ids) for i, s in enumerate(top.tables("step")))
     for k, step in enumerate(steps):
         for a, act in enumerate(step.actions):
             ident, _, side = act.solenoid[2:].rpartition("_")

@@ -17,12 +17,12 @@ sub-steps of a linearly-implicit scheme:
   (eq. 4.7-4.9 with heat exchange to the wall), so mass is conserved exactly:
   each edge flow leaves one node and enters the other.
 * Pistons follow eq. 4.13 with real areas and the atmosphere on the rod,
-  ``P_A A_A - P_B A_B - P_atm A_rod - F_f = M x''``, Karnopp friction (eq. 4.14),
-  and inelastic end stops (semi-implicit Euler).
-* Sub-steps adapt to the activity: 1 per ms when all is quiet, up to 25 during
-  valve transients and strokes. Chambers of actuators at rest whose pressure
-  equals that of the node they connect to (and that have no leak) are frozen
-  until the difference exceeds a wake threshold.
+  ``P_A A_A - P_B A_B - P_atm A_rod - F_f = M x''`` (a return spring a load), Karnopp
+  friction (eq. 4.14), inelastic end stops (semi-implicit Euler). A line may be fed
+  at its own pressure (regulator or booster): a fixed draw on the manifold.
+* Sub-steps adapt: 1 per ms when all is quiet, up to 25 during valve transients and
+  strokes. Chambers of resting actuators at the pressure of the node they connect to
+  (and without leak) are frozen until the difference exceeds a wake threshold.
 
 The kernel takes five typed records (:mod:`pneufdd.sim.records`: plant parameters,
 PLC program, the cycle's random draws, state, outputs). Its physics is the compiled
@@ -87,9 +87,12 @@ from pneufdd.physics.faults import (
     pilot_delay_factor_kernel,
     regulator_outlet_pressure_kernel,
 )
-from pneufdd.physics.flow import isa_mass_flow_kernel, orifice_mass_flow_kernel
 from pneufdd.physics.friction import friction_force_kernel, piston_net_force_kernel
 from pneufdd.sim import layout as lay
+from pneufdd.sim.conductances import house_pressure as _house_pressure
+from pneufdd.sim.conductances import isa_conductance as _isa_g
+from pneufdd.sim.conductances import line_source_pressure as _line_source
+from pneufdd.sim.conductances import orifice_conductance as _orifice_g
 from pneufdd.sim.layout import SAMPLE_DT
 from pneufdd.sim.records import CycleDraws, Outputs, PlantParams, Program, State
 from pneufdd.sim.signal_kernels import (
@@ -112,57 +115,6 @@ _G = GAMMA_AIR
 _SUSTAINED_TRAVEL = 2e-4
 _WAKE = 300.0  # pressure difference that wakes a frozen chamber [Pa]
 _SLEEP = 30.0  # pressure difference below which a resting chamber may freeze [Pa]
-
-
-@njit(cache=True, inline="always")
-def _isa_g(p1: float, p2: float, cv: float, xt: float, t1: float, t2: float) -> float:
-    """Secant conductance of an ISA valve path, f / (p1 - p2) [kg/(s Pa)].
-
-    Below 1 Pa of difference the slope over the last pascal above the higher
-    pressure; one call site of the flow kernel, so inlining stays small.
-    """
-    if cv <= 0.0:
-        return 0.0
-    if p1 >= p2:
-        hi, lo, t = p1, p2, t1
-    else:
-        hi, lo, t = p2, p1, t2
-    d = hi - lo
-    if d < 1.0:
-        hi, lo, d = hi + 1.0, hi, 1.0
-    return isa_mass_flow_kernel(hi, lo, cv, xt, t) / d
-
-
-@njit(cache=True, inline="always")
-def _orifice_g(p1: float, p2: float, area: float, t1: float, t2: float) -> float:
-    """Secant conductance of an orifice (effective area, Cd included) [kg/(s Pa)]."""
-    if area <= 0.0:
-        return 0.0
-    if p1 >= p2:
-        hi, lo, t = p1, p2, t1
-    else:
-        hi, lo, t = p2, p1, t2
-    d = hi - lo
-    if d < 1.0:
-        hi, lo, d = hi + 1.0, hi, 1.0
-    return orifice_mass_flow_kernel(hi, lo, area, 1.0, t) / d
-
-
-@njit(cache=True, inline="always")
-def _house_pressure(
-    t: float, period: float, phase: float, p_house: float, band: float, drift: float
-) -> float:
-    """House-air pressure: nominal + compressor load/unload cycle + slow drift [Pa].
-
-    ``t`` time [s], ``period`` of the compressor cycle [s], its ``phase`` at t = 0
-    [-], nominal ``p_house`` [Pa], load/unload ``band`` peak to peak [Pa] and the
-    slow ``drift`` at t [Pa]. Scalars only: array arguments of a helper cost a
-    reference count each call.
-    """
-    ph = (t / period + phase) % 1.0
-    # loaded (rising) for 30 % of the period, unloaded (falling) for 70 %
-    saw = ph / 0.3 if ph < 0.3 else 1.0 - (ph - 0.3) / 0.7
-    return p_house + band * (saw - 0.5) + drift
 
 
 @njit(cache=True, nogil=True)
@@ -225,6 +177,11 @@ def run_cycle(
     g_fill = np.zeros(nc)
     g_exh = np.zeros(nc)
     g_leak = np.zeros(nc)
+    src = np.zeros(nc)  # a line fed by its own regulator or booster: its pressure; else 0
+    g_own = np.zeros(nc)  # and its fill conductance from there
+    # own line pressures, springs: tested once a cycle; without them, the loops as before
+    own_lines = np.any(cp[:, lay.CP_P_LINE] > 0.0)
+    springs = np.any(ap[:, lay.AP_SPRING_F0] != 0.0) or np.any(ap[:, lay.AP_SPRING_K] != 0.0)
     conn = np.zeros(nc, dtype=np.int64)  # 0 closed, 1 manifold, 2 exhaust
     awake = np.ones(nc, dtype=np.int64)
     aw = np.zeros(nc, dtype=np.int64)
@@ -386,7 +343,7 @@ def run_cycle(
                     spool[i] = 1
                 elif eb == 1 and ea == 0:
                     spool[i] = -1
-            elif vkind[i] == lay.VK_MONOSTABLE:
+            elif vkind[i] == lay.VK_MONOSTABLE or vkind[i] == lay.VK_SINGLE_ACTING:
                 spool[i] = 1 if ea == 1 else -1
             elif vkind[i] == lay.VK_CLOSED_CENTRE:
                 if ea == 1 and eb == 0:
@@ -404,7 +361,8 @@ def run_cycle(
                 conn[2 * i + 1] = 2
             elif spool[i] == -1:
                 conn[2 * i] = 2
-                conn[2 * i + 1] = 1
+                # a single-acting cylinder's spring side is vented, never supplied
+                conn[2 * i + 1] = 2 if vkind[i] == lay.VK_SINGLE_ACTING else 1
             else:
                 conn[2 * i] = 0
                 conn[2 * i + 1] = 0
@@ -442,7 +400,8 @@ def run_cycle(
                 awake[c] = 1
                 continue
             if conn[c] == 1:
-                d = abs(p[2 + c] - p[1])
+                p_up = _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST])
+                d = abs(p[2 + c] - (p_up if own_lines else p[1]))
             elif conn[c] == 2:
                 d = abs(p[2 + c] - P_ATM)
             else:
@@ -525,6 +484,21 @@ def run_cycle(
                         p[j], P_ATM, cp[c, lay.CP_CV_EXH], cp[c, lay.CP_XT], temp[j], t_wall
                     )
                 g_leak[c] = _orifice_g(p[j], P_ATM, cp[c, lay.CP_LEAK], temp[j], t_wall)
+            if own_lines:
+                # own regulator or booster: a non-relieving source, not the manifold
+                for q in range(n_aw):
+                    c = aw[q]
+                    j = 2 + c
+                    src[c] = 0.0
+                    g_own[c] = 0.0
+                    if conn[c] == 1:
+                        p_up = _line_source(p[1], cp[c, lay.CP_P_LINE], cp[c, lay.CP_BOOST])
+                        if p_up != p[1]:
+                            src[c] = p_up
+                            g_fill[c] = 0.0
+                            cv, xt = cp[c, lay.CP_CV_FILL], cp[c, lay.CP_XT]
+                            if p[j] < p_up:
+                                g_own[c] = _isa_g(p_up, p[j], cv, xt, temp[1], temp[j])
             # faults (issue 34), in loops of their own so that the loops above and
             # below stay those of a run without them: a cushion throttling an exhaust,
             # a worn spool (supply -> port, port -> exhaust)
@@ -591,6 +565,18 @@ def run_cycle(
                 beta[cb] = (g * g_fill[ca] + den_a * g_fill[cb]) / det
                 lhs_m += g_fill[ca] * (1.0 - beta[ca]) + g_fill[cb] * (1.0 - beta[cb])
                 rhs_m += g_fill[ca] * alpha[ca] + g_fill[cb] * alpha[cb]
+            if own_lines:  # the own sources: a fixed draw on the manifold
+                for q in range(n_aw):
+                    c = aw[q]
+                    if src[c] > 0.0:
+                        j = 2 + c
+                        a_c = vol[j] / (_G * R_AIR * temp[j] * dt)
+                        s_c = 0.0 if vdot[j] == 0.0 else -p[j] * vdot[j] / (R_AIR * temp[j])
+                        den = a_c + g_own[c] + g_exh[c] + g_leak[c]
+                        alpha[c] = (
+                            a_c * p[j] + s_c + (g_exh[c] + g_leak[c]) * P_ATM + g_own[c] * src[c]
+                        ) / den
+                        rhs_m -= g_own[c] * (src[c] - alpha[c])
             # 2x2: reservoir and manifold
             a11 = a_r + g_sr + g_rm
             b1 = a_r * p[0] + g_sr * p_src
@@ -645,6 +631,18 @@ def run_cycle(
                 energy_in[ja] -= h
                 energy_in[jb] += h
                 out_fpl[n_out, i] += f_pl
+            if own_lines:  # the own sources' inflow, drawn from the manifold
+                for q in range(n_aw):
+                    c = aw[q]
+                    if src[c] > 0.0:
+                        j = 2 + c
+                        f_in = g_own[c] * (src[c] - alpha[c])
+                        dm[1] -= f_in
+                        dm[j] += f_in
+                        h = enthalpy_flow_kernel(f_in, temp[1], temp[j])
+                        energy_in[1] -= h
+                        energy_in[j] += h
+                        out_fch[n_out, c] += f_in
             cum[lay.CM_REG] += f_reg * dt
             cum[lay.CM_LINE] += f_line * dt
             cum[lay.CM_LEAK] += f_sl * dt
@@ -667,6 +665,9 @@ def run_cycle(
                     cp[2 * i + 1, lay.CP_AREA],
                     ap[i, lay.AP_AROD],
                 )
+                if springs:
+                    # a return spring pushes towards the home end (x = 0)
+                    force -= ap[i, lay.AP_SPRING_F0] + ap[i, lay.AP_SPRING_K] * x[i]
                 fs = ap[i, lay.AP_FS] * fric[i]
                 fc = ap[i, lay.AP_FC] * fric[i]
                 cvf = ap[i, lay.AP_CVF]
@@ -741,7 +742,7 @@ def run_cycle(
                 if vac_on:
                     # an ejector reaches its full vacuum from ~50 % of the nominal supply
                     # gauge pressure on; below that the attainable vacuum falls linearly
-                    drive = 2.0 * (pm_new - P_ATM) / (sp[lay.SP_P_SET] - P_ATM)
+                    drive = 2.0 * (pm_new - P_ATM) / (sp[lay.SP_VAC_P_RATED] - P_ATM)
                     drive = min(max(drive, 0.0), 1.0)
                     ss[lay.SS_VAC] += dt * (drive - ss[lay.SS_VAC]) / sp[lay.SP_VAC_TAU_ON]
                 else:

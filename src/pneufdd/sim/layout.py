@@ -48,7 +48,8 @@ SP_REG_OFFSET = 28  # drift of the regulator set point (fault) [Pa]
 SP_T_SUPPLY = 29  # temperature of the air the regulator delivers [K]
 SP_VSW_MODE = 30  # fault of the vacuum switch (SW_*)
 SP_VSW_PARAM = 31  # its size (SW_LATE: delay [s])
-SP_SIZE = 32
+SP_VAC_P_RATED = 32  # supply pressure the ejector is rated at [Pa abs]
+SP_SIZE = 33
 
 # actuator parameters (float array, one row per actuator)
 AP_STROKE = 0  # [m]
@@ -62,12 +63,15 @@ AP_OFF_DELAY = 7  # [s]
 AP_PISTON_LEAK = 8  # effective area of a leak across the piston seal, A <-> B [m^2]
 AP_CUSH_LEN = 9  # end-position cushioning length (0: none) [m]
 AP_PILOT_MIN = 10  # supply gauge pressure the valve's pilot needs to shift (0: any) [Pa]
-AP_SIZE = 11
+AP_SPRING_F0 = 11  # return spring force at the home end (x = 0) [N]
+AP_SPRING_K = 12  # return spring rate [N/m]
+AP_SIZE = 13
 
 # actuator valve kinds (int)
 VK_BISTABLE = 0
 VK_MONOSTABLE = 1
 VK_CLOSED_CENTRE = 2
+VK_SINGLE_ACTING = 3  # 3/2 monostable: A filled while energised, B always vented
 
 # chamber parameters (float array, row 2*i + side)
 CP_AREA = 0  # piston area [m^2]
@@ -82,7 +86,9 @@ CP_SPOOL_OUT = 8  # effective area of a spool leak this port -> exhaust [m^2]
 CP_CV_CUSH = 9  # exhaust path with the cushion engaged (CP_CV_EXH + cushion screw) [-]
 CP_SW_MODE = 10  # fault of switch 2 i + side (S_<ACT>_A, S_<ACT>_B), SW_*
 CP_SW_PARAM = 11  # its size (SW_LATE: delay [s])
-CP_SIZE = 12
+CP_P_LINE = 12  # line fed at this pressure by its own regulator or booster [Pa abs]; 0: none
+CP_BOOST = 13  # 1: that pressure comes from a booster (also above the manifold's) [-]
+CP_SIZE = 14
 
 # switch faults (CP_SW_MODE, SP_VSW_MODE)
 SW_OK = 0

@@ -2,8 +2,9 @@
 
 :func:`plant_derivatives` states the same physics as the compiled integrator of
 :mod:`pneufdd.sim.kernel` (regulator, reservoir, supply line, manifold, valve paths,
-leaks, chambers with mass and temperature, pistons with Karnopp friction) for fixed
-valve positions and a constant regulator source, in the form ``dy/dt = f(t, y)``.
+leaks, chambers with mass and temperature, pistons with Karnopp friction and return
+springs) for fixed valve positions and a constant regulator source, in the form
+``dy/dt = f(t, y)``; lines fed at their own pressure (issue 37) are not in it.
 It lets a general-purpose solver (``scipy.integrate.solve_ivp``) integrate one motion
 segment as an independent check and as the baseline of ``make bench``.
 
@@ -175,6 +176,7 @@ def plant_derivatives(
             cp[2 * i + 1, lay.CP_AREA],
             ap[i, lay.AP_AROD],
         )
+        force -= ap[i, lay.AP_SPRING_F0] + ap[i, lay.AP_SPRING_K] * x[i]  # return spring
         stroke = ap[i, lay.AP_STROKE]
         ff = friction_force_kernel(
             v[i],
