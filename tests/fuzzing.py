@@ -1942,7 +1942,8 @@ def check(
     # a command that refused its input writes nothing at all, named or not (files that
     # other cases of the folder may write meanwhile, and their temporaries, excepted)
     if code == EXIT_INPUT:
-        others = _FOLDER_OUTPUTS.get(case.folder, set())
+        # (an output of another case may sit in a folder it creates: its first part)
+        others = {Path(o).parts[0] for o in _FOLDER_OUTPUTS.get(case.folder, set())}
         written = sorted(
             n
             for n in set(os.listdir(case.folder)) - listing_before - set(case.outputs)
