@@ -1193,6 +1193,64 @@ def build_faults(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
     ]
 
 
+def build_standstill_plan(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "standstill-plan")
+    blocker = _put(folder, "f.txt", b"a file")
+    return [
+        Case(
+            f"standstill plan/{label}",
+            "standstill plan",
+            ["standstill", "plan", *extra],
+            folder,
+            [blocker],
+            [],
+            mentions=words,
+        )
+        for label, extra, words in (
+            ("unknown_machine", ["--machine", "no-such-machine"], ("no-such-machine",)),
+            ("mode_unknown", ["--machine", MACHINE, "--mode", "vacuum"], ("--mode",)),
+            ("settle_zero", ["--machine", MACHINE, "--settle", "0"], ("--settle",)),
+            ("window_nan", ["--machine", MACHINE, "--window", "nan"], ("--window",)),
+            ("out_under_a_file", ["--machine", MACHINE, "--out", f"{blocker}/plan"], ("f.txt",)),
+        )
+    ]
+
+
+def build_standstill_analyse(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
+    folder = _case_dir(root, "standstill-analyse")
+    run = _put(folder, "run.parquet", base["run"])
+    (folder / "plan").mkdir(exist_ok=True)
+    garbage = _put(folder, "plan/plan.json", b'{"mode": "flow", "states": [[[[[')
+    deep = _put(folder, "deep.json", ("[" * 100_000 + "]" * 100_000).encode())
+    empty = _put(folder, "empty.json", b"{}")
+    cases = []
+    for label, extra, inputs, words in (
+        # the plan (damaged here) is read first: either may be named
+        (
+            "recording_missing",
+            ["missing.parquet", "--plan", "plan"],
+            [garbage],
+            ("missing.parquet", "plan.json"),
+        ),
+        ("plan_missing", [run, "--plan", "noplan"], [run], ("noplan", "--plan")),
+        ("plan_not_json", [run, "--plan", "plan"], [run, garbage], ("plan.json", "--plan")),
+        ("plan_nested", [run, "--plan", deep], [run, deep], ("deep.json", "--plan")),
+        ("plan_empty", [run, "--plan", empty], [run, empty], ("empty.json", "--plan")),
+    ):
+        cases.append(
+            Case(
+                f"standstill analyse/{label}",
+                "standstill analyse",
+                ["standstill", "analyse", *extra],
+                folder,
+                inputs,
+                [],
+                mentions=words,
+            )
+        )
+    return cases
+
+
 def build_machine_vary(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
     cases = []
     text = base["toml"].read_text("utf-8")
@@ -1702,14 +1760,22 @@ def build_monitor(base: dict[str, Path], root: Path, full: bool) -> list[Case]:
                 Case(
                     f"monitor/{label}",
                     "monitor",
-                    ["monitor", "--reference", ref, "--source", source, "--once",
-                     "--history", "sqlite:///h.db"],
+                    [
+                        "monitor",
+                        "--reference",
+                        ref,
+                        "--source",
+                        source,
+                        "--once",
+                        "--history",
+                        "sqlite:///h.db",
+                    ],
                     folder,
                     [ref, run],
                     [],
                     mentions=words,
                 )
-            )  # fmt: skip
+            )
     return cases
 
 
@@ -1748,6 +1814,8 @@ BUILDERS: dict[str, Builder] = {
     "monitor": build_monitor,
     "import": build_import,
     "machine draft": build_machine_draft,
+    "standstill plan": build_standstill_plan,
+    "standstill analyse": build_standstill_analyse,
     "machine calibrate": build_machine_calibrate,
     "evaluate": build_evaluate,
     "vector-map": build_vector_map,

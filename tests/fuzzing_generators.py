@@ -262,6 +262,12 @@ COMMANDS: dict[str, Entry] = {
         lambda k: ["features", k.run(), "--group", "air", "--actuator", "PRESS",
                    "--out", k.out("--out", ".csv")]
     ),
+    "energy": Entry(
+        lambda k: ["energy", k.run(), "--reference", k.pnref(), "--twin-cycles", "2",
+                   "--json", k.out("--json", ".json")],
+        ok=frozenset({EXIT_OK, EXIT_LEAK}),
+        quick=False,  # seconds per run: the twin runs each what-if
+    ),
     "faults": Entry(lambda k: ["faults"]),  # no options: only a stray argument varies
     "history": Entry(
         lambda k: [

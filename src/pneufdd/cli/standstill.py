@@ -73,6 +73,11 @@ def plan(
     from pneufdd.standstill import plan_standstill
     from pneufdd.standstill.program import state_table, structured_text
 
+    if mode not in ("auto", "flow", "decay"):
+        raise InputError(describe("--mode", mode, ["auto", "flow", "decay"]))
+    for option, value in (("--settle", settle), ("--window", window)):
+        if not 1.0 <= value <= 600.0:  # NaN too
+            raise InputError(describe(option, value, "1 to 600 [s]"))
     if out is not None:
         if out.exists() and not out.is_dir():
             raise InputError(describe("--out", str(out), "a folder (or a path to create one)"))

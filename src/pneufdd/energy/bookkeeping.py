@@ -216,7 +216,7 @@ def twin_air(result: SimulationResult, skip_first: bool = True) -> TwinAir:
     >>> from pneufdd.sim import run_simulation
     >>> air = twin_air(run_simulation("press-fit-cell", cycles=3, seed=1))
     >>> total = sum(air.per_cycle_kg.values())
-    >>> abs(total - air.supply_kg.sum()) < 1e-9 * total
+    >>> bool(abs(total - air.supply_kg.sum()) < 1e-9 * total)
     True
     """
     out = result.outputs

@@ -80,8 +80,8 @@ def twin_standby(machine: MachineDescription, leaks: Sequence[Leak] = (), seed: 
     >>> from pneufdd.sim import load_machine
     >>> m = load_machine("press-fit-cell")
     >>> leak_free = twin_standby(m)
-    >>> round(leak_free.flow_kg_s * 1e6, 1), leak_free.refill_kg > 0
-    (0.0, True)
+    >>> leak_free.flow_kg_s < 1e-6, leak_free.refill_kg > 0  # air still cooling: < 1 mg/s
+    (True, True)
     >>> twin_standby(m, [Leak("supply", 1.0, "mm")]).flow_kg_s > 1e-4
     True
     """
