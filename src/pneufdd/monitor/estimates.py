@@ -207,7 +207,7 @@ class EstimateWorker:
                     1,
                     mp_context=multiprocessing.get_context("spawn"),
                     initializer=_keep,
-                    initargs=(self.model, self.cost),
+                    initargs=(self.model, self.cost, os.getpid()),
                 )
             else:
                 self._pool = ThreadPoolExecutor(1, thread_name_prefix="pneufdd-estimate")
@@ -259,17 +259,19 @@ _KEPT: tuple[ReferenceModel, CostSettings] | None = None
 """The reference and cost settings a worker process was started with."""
 
 
-def _keep(model: ReferenceModel, cost: CostSettings) -> None:
+def _keep(model: ReferenceModel, cost: CostSettings, monitor_pid: int) -> None:
     """The worker process's start: keep the reference, lower the priority, and end
-    when the monitor is gone (killed: nothing else would end this process)."""
+    when the monitor (process ``monitor_pid``) is gone (killed: nothing else would end
+    this process; killed while this one was still starting, it is gone already)."""
     global _KEPT
+    if os.getppid() != monitor_pid:
+        os._exit(0)
     _KEPT = (model, cost)
     with contextlib.suppress(OSError):  # not permitted: it runs at the monitor's priority
         os.nice(NICENESS)
-    parent = os.getppid()
 
     def orphaned() -> None:
-        while os.getppid() == parent:
+        while os.getppid() == monitor_pid:
             time.sleep(1.0)
         os._exit(0)
 
