@@ -35,6 +35,7 @@ __all__ = [
     "MAX_CYCLES",
     "MAX_HOURS_PER_YEAR",
     "MAX_JSON_DEPTH",
+    "MAX_LEAKS",
     "MAX_MESSAGE_CHARS",
     "MAX_PAYLOAD_BYTES",
     "MAX_RATE_HZ",
@@ -91,6 +92,13 @@ MAX_ACTUATORS = 64
 
 MAX_STEPS = 1_000
 """Most steps a machine description's sequence may have."""
+
+MAX_LEAKS = 32
+"""Most simultaneous leaks one diagnosis explains a run with (``--max-leaks``;
+``LocalisationSettings.max_leaks``): every location of a machine of up to 15
+actuators (the largest built-in has 19 locations). The forward search costs a few set
+fits per leak found and the check by simulation ``k + 4`` simulations per explanation
+of ``k`` leaks, so the limit bounds a diagnosis's time, not its memory."""
 
 MAX_RATE_HZ = 10e6
 """Fastest plausible sample rate of any channel [Hz]; ``import`` refuses faster too."""

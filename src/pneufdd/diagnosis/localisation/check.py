@@ -74,11 +74,14 @@ class SimulatedFit(NamedTuple):
         Whitened residual sum of squares of the simulated effect [-].
     jacobian : ndarray, shape (n_components, n_leaks)
         Last estimate of the whitened effect's derivative by size [1/(kg/s)].
+    residual : ndarray, shape (n_components,)
+        What the simulated effect leaves of the whitened observed change [-].
     """
 
     sizes: FloatArray
     rss: float
     jacobian: FloatArray
+    residual: FloatArray
 
 
 class _SizeSearch:
@@ -171,7 +174,7 @@ class _SizeSearch:
         self._residual = self.target - effect
         self._jacobian = np.zeros((self.target.size, self.sizes.size))
         rss = float(self._residual @ self._residual)
-        self.best = SimulatedFit(self.sizes.copy(), rss, self._jacobian)
+        self.best = SimulatedFit(self.sizes.copy(), rss, self._jacobian, self._residual)
         if self._estimate is None:
             self._take_differences(moved)
             return
@@ -215,7 +218,7 @@ class _SizeSearch:
         new_residual = self.target - new_effect
         rss = float(new_residual @ new_residual)
         if rss < self.best.rss:
-            self.best = SimulatedFit(new.copy(), rss, self._jacobian)
+            self.best = SimulatedFit(new.copy(), rss, self._jacobian, new_residual)
         self.sizes, self._effect, self._residual = new, new_effect, new_residual
         if np.all(np.abs(step_x) <= self.tolerance * np.maximum(np.abs(new), self.min_step)):
             self.done = True
@@ -281,7 +284,7 @@ def refine_by_simulation(
     >>> S = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
     >>> sim = lambda x: (x[0] * S[0] + x[1] * S[1] + np.array([0, 0, 0.3 * x[0] * x[1]]))
     >>> y = sim({0: 2.0, 1: 1.0})
-    >>> sizes, rss, _ = refine_by_simulation((0, 1), np.array([1.0, 3.0]), y, sim,
+    >>> sizes, rss, *_ = refine_by_simulation((0, 1), np.array([1.0, 3.0]), y, sim,
     ...                                      np.array([10.0, 10.0]), max_iterations=20,
     ...                                      tolerance=1e-6)
     >>> [round(float(v), 4) for v in sizes], rss < 1e-12
@@ -410,7 +413,15 @@ def _pair_rss(fits: Mapping[Subset, tuple[FloatArray, float]], a: int, b: int) -
     return math.inf if fit is None else fit[1]
 
 
-_COUNTS = ("top_singles", "partners", "probed_locations", "top_pairs", "max_iterations")
+_COUNTS = (
+    "top_singles",
+    "partners",
+    "probed_locations",
+    "top_pairs",
+    "max_iterations",
+    "top_larger",
+    "largest",
+)
 """The settings of :class:`SimulationCheckSettings` that count something."""
 
 
@@ -439,6 +450,11 @@ class SimulationCheckSettings:
     keep_within : float
         An explanation stops being sized when it cannot come within this ratio of
         the best simulated residual so far (:func:`refine_all`; inf: never) [-].
+    top_larger : int
+        Best signature-model sets of each size from three to ``largest`` leaks sized
+        by simulation with the pairs (step 3) [-].
+    largest : int
+        Most leaks in a set sized by simulation [-].
 
     Examples
     --------
@@ -458,6 +474,8 @@ class SimulationCheckSettings:
     min_pair_flow: float = 0.0
     max_iterations: int = 3
     keep_within: float = math.inf
+    top_larger: int = 0
+    largest: int = 2
 
     def __post_init__(self) -> None:
         for name in _COUNTS:
@@ -604,7 +622,7 @@ class _Check:
         linear fit of both sizes to the rest of the data gives ``(rss [-], location,
         size changes [kg/s], Jacobian [1/(kg/s)])``, best first.
         """
-        size, _, slope = self.checked[(first,)]
+        size, _, slope, _ = self.checked[(first,)]
         probe = self.settings.probe_size
         rest = self.target - base
         probed_all = thread_map(
@@ -649,7 +667,8 @@ def verify_explanations(
        both sizes to the data ranks the second leaks, and the ``partners`` best pairs
        are sized by simulation.
     3. The ``top_pairs`` best pairs of the signature model whose sizes are all at
-       least ``min_pair_flow``, sized by simulation.
+       least ``min_pair_flow``, and the ``top_larger`` best sets of each size from
+       three to ``largest`` leaks, sized by simulation.
 
     Parameters
     ----------
@@ -701,7 +720,7 @@ def verify_explanations(
     >>> fits = {s: (fit(s, y), 1.0) for s in [(0,), (1,), (0, 1)]}
     >>> out = verify_explanations(y, fits, 2, sim, np.array([9.0, 9.0]),
     ...                           SimulationCheckSettings(probe_size=0.5))
-    >>> sizes, rss, _ = out[(0, 1)]
+    >>> sizes, rss, *_ = out[(0, 1)]
     >>> [round(float(v), 2) for v in sizes], rss < 1e-4
     ([2.0, 1.0], True)
     """
@@ -711,6 +730,11 @@ def verify_explanations(
     check.size((single, model_fits[single][0]) for single in singles)
     partner_starts, partner_jacobians = check.partners_of_best_single(model_fits, n_locations)
     pairs = _best_first(model_fits, 2, settings.min_pair_flow)[: settings.top_pairs]
+    pairs += [
+        larger
+        for k in range(3, settings.largest + 1)
+        for larger in _best_first(model_fits, k, settings.min_pair_flow)[: settings.top_larger]
+    ]
     model_pairs = [(pair, model_fits[pair][0]) for pair in pairs]
     # the partners and the signature model's pairs are independent: one batch, a
     # partner's start first (as if sized before the model pairs); a model pair that
