@@ -113,7 +113,9 @@ def test_json_has_required_fields(reference):
     # one leak: its interval is the total's, its repair the only one
     assert data["totals"]["flow_slpm_interval"] == pytest.approx([low, high])
     assert data["repair_order"] == ["X_A"]
-    assert data["remainder"]["explained_fraction"] == pytest.approx(data["fit"]["explained_fraction"])
+    assert data["remainder"]["explained_fraction"] == pytest.approx(
+        data["fit"]["explained_fraction"]
+    )
     assert data["cost_settings"]["hours"] == 4000.0
     # the synthetic signatures hold no mean flows per cycle: continuous leakage assumed,
     # and said so

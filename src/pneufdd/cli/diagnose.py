@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 __all__ = ["leak_table", "register", "repair_lines"]
 
 
-GROUP_SHOWN = 3
+GROUP_SHOWN = 2
 """Ambiguity-group members a console row names before "+N more" (the JSON has all)."""
 
 
@@ -59,29 +59,34 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
     Each row names at most :data:`GROUP_SHOWN` members of its ambiguity group, so a
     table of many leaks keeps one line per leak on a normal terminal.
     """
+    from rich import box
     from rich.markup import escape
     from rich.table import Table
 
     from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
     from pneufdd.physics.units import kg_s_to_slpm
 
-    table = Table(title=title)
-    for name in (
-        "#",
-        "location",
-        "ambiguity group",
-        "flow [SLPM]",
-        "95 % interval",
-        "avg flow [SLPM]",
-        "orifice \\[mm]",  # escaped: rich reads [mm] as markup
-        "cost [$/yr]",
-        "confidence",
-        "repair",
-    ):
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False)
+    columns = (
+        ("#", "right"),
+        ("location", "left"),
+        ("ambiguity group", "left"),
+        ("flow (95 %)", "right"),
+        ("avg", "right"),
+        ("orifice", "right"),
+        ("$/yr", "right"),
+        ("conf.", "right"),
+        ("repair", "right"),
+    )
+    for name, justify in columns:
+        # text columns wrap on a narrow terminal instead of cutting; numbers stay whole
+        wrap = name in ("location", "ambiguity group")
         table.add_column(
             name,
-            justify="left" if name in ("location", "ambiguity group") else "right",
-            overflow="fold",  # a narrow terminal wraps text instead of cutting it
+            justify=justify,  # type: ignore[arg-type]
+            overflow="fold" if wrap else "ellipsis",
+            no_wrap=not wrap,
+            min_width=18 if name == "ambiguity group" else None,
         )
     rank = {index: place for place, index in enumerate(result.repair_order, start=1)}
     for i, leak in enumerate(result.leaks, start=1):
@@ -89,8 +94,7 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
             str(i),
             escape(str(leak.location)),  # names from the machine file are plain text
             escape(_group_text(leak)),
-            f"{leak.flow_slpm:.1f}",
-            _interval_text(*leak.mass_flow_interval),
+            f"{leak.flow_slpm:.1f} ({_interval_text(*leak.mass_flow_interval)})",
             f"{leak.average_flow_slpm:.1f}",
             f"{leak.orifice_mm:.2f}",
             f"{leak.annual_cost:,.0f}",
@@ -103,8 +107,10 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
         "",
         "total",
         "",
-        "" if totals is None else f"{float(kg_s_to_slpm(totals.mass_flow)):.1f}",
-        "" if totals is None else _interval_text(*totals.mass_flow_interval),
+        ""
+        if totals is None
+        else f"{float(kg_s_to_slpm(totals.mass_flow)):.1f} "
+        f"({_interval_text(*totals.mass_flow_interval)})",
         "" if totals is None else f"{float(kg_s_to_slpm(totals.average_mass_flow)):.1f}",
         "",
         f"{result.total_annual_cost:,.0f}",
@@ -112,10 +118,12 @@ def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first
         "",
     )
     table.caption = (
-        "flow: while the leak's line is pressurised, at supply pressure (what a leak "
-        "detector finds); 95 % interval from the fit (the total's from the leaks' joint "
-        "covariance); avg flow: mean over the operating cycle; cost: eq. 1.1 of the avg "
-        "flow x operating hours; repair: order by annual cost per repair cost"
+        "flow [SLPM]: while the leak's line is pressurised, at supply pressure (what a leak "
+        "detector finds), its 95 % interval from the fit (the total's from the leaks' "
+        "joint covariance); avg [SLPM]: mean over the operating cycle; orifice \\[mm]: "
+        "equivalent sharp-edged orifice; $/yr: eq. 1.1 of the avg flow x operating hours; "
+        "conf.: confidence that a leak lies in the group; repair: order by annual cost per "
+        "repair cost"
     )
     if any(leak.cost_basis != COST_BASIS_AVERAGE for leak in result.leaks):
         table.caption += " (continuous leakage assumed where no average flow is known)"
@@ -138,7 +146,7 @@ def repair_lines(result: Diagnosis) -> list[str]:
     if result.totals is not None:
         low, high = result.totals.annual_cost_interval
         out.append(
-            f"total ${result.total_annual_cost:,.0f}/yr (95 % interval {low:,.0f}-{high:,.0f})"
+            f"total ${result.totals.annual_cost:,.0f}/yr (95 % interval {low:,.0f}-{high:,.0f})"
         )
     return out
 

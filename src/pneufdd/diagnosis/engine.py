@@ -170,7 +170,8 @@ def undetected_remainder(
         sig.sizes, sig.deltas, whiten, target, reference.localisation.max_extrapolation
     )
     s2 = max(1.0, float(target @ target) / max(target.size, 1))
-    bounds, cap = hidden_leak_bounds(model, target, None, (), s2)
+    unexplained = max(0.0, float(target @ target) - target.size)
+    bounds, cap = hidden_leak_bounds(model, target, None, (), s2, unexplained=unexplained)
     hidden = sorted(
         (HiddenLeak(loc, float(bounds[i]), bool(cap[i])) for i, loc in enumerate(sig.locations)),
         key=lambda leak: -leak.mass_flow,
@@ -254,12 +255,16 @@ def _locate_weighted(
     32.3 SLPM at the supply).
     """
     chosen, grouped = _weightings(reference, effects, observed, n_cycles, settings)
+
+    def imitation(larger: Sequence[tuple[int, float]], smaller: tuple[int, float]) -> float | None:
+        return imitated_size(reference, effects, n_cycles, larger, smaller)
+
     if not settings.group_model_error or grouped is chosen:
-        return locate(observed, effects, chosen, settings), chosen
-    result = locate(observed, effects, grouped, settings)
+        return locate(observed, effects, chosen, settings, imitation), chosen
+    result = locate(observed, effects, grouped, settings, imitation)
     if len(result.leaks) != 1:
         return result, grouped
-    apart = locate(observed, effects, chosen, settings)
+    apart = locate(observed, effects, chosen, settings, imitation)
     group = set(result.leaks[0].ambiguity_group)
     if len(apart.leaks) >= 2 and not all(leak.location in group for leak in apart.leaks):
         return apart, chosen

@@ -395,9 +395,10 @@ class MultiTally:
     """Outcome counts of the runs with one number of simultaneous leaks.
 
     A true leak is *found* when its location lies in a reported leak's ambiguity
-    group; a missed leak is *within the stated remainder* when the diagnosis's bound
-    of a hidden leak at its location is at least its true flow (the diagnosis said a
-    leak that large may still be there).
+    group. A run that misses a leak *states the remainder* when the diagnosis says
+    more leaks may be present, or when its bound of a hidden leak at every missed
+    location is at least that leak's true flow (it said a leak that large may still
+    be there); both are counted apart too.
     """
 
     runs: int = 0
@@ -445,7 +446,7 @@ class MultiTally:
             within = [run.hidden.get(loc, 0.0) >= run.truth[loc] for loc in missed]
             self.missed_leaks += len(missed)
             self.missed_within_bound += sum(within)
-            self.missing_stated += int(all(within))
+            self.missing_stated += int(run.more_leaks or all(within))
 
     def figures(self) -> dict[str, float | int | None]:
         """The figures as numbers (rates as fractions; None when not measured)."""

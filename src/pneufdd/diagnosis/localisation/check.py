@@ -413,15 +413,7 @@ def _pair_rss(fits: Mapping[Subset, tuple[FloatArray, float]], a: int, b: int) -
     return math.inf if fit is None else fit[1]
 
 
-_COUNTS = (
-    "top_singles",
-    "partners",
-    "probed_locations",
-    "top_pairs",
-    "max_iterations",
-    "top_larger",
-    "largest",
-)
+_COUNTS = ("top_singles", "partners", "probed_locations", "top_pairs", "max_iterations")
 """The settings of :class:`SimulationCheckSettings` that count something."""
 
 
@@ -450,11 +442,6 @@ class SimulationCheckSettings:
     keep_within : float
         An explanation stops being sized when it cannot come within this ratio of
         the best simulated residual so far (:func:`refine_all`; inf: never) [-].
-    top_larger : int
-        Best signature-model sets of each size from three to ``largest`` leaks sized
-        by simulation with the pairs (step 3) [-].
-    largest : int
-        Most leaks in a set sized by simulation [-].
 
     Examples
     --------
@@ -474,8 +461,6 @@ class SimulationCheckSettings:
     min_pair_flow: float = 0.0
     max_iterations: int = 3
     keep_within: float = math.inf
-    top_larger: int = 0
-    largest: int = 2
 
     def __post_init__(self) -> None:
         for name in _COUNTS:
@@ -667,8 +652,7 @@ def verify_explanations(
        both sizes to the data ranks the second leaks, and the ``partners`` best pairs
        are sized by simulation.
     3. The ``top_pairs`` best pairs of the signature model whose sizes are all at
-       least ``min_pair_flow``, and the ``top_larger`` best sets of each size from
-       three to ``largest`` leaks, sized by simulation.
+       least ``min_pair_flow``, sized by simulation.
 
     Parameters
     ----------
@@ -730,11 +714,6 @@ def verify_explanations(
     check.size((single, model_fits[single][0]) for single in singles)
     partner_starts, partner_jacobians = check.partners_of_best_single(model_fits, n_locations)
     pairs = _best_first(model_fits, 2, settings.min_pair_flow)[: settings.top_pairs]
-    pairs += [
-        larger
-        for k in range(3, settings.largest + 1)
-        for larger in _best_first(model_fits, k, settings.min_pair_flow)[: settings.top_larger]
-    ]
     model_pairs = [(pair, model_fits[pair][0]) for pair in pairs]
     # the partners and the signature model's pairs are independent: one batch, a
     # partner's start first (as if sized before the model pairs); a model pair that

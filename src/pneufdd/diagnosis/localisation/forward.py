@@ -84,7 +84,8 @@ def extend_by_simulation(
     max_iterations: int = 3,
     keep_within: float = math.inf,
     threads: int = 1,
-) -> list[Subset]:
+    size_below: float = math.inf,
+) -> tuple[list[Subset], float]:
     """Size by simulation the best sets of one leak more than ``base`` (``checked`` in place).
 
     Parameters
@@ -108,11 +109,16 @@ def extend_by_simulation(
         Best probed sets sized by simulation [-].
     max_iterations, keep_within, threads
         As for :func:`~pneufdd.diagnosis.localisation.check.refine_all`.
+    size_below : float
+        Only sets whose probe predicts a residual below this are sized: a further
+        leak that cannot explain enough to be chosen costs its probes alone [-].
 
     Returns
     -------
     list of tuple of int
         The sets of one leak more that were sized, best probe first.
+    float
+        The residual the best probe predicts for one leak more (inf: none probed) [-].
 
     Examples
     --------
@@ -127,14 +133,17 @@ def extend_by_simulation(
     >>> pair = refine_all({(0, 1): np.array([2.0, 1.0])}, y, sim, np.full(3, 9.0))
     >>> added = extend_by_simulation(y, pair, (0, 1), [2], sim, np.full(3, 9.0), 0.5,
     ...                              max_iterations=10)
-    >>> added, [round(float(v), 3) for v in pair[(0, 1, 2)].sizes]
+    >>> added[0], [round(float(v), 3) for v in pair[(0, 1, 2)].sizes]
     ([(0, 1, 2)], [2.0, 1.0, 1.5])
     """
     fit = checked[base]
     ranked = _probe(target, base, fit, others, simulate, upper, probe_size, threads)
+    predicted = ranked[0][0] if ranked else math.inf
     starts: dict[Subset, FloatArray] = {}
     estimates: dict[Subset, FloatArray] = {}
-    for _, other, step, columns in ranked[:partners]:
+    for rss, other, step, columns in ranked[:partners]:
+        if rss >= size_below:
+            continue
         sizes = {loc: float(x) for loc, x in zip(base, fit.sizes + step[:-1], strict=True)}
         sizes[other] = float(step[-1])
         grown = tuple(sorted(sizes))
@@ -157,4 +166,4 @@ def extend_by_simulation(
             estimates,
         )
     )
-    return list(starts)
+    return list(starts), predicted

@@ -16,6 +16,7 @@ function here:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -161,83 +162,79 @@ def choose_leak_count(
     return chosen
 
 
-def next_leak_weight(best: Best, dof: int, chosen: int) -> float:
+def next_leak_weight(rss: float, rss_next: float, chosen: int, dof: int) -> float:
     """Probability-like weight of "no further leak" against one leak more.
 
-    The Akaike-type weight of the chosen model against the best with one leak more,
-    both scored like :func:`choose_leak_count` scores them (residual plus
-    ``2 ln(dof) s^2`` per leak, ``s^2`` of the larger model): 1 when no such model
-    was fitted, 0.5 when the added leak lowers the residual by exactly the penalty.
+    The Akaike-type weight of the chosen model (residual ``rss``, ``chosen`` leaks)
+    against the best with one leak more (``rss_next``; inf: none was fitted), both
+    scored like :func:`choose_leak_count` scores them (residual plus
+    ``2 ln(dof) s^2`` per leak, ``s^2`` of the larger model): 1 without such a
+    model, 0.5 when the added leak lowers the residual by exactly the penalty.
 
     Examples
     --------
-    >>> best = {1: ((0,), np.ones(1), 60.0), 2: ((0, 1), np.ones(2), 57.0)}
-    >>> round(next_leak_weight(best, 50, 1), 3), next_leak_weight(best, 50, 2)
+    >>> round(next_leak_weight(60.0, 57.0, 1, 50), 3), next_leak_weight(60.0, math.inf, 2, 50)
     (0.934, 1.0)
-    >>> round(next_leak_weight({1: ((0,), np.ones(1), 80.0),
-    ...                         2: ((0, 1), np.ones(2), 60.0)}, 50, 1), 3)
+    >>> round(next_leak_weight(80.0, 60.0, 1, 50), 3)
     0.016
     """
-    if chosen not in best or chosen + 1 not in best:
+    if not math.isfinite(rss_next):
         return 1.0
-    rss_k, rss_next = best[chosen][2], best[chosen + 1][2]
     s2 = max(1.0, rss_next / max(dof - chosen - 1, 1))
-    margin = rss_k - rss_next - 2.0 * np.log(max(dof, 2)) * s2
+    margin = rss - rss_next - 2.0 * np.log(max(dof, 2)) * s2
     return float(1.0 / (1.0 + np.exp(min(margin / (2.0 * s2), 700.0))))
 
 
 def more_leak_reasons(
-    best: Best,
+    rss: float,
+    rss_next: float,
     chosen: int,
     dof: int,
     limit: int,
     min_relative_gain: float,
-    misfit_ratio: float,
-    simulated: bool = False,
+    misfit_ratio: float = math.inf,
 ) -> tuple[str, ...]:
     """Why more leaks than the ``chosen`` may be present (empty: no sign of any).
 
-    - the best explanation with one leak more lowers the residual by more than the
-      information criterion's penalty (:func:`choose_leak_count`), though not by the
-      relative gain the choice needs, or the search stopped at ``limit``;
+    - the best explanation with one leak more (residual ``rss_next``; inf: none)
+      lowers the chosen one's residual ``rss`` by more than the information
+      criterion's penalty of :func:`choose_leak_count`, though not by the relative
+      gain the choice needs; or the search stopped at its ``limit`` of leaks;
     - the chosen explanation leaves more than ``misfit_ratio`` per residual
-      component: more than noise and model error explain (a leak the model misses,
-      or another fault).
+      component: far more than noise and model error explain (leaks the search
+      cannot separate, or another fault).
 
     Examples
     --------
-    >>> best = {0: ((), np.zeros(0), 900.0), 1: ((0,), np.ones(1), 400.0),
-    ...         2: ((0, 1), np.ones(2), 330.0)}
-    >>> more_leak_reasons(best, 1, 50, 2, 0.25, 3.0)  # doctest: +NORMALIZE_WHITESPACE
+    >>> more_leak_reasons(400.0, 330.0, 1, 50, 2, 0.25)  # doctest: +NORMALIZE_WHITESPACE
     ('a further leak would lower the residual by 18 %: more than the information
-    criterion asks, less than the 25 % the model choice needs', 'the leaks found
-    leave 8.0 times the residual that noise and model error explain')
+    criterion asks, less than the 25 % the model choice needs',)
+    >>> more_leak_reasons(400.0, 390.0, 1, 50, 2, 0.25)
+    ()
+    >>> more_leak_reasons(4000.0, math.inf, 1, 50, 2, 0.25, 20.0)
+    ('the leaks found leave 80 times the residual that noise and model error explain',)
     """
     reasons = []
-    following = chosen + 1
-    if chosen in best and following in best:
-        rss_k, rss_next = best[chosen][2], best[following][2]
-        s2 = max(1.0, rss_next / max(dof - following, 1))
-        drop = 1.0 - rss_next / rss_k if rss_k > 0 else 0.0
-        if rss_k - rss_next > 2.0 * np.log(max(dof, 2)) * s2:
+    if math.isfinite(rss_next) and rss > 0:
+        s2 = max(1.0, rss_next / max(dof - chosen - 1, 1))
+        drop = 1.0 - rss_next / rss
+        if rss - rss_next > 2.0 * np.log(max(dof, 2)) * s2:
             if chosen >= limit:
                 reasons.append(
                     f"the search stopped at its limit of {limit} leak(s); one more would "
                     f"lower the residual by {100 * drop:.0f} %"
                 )
-            elif drop < min_relative_gain:
+            else:
                 reasons.append(
                     f"a further leak would lower the residual by {100 * drop:.0f} %: more "
                     "than the information criterion asks, less than the "
                     f"{100 * min_relative_gain:.0f} % the model choice needs"
                 )
-    if chosen in best:
-        misfit = best[chosen][2] / max(dof, 1)
-        if misfit > misfit_ratio:
-            what = "the simulated explanation leaves" if simulated else "the leaks found leave"
-            reasons.append(
-                f"{what} {misfit:.1f} times the residual that noise and model error explain"
-            )
+    if rss > misfit_ratio * max(dof, 1):
+        reasons.append(
+            f"the leaks found leave {rss / max(dof, 1):.0f} times the residual that noise "
+            "and model error explain"
+        )
     return tuple(reasons)
 
 

@@ -12,7 +12,9 @@ must be said too:
   linear in its size). A size ``a`` is rejected when the residual it leaves exceeds
   the best by more than :math:`\\chi^2_{1,1-2\\alpha}\\, s^2` (2.71 s^2 for a
   one-sided bound at 95 %), with :math:`s^2` the residual scale of the explanation
-  (at least 1; larger when model error dominates);
+  (at least 1; larger when model error dominates). Where model error dominates, it
+  can cancel a leak's effect: a leak whose whole effect is no larger than what the
+  explanation leaves beyond noise could hide too, and the bound is the larger;
 - the **covariance of the sizes** (:func:`size_spread`): :math:`s^2 (J^T J)^{-1}`
   of the whitened Jacobian, from which the total flow and its interval follow even
   when the single leaks cannot be separated (two leaks whose effects are nearly
@@ -25,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneufdd.array_types import FloatArray
+from pneufdd.array_types import BoolArray, FloatArray
 from pneufdd.diagnosis.effects.piecewise import WhitenedEffects
 from pneufdd.location import Location
 
@@ -84,6 +86,9 @@ class Remainder:
     complete_confidence : float
         Probability-like weight of "no further leak" against the best explanation
         with one leak more (1 when none fits) [-].
+    next_leak_gain : float
+        Fraction of the residual the best explanation with one leak more removes
+        (NaN when none was fitted) [-].
     """
 
     explained: float
@@ -92,6 +97,7 @@ class Remainder:
     more_leaks_possible: bool = False
     reasons: tuple[str, ...] = ()
     complete_confidence: float = 1.0
+    next_leak_gain: float = float("nan")
 
     def groups(self) -> list[tuple[str, float, bool]]:
         """The bounds per location group (the supply; each actuator's two lines).
@@ -126,6 +132,28 @@ def _orthogonal(jacobian: FloatArray | None, n: int) -> FloatArray:
     return np.asarray(basis[:, keep], dtype=np.float64)
 
 
+def _largest_within(
+    c0: FloatArray,
+    c1: FloatArray,
+    c2: FloatArray,
+    limit: FloatArray,
+    lo: FloatArray,
+    hi: FloatArray,
+) -> FloatArray:
+    """Per location, the largest ``a`` on any segment ``[lo, hi]`` with
+    ``c0 + c1 a + c2 a^2 <= limit`` (-inf where none) [kg/s]."""
+    disc = c1 * c1 - 4.0 * c2 * (c0 - limit)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = np.where(
+            c2 > 0,
+            (-c1 + np.sqrt(np.maximum(disc, 0.0))) / (2.0 * c2),
+            np.where(c1 < 0, np.inf, np.where(c1 > 0, (limit - c0) / c1, np.inf)),
+        )
+    q_lo = c0 + c1 * lo + c2 * lo * lo
+    feasible = (q_lo <= limit * (1 + 1e-12)) | ((disc >= 0) & (root >= lo))
+    return np.asarray(np.max(np.where(feasible, np.clip(root, lo, hi), -np.inf), axis=1))
+
+
 def hidden_leak_bounds(
     model: WhitenedEffects,
     residual: FloatArray,
@@ -133,7 +161,8 @@ def hidden_leak_bounds(
     exclude: tuple[int, ...],
     s2: float,
     drop: float = _CHI2_ONE_SIDED_95,
-) -> tuple[FloatArray, FloatArray]:
+    unexplained: float = 0.0,
+) -> tuple[FloatArray, BoolArray]:
     r"""Largest additional leak at each location the residual cannot reject.
 
     With the explanation's whitened residual :math:`r` and Jacobian :math:`J`
@@ -145,8 +174,18 @@ def hidden_leak_bounds(
         q_l(a) = \lVert P\,(r - e_l(a)) \rVert^2,
 
     piecewise quadratic in :math:`a` (the effect :math:`e_l` is piecewise linear).
-    The bound is the largest :math:`a` up to the size cap with
-    :math:`q_l(a) \le \min_a q_l + \mathrm{drop}\; s^2`.
+    The profile bound is the largest :math:`a` up to the size cap with
+    :math:`q_l(a) \le \min_a q_l + \mathrm{drop}\; s^2`. It takes the residual
+    for noise; where model error dominates it (a plant's leaks act differently from
+    the twin's), the error can cancel a leak's effect, and a leak whose whole effect
+    is no larger than what the explanation leaves beyond noise could hide there:
+
+    .. math::
+
+        \lVert P\, e_l(a) \rVert^2 \le u + \mathrm{drop}\; s^2,
+
+    with ``u`` = ``unexplained``, the residual beyond its noise expectation. The
+    bound is the larger of the two.
 
     Parameters
     ----------
@@ -162,6 +201,8 @@ def hidden_leak_bounds(
         Residual scale [-].
     drop : float
         Allowed rise of the residual, in units of ``s2`` [-].
+    unexplained : float
+        The residual beyond what noise explains, ``max(0, rss - (dof - k))`` [-].
 
     Returns
     -------
@@ -174,13 +215,18 @@ def hidden_leak_bounds(
     --------
     One location whose effect is ``a (1, 0)``, a residual of noise level: a leak of
     size ``sqrt(2.71)`` raises it by 2.71 (with the best fit at ``a = 0.5``, the
-    bound is ``0.5 + sqrt(2.71)``):
+    bound is ``0.5 + sqrt(2.71)``); with 9 units of the residual unexplained by noise,
+    a leak of effect ``sqrt(9 + 2.71)`` could hide in it:
 
     >>> model = WhitenedEffects(np.array([[10.0]]), np.array([[[10.0, 0.0]]]),
     ...     lambda d: np.atleast_2d(d), np.zeros(2))
     >>> bounds, cap = hidden_leak_bounds(model, np.array([0.5, 1.0]), None, (), 1.0)
     >>> round(float(bounds[0]), 3), bool(cap[0])
     (2.145, False)
+    >>> bounds, _ = hidden_leak_bounds(model, np.array([0.5, 1.0]), None, (), 1.0,
+    ...                                unexplained=9.0)
+    >>> round(float(bounds[0]), 3)
+    3.421
     """
     n_loc, n_seg = model.lo.shape
     r = np.asarray(residual, dtype=np.float64)
@@ -191,33 +237,21 @@ def hidden_leak_bounds(
     V = V - (V @ basis) @ basis.T
     S = S - (S @ basis) @ basis.T
     rV, rS = V @ r, S @ r
-    VV = np.einsum("ij,ij->i", V, V)
-    VS = np.einsum("ij,ij->i", V, S)
-    SS = np.einsum("ij,ij->i", S, S)
+    VV = np.einsum("ij,ij->i", V, V).reshape(n_loc, n_seg)
+    VS = np.einsum("ij,ij->i", V, S).reshape(n_loc, n_seg)
+    SS = np.einsum("ij,ij->i", S, S).reshape(n_loc, n_seg)
     # q(a) = c0 + c1 a + c2 a^2 on each segment
-    c0 = (float(r @ r) - 2.0 * rV + VV).reshape(n_loc, n_seg)
-    c1 = (-2.0 * (rS - VS)).reshape(n_loc, n_seg)
-    c2 = SS.reshape(n_loc, n_seg)
+    c0 = float(r @ r) - 2.0 * rV.reshape(n_loc, n_seg) + VV
+    c1 = -2.0 * (rS.reshape(n_loc, n_seg) - VS)
     lo, hi = model.lo, np.minimum(model.hi, model.size_cap[:, None])
     with np.errstate(divide="ignore", invalid="ignore"):
-        vertex = np.where(c2 > 0, -c1 / (2.0 * c2), lo)
+        vertex = np.where(SS > 0, -c1 / (2.0 * SS), lo)
     at = np.clip(vertex, lo, hi)
-    q_min = np.min(c0 + c1 * at + c2 * at * at, axis=1)
-    limit = q_min[:, None] + drop * s2
-    # largest a in [lo, hi] with q(a) <= limit
-    disc = c1 * c1 - 4.0 * c2 * (c0 - limit)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        root = np.where(
-            c2 > 0,
-            (-c1 + np.sqrt(np.maximum(disc, 0.0))) / (2.0 * c2),
-            np.where(c1 < 0, np.inf, np.where(c1 > 0, (limit - c0) / c1, np.inf)),
-        )
-    q_lo = c0 + c1 * lo + c2 * lo * lo
-    feasible = (q_lo <= limit * (1 + 1e-12)) | ((disc >= 0) & (root >= lo))
-    largest = np.where(feasible, np.clip(root, lo, hi), -np.inf)
-    bounds = np.max(largest, axis=1)
-    bounds = np.maximum(bounds, 0.0)
-    cap = bounds >= model.size_cap * (1.0 - 1e-9)
+    q_min = np.min(c0 + c1 * at + SS * at * at, axis=1)
+    profile = _largest_within(c0, c1, SS, q_min[:, None] + drop * s2, lo, hi)
+    hiding = _largest_within(VV, 2.0 * VS, SS, np.full_like(VV, unexplained + drop * s2), lo, hi)
+    bounds = np.asarray(np.maximum(np.maximum(profile, hiding), 0.0), dtype=np.float64)
+    cap = np.asarray(bounds >= model.size_cap * (1.0 - 1e-9), dtype=np.bool_)
     for i in exclude:
         bounds[i], cap[i] = 0.0, False
     return bounds, cap

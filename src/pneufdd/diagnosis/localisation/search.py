@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,11 +44,7 @@ from pneufdd.diagnosis.effects.piecewise import WhitenedEffects, Whitener
 from pneufdd.diagnosis.localisation.check import (
     SimulatedEffect,
     SimulatedFit,
-    SimulationCheckSettings,
-    refine_all,
-    verify_explanations,
 )
-from pneufdd.diagnosis.localisation.forward import extend_by_simulation
 from pneufdd.diagnosis.localisation.model_choice import (
     Best,
     Explanation,
@@ -60,7 +56,6 @@ from pneufdd.diagnosis.localisation.model_choice import (
     choose_leak_count,
     more_leak_reasons,
     next_leak_weight,
-    same_actuator_pair,
 )
 from pneufdd.diagnosis.localisation.remainder import (
     HiddenLeak,
@@ -69,15 +64,16 @@ from pneufdd.diagnosis.localisation.remainder import (
     size_spread,
 )
 from pneufdd.diagnosis.localisation.settings import LocalisationSettings, leak_limit
+from pneufdd.diagnosis.localisation.simulated import (
+    Imitation,
+    check_by_simulation,
+    simulate_group_competitors,
+)
 from pneufdd.diagnosis.localisation.subsets import PairTerm, SetSearch
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
 __all__ = ["Localisation", "LocalisationSettings", "SizedLocation", "locate"]
-
-LARGER_CHECKED = 2
-"""Best signature-model sets of each size from three leaks on that the check by
-simulation sizes (beside today's singles and pairs)."""
 
 
 @dataclass(frozen=True)
@@ -233,172 +229,6 @@ def _pair_term(effects: LeakEffectModel, whiten: Whitener) -> PairTerm | None:
     return term
 
 
-def _check_by_simulation(
-    target: FloatArray,
-    model: WhitenedEffects,
-    fits: Fits,
-    best: Best,
-    chosen: int,
-    simulate: SimulatedEffect,
-    n_loc: int,
-    dof: int,
-    limit: int,
-    settings: LocalisationSettings,
-    threads: int = 1,
-) -> tuple[Fits, Best, int, dict[Subset, SimulatedFit]] | None:
-    """Simulated explanations and the choice among them, or None if none ran.
-
-    With three or more leaks allowed, the best signature-model sets of each size
-    from three to one more than the signatures chose are sized by simulation with
-    the pairs.
-    """
-    pairs_too = limit > 1
-    if pairs_too:
-        for sub in itertools.combinations(range(n_loc), 2):
-            fits.setdefault(sub, model.fit(sub))
-    check = SimulationCheckSettings(
-        partners=3 if pairs_too else 0,
-        probed_locations=settings.probes,
-        top_pairs=3 if pairs_too else 0,
-        min_pair_flow=settings.min_mass_flow,
-        keep_within=settings.keep_within or math.inf,
-        top_larger=LARGER_CHECKED,
-        largest=min(limit, max(chosen + 1, 2)),
-    )
-    checked = verify_explanations(
-        target,
-        fits,
-        n_loc,
-        simulate,
-        model.size_cap,
-        check,
-        slopes=_slopes(model) if settings.keep_within else None,
-        threads=threads,
-    )
-    if not checked:
-        return None
-    # a leak the signatures did not ask for must explain much more: the simulated
-    # residual also holds the run's own random conditions, which a small extra leak
-    # can partly absorb
-    gain = settings.min_relative_gain
-    added = max(gain, settings.added_leak_gain)
-
-    def choice() -> tuple[Fits, Best, int]:
-        sim_fits: Fits = {sub: (fit.sizes, fit.rss) for sub, fit in checked.items()}
-        sim_best = _best_of(sim_fits, limit, settings.min_mass_flow, best[0])
-        count = choose_leak_count(
-            sim_best,
-            dof,
-            limit,
-            added if chosen <= 1 else gain,
-            settings.first_leak_gain,
-            added,
-            max(chosen, 1),
-        )
-        return sim_fits, sim_best, count
-
-    sim_fits, sim_best, count = choice()
-    # more leaks one at a time, each probed beside the chosen ones (.forward); one
-    # level beyond the choice is sized: what a further leak would explain
-    while 2 <= count < min(limit + 1, n_loc) and sim_best[count][0] in checked:
-        base = sim_best[count][0]
-        extend_by_simulation(
-            target,
-            checked,
-            base,
-            _ranked_additions(model, checked[base].residual, base)[: settings.probes or n_loc],
-            simulate,
-            model.size_cap,
-            check.probe_size,
-            partners=2,
-            max_iterations=check.max_iterations,
-            keep_within=check.keep_within,
-            threads=threads,
-        )
-        sim_fits, sim_best, grown = choice()
-        if grown <= count:
-            break
-        count = grown
-    return sim_fits, sim_best, count, checked
-
-
-def _ranked_additions(model: WhitenedEffects, residual: FloatArray, base: Subset) -> list[int]:
-    """Locations not in ``base``, the best signature-model addition to ``residual`` first."""
-    _, rss = model.additions(residual)
-    return [int(i) for i in np.argsort(rss, kind="stable") if int(i) not in base]
-
-
-def _best_of(
-    fits: Fits, limit: int, min_flow: float, none: tuple[Subset, FloatArray, float]
-) -> Best:
-    """The best fit of each number of leaks up to ``limit`` with every size >= ``min_flow``."""
-    best: Best = {0: none}
-    for cand, (cand_sizes, cand_rss) in fits.items():
-        k = len(cand)
-        if (
-            k <= limit
-            and np.all(cand_sizes >= min_flow)
-            and (k not in best or cand_rss < best[k][2])
-        ):
-            best[k] = (cand, cand_sizes, cand_rss)
-    return best
-
-
-def _slopes(model: WhitenedEffects) -> Callable[[Subset, FloatArray], FloatArray]:
-    """The signature model's derivative of the whitened effect of a subset by size."""
-
-    def slopes(subset: Subset, sizes: FloatArray) -> FloatArray:
-        return np.column_stack(
-            [model.derivative(loc, float(x)) for loc, x in zip(subset, sizes, strict=True)]
-        )
-
-    return slopes
-
-
-def _simulate_group_competitors(
-    target: FloatArray,
-    search: SetSearch,
-    fits: Fits,
-    subset: Subset,
-    sizes: FloatArray,
-    simulate: SimulatedEffect,
-    n_loc: int,
-    checks: int,
-    threads: int = 1,
-) -> None:
-    """Size by simulation the locations the signatures rank best in each slot (in place).
-
-    Every competitor is sized to the end: it starts from the size of the leak it
-    replaces, often far from its own: in development runs, one whose starting
-    residual was 42 times the chosen pair's ended as good as it, so stopping such a
-    competitor early would have lost it. Of three or more leaks the signatures rank
-    a slot's alternatives with the other leaks at their simulated sizes
-    (:meth:`SetSearch.swaps`, not refit).
-    """
-    model = search.model
-    ranking: Fits = {}
-    if len(subset) > 2:
-        search.swaps(subset, sizes, ranking, refit_below=0.0)
-    trials: dict[Subset, FloatArray] = {}
-    for slot, loc in enumerate(subset):
-        others = tuple(x for x in subset if x != loc)
-
-        def rss_of(alt: int, others: Subset = others) -> float:
-            trial = tuple(sorted((*others, alt)))
-            return ranking[trial][1] if trial in ranking else model.fit(trial)[1]
-
-        ranked = sorted((rss_of(alt), alt) for alt in range(n_loc) if alt not in subset)
-        for _, alt in ranked[:checks]:
-            trial = tuple(sorted((*others, alt)))
-            if trial in fits or trial in trials:
-                continue
-            trials[trial] = np.array(
-                [sizes[subset.index(i)] if i in others else sizes[slot] for i in trial]
-            )
-    for trial, fit in refine_all(trials, target, simulate, model.size_cap, threads=threads).items():
-        fits[trial] = (fit.sizes, fit.rss)
-
-
 def _forced_member(
     slot: int,
     subset: Subset,
@@ -412,20 +242,40 @@ def _forced_member(
     leaks on both lines of one actuator the smaller may stand for a supply leak; of a
     supply leak next to a leak on one line, the supply may stand for a leak on the
     other line (large ``X_B`` plus small ``X_A`` is how "``X_B`` plus a supply leak"
-    is usually fitted, and the other way round). Returns the location and the size it
-    would need [kg/s], or None.
+    is usually fitted, and the other way round). Among more leaks the same holds
+    for each actuator with both lines chosen, and for the supply leak beside the
+    largest leak on one line whose other line is not chosen. Returns the location
+    and the size it would need [kg/s] (of more than two leaks: the size of the leak
+    it stands for), or None.
     """
-    if len(subset) != 2 or SUPPLY not in locations:
+    if len(subset) < 2 or SUPPLY not in locations:
         return None
     supply = locations.index(SUPPLY)
     loc = subset[slot]
-    other = subset[1 - slot]
-    if same_actuator_pair(locations, subset) and slot == int(np.argmin(sizes)):
-        candidate = supply
-    elif loc == supply and locations[other].other_line() in locations:
-        candidate = locations.index(locations[other].other_line())
+    candidate: int | None = None
+    if loc != supply:
+        partner = locations[loc].other_line()
+        if partner in locations and locations.index(partner) in subset:
+            other = subset.index(locations.index(partner))
+            if sizes[slot] <= sizes[other] and (len(subset) > 2 or slot == int(np.argmin(sizes))):
+                candidate = supply
     else:
+        lines = sorted(
+            (
+                (-float(sizes[i]), locations.index(locations[x].other_line()))
+                for i, x in enumerate(subset)
+                if x != supply
+                and locations[x].other_line() in locations
+                and locations.index(locations[x].other_line()) not in subset
+            ),
+        )
+        if lines:
+            candidate = lines[0][1]
+    if candidate is None or candidate in subset:
         return None
+    if len(subset) > 2:
+        return candidate, float(sizes[slot])
+    other = subset[1 - slot]
     trial = tuple(sorted((other, candidate)))
     return candidate, float(model.fit(trial)[0][trial.index(candidate)])
 
@@ -486,6 +336,7 @@ def locate(
     effects: LeakEffectModel,
     whiten: Whitener,
     settings: LocalisationSettings | None = None,
+    imitation: Imitation | None = None,
 ) -> Localisation:
     """Decompose an observed feature change into non-negative leak contributions.
 
@@ -502,6 +353,12 @@ def locate(
         spread, the supply-fluctuation projection and the run-length scaling.
     settings : LocalisationSettings, optional
         Tuning (defaults as documented there).
+    imitation : callable, optional
+        ``imitation(larger, smaller)``: the size [kg/s] of the leak ``smaller``
+        (``(location index, size)``) that the model error of the leaks ``larger``
+        imitates (:func:`pneufdd.diagnosis.engine.imitated_size`); with it, the check
+        by simulation takes a third and further leak only when it is more than
+        :attr:`LocalisationSettings.imitation_z` times that.
 
     Returns
     -------
@@ -549,6 +406,7 @@ def locate(
             return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
 
     checked: dict[Subset, SimulatedFit] | None = None
+    following = best[chosen + 1][2] if chosen + 1 in best else math.inf
     misfit = best[chosen][2] / max(dof, 1)
     if (
         simulate is not None
@@ -556,7 +414,7 @@ def locate(
         and misfit > settings.misfit_ratio
         and (chosen > 1 or misfit > settings.severe_misfit_ratio)
     ):
-        outcome = _check_by_simulation(
+        outcome = check_by_simulation(
             target,
             model,
             fits,
@@ -568,15 +426,17 @@ def locate(
             limit,
             settings,
             effects.threads,
+            locations,
+            imitation,
         )
         if outcome is not None:
-            fits, best, chosen, checked = outcome
+            fits, best, chosen, checked, following = outcome
     subset, coef, rss = best[chosen]
     s2 = max(1.0, rss / max(dof - len(subset), 1))
     if checked is not None and simulate is not None:
         # only simulated explanations are compared: check the alternatives the
         # signature model ranks best in each slot
-        _simulate_group_competitors(
+        simulate_group_competitors(
             target,
             search,
             fits,
@@ -586,6 +446,7 @@ def locate(
             n_loc,
             settings.group_checks,
             effects.threads,
+            checked.get(subset),
         )
     else:
         _signature_competitors(search, fits, subset, coef, rss, s2, settings)
@@ -603,8 +464,8 @@ def locate(
         residual, jacobian = _signature_residual(search, subset, coef, interacting)
     remainder, spread = _remainder(
         model,
-        search,
-        best,
+        rss,
+        following,
         chosen,
         dof,
         limit,
@@ -615,7 +476,6 @@ def locate(
         explained,
         locations,
         settings,
-        checked is not None,
     )
     order = [slot for slot, _ in slots]
     return Localisation(
@@ -750,8 +610,8 @@ def _signature_residual(
 
 def _remainder(
     model: WhitenedEffects,
-    search: SetSearch,
-    best: Best,
+    rss: float,
+    following: float,
     chosen: int,
     dof: int,
     limit: int,
@@ -762,10 +622,13 @@ def _remainder(
     explained: float,
     locations: tuple[Location, ...],
     settings: LocalisationSettings,
-    simulated: bool,
 ) -> tuple[Remainder, FloatArray | None]:
-    """What the chosen leaks leave (:mod:`.remainder`) and the spread of their sizes."""
-    bounds, at_cap = hidden_leak_bounds(model, residual, jacobian, subset, s2)
+    """What the chosen leaks leave (:mod:`.remainder`) and the spread of their sizes;
+    ``following`` is the residual of the best explanation with one leak more [-]."""
+    unexplained = max(0.0, rss - (dof - len(subset)))
+    bounds, at_cap = hidden_leak_bounds(
+        model, residual, jacobian, subset, s2, unexplained=unexplained
+    )
     hidden = sorted(
         (
             HiddenLeak(locations[i], float(bounds[i]), bool(at_cap[i]))
@@ -775,14 +638,21 @@ def _remainder(
         key=lambda leak: -leak.mass_flow,
     )
     reasons = more_leak_reasons(
-        best, chosen, dof, limit, settings.min_relative_gain, settings.misfit_ratio, simulated
+        rss,
+        following,
+        chosen,
+        dof,
+        limit,
+        settings.min_relative_gain,
+        settings.severe_misfit_ratio,
     )
     remainder = Remainder(
         explained=explained,
         hidden=tuple(hidden),
         more_leaks_possible=bool(reasons),
         reasons=reasons,
-        complete_confidence=next_leak_weight(best, dof, chosen),
+        complete_confidence=next_leak_weight(rss, following, chosen, dof),
+        next_leak_gain=1.0 - following / rss if math.isfinite(following) and rss > 0 else math.nan,
     )
     spread = size_spread(jacobian, s2) if subset else None
     return remainder, spread
