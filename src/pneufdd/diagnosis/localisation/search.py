@@ -378,13 +378,7 @@ def locate(
     """
     settings = settings or LocalisationSettings()
     signatures = effects.signatures
-    obs = np.asarray(observed, dtype=np.float64)
-    if obs.shape != (signatures.n_features,):
-        raise InputError(
-            describe("shape of observed feature change", obs.shape, [(signatures.n_features,)])
-        )
-    if not np.all(np.isfinite(obs)):
-        raise InputError(describe("observed feature change", "NaN or infinite", "finite"))
+    obs = _observation(observed, signatures.n_features)
     locations = effects.locations
     n_loc = len(locations)
     limit = leak_limit(settings, n_loc)
@@ -398,13 +392,7 @@ def locate(
     interacting = _refit_pairs_with_interaction(effects, model, whiten, fits, best, settings)
     search = SetSearch(model, _pair_term(effects, whiten), settings.min_mass_flow)
     chosen = _signature_choice(search, fits, best, dof, limit, settings)
-    simulate: SimulatedEffect | None = None
-    if settings.simulate_explanations and effects.can_simulate:
-
-        def simulate(leaks: Mapping[int, float]) -> FloatArray | None:
-            change = effects.simulate(leaks)
-            return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
-
+    simulate = _simulator(effects, whiten, settings)
     checked: dict[Subset, SimulatedFit] | None = None
     following = best[chosen + 1][2] if chosen + 1 in best else math.inf
     misfit = best[chosen][2] / max(dof, 1)
@@ -489,6 +477,30 @@ def locate(
         remainder,
         None if spread is None else spread[order],
     )
+
+
+def _observation(observed: FloatArray, n_features: int) -> FloatArray:
+    """The observed change as a checked float array."""
+    obs = np.asarray(observed, dtype=np.float64)
+    if obs.shape != (n_features,):
+        raise InputError(describe("shape of observed feature change", obs.shape, [(n_features,)]))
+    if not np.all(np.isfinite(obs)):
+        raise InputError(describe("observed feature change", "NaN or infinite", "finite"))
+    return obs
+
+
+def _simulator(
+    effects: LeakEffectModel, whiten: Whitener, settings: LocalisationSettings
+) -> SimulatedEffect | None:
+    """The whitened simulated effect of a set of leaks (None: no check by simulation)."""
+    if not (settings.simulate_explanations and effects.can_simulate):
+        return None
+
+    def simulate(leaks: Mapping[int, float]) -> FloatArray | None:
+        change = effects.simulate(leaks)
+        return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
+
+    return simulate
 
 
 def _signature_choice(
