@@ -170,6 +170,20 @@ def diagnose(
     kw_per_100cfm: Annotated[
         float, typer.Option("--kw-per-100cfm", help="Compressor kW per 100 cfm (eq. 1.1).")
     ] = 18.0,
+    repair_fitting: Annotated[
+        float,
+        typer.Option(help="Repair cost of a leaking fitting, tube, hose or coupling [$]."),
+    ] = 40.0,
+    repair_seal: Annotated[
+        float, typer.Option(help="Repair cost of resealing an actuator [$].")
+    ] = 250.0,
+    seal_share: Annotated[
+        float,
+        typer.Option(
+            help="Share of the leaks on a line whose actuator's seal vents to the "
+            "atmosphere (rod side, rodless band) that are that seal (docs/assumptions.md)."
+        ),
+    ] = 0.5,
     max_leaks: Annotated[
         int | None,
         typer.Option(
@@ -245,7 +259,14 @@ def diagnose(
         if count is not None:
             check_count(option, count, MAX_WORKERS, low=1)
     console = Console()
-    settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
+    settings = CostSettings(
+        hours=hours,
+        price_per_kwh=price,
+        kw_per_100_cfm=kw_per_100cfm,
+        repair_fitting=repair_fitting,
+        repair_seal=repair_seal,
+        seal_share=seal_share,
+    )
     from pneufdd.cli.diagnose_batch import is_batch, run_batch
 
     runs = _pooled_runs(runs, pool, tag_map, startup_cycles)
