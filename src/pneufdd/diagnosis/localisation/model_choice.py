@@ -207,7 +207,7 @@ def more_leak_reasons(
     Examples
     --------
     >>> more_leak_reasons(400.0, 330.0, 1, 50, 2, 0.25)  # doctest: +NORMALIZE_WHITESPACE
-    ('a further leak would lower the residual by 18 %: more than the information
+    ('a further leak would lower the residual by 17 %: more than the information
     criterion asks, less than the 25 % the model choice needs',)
     >>> more_leak_reasons(400.0, 390.0, 1, 50, 2, 0.25)
     ()
@@ -222,11 +222,11 @@ def more_leak_reasons(
             if chosen >= limit:
                 reasons.append(
                     f"the search stopped at its limit of {limit} leak(s); one more would "
-                    f"lower the residual by {100 * drop:.0f} %"
+                    f"lower the residual by {math.floor(100 * drop)} %"
                 )
             else:
                 reasons.append(
-                    f"a further leak would lower the residual by {100 * drop:.0f} %: more "
+                    f"a further leak would lower the residual by {math.floor(100 * drop)} %: more "
                     "than the information criterion asks, less than the "
                     f"{100 * min_relative_gain:.0f} % the model choice needs"
                 )
