@@ -129,6 +129,12 @@ def test_leaky_run_exits_one(files, tmp_path):
             str(out),
             "--hours",
             "8000",
+            "--repair-fitting",
+            "55",
+            "--repair-seal",
+            "300",
+            "--seal-share",
+            "0.25",
             "--no-simulate",
         ]
     )
@@ -136,7 +142,13 @@ def test_leaky_run_exits_one(files, tmp_path):
     assert code == 1
     assert data["fit"] is None or data["fit"]["checked_by_simulation"] is False
     assert data["detected"] is True
-    assert data["cost_settings"]["hours"] == 8000.0
+    settings = data["cost_settings"]
+    assert settings["hours"] == 8000.0
+    assert (settings["repair_fitting"], settings["repair_seal"], settings["seal_share"]) == (
+        55.0,
+        300.0,
+        0.25,
+    )
     assert any("signatures" in note for note in data["notes"])  # built without them
 
 
