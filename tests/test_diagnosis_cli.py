@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -128,6 +129,12 @@ def test_leaky_run_exits_one(files, tmp_path):
             str(out),
             "--hours",
             "8000",
+            "--repair-fitting",
+            "55",
+            "--repair-seal",
+            "300",
+            "--seal-share",
+            "0.25",
             "--no-simulate",
         ]
     )
@@ -135,7 +142,13 @@ def test_leaky_run_exits_one(files, tmp_path):
     assert code == 1
     assert data["fit"] is None or data["fit"]["checked_by_simulation"] is False
     assert data["detected"] is True
-    assert data["cost_settings"]["hours"] == 8000.0
+    settings = data["cost_settings"]
+    assert settings["hours"] == 8000.0
+    assert (settings["repair_fitting"], settings["repair_seal"], settings["seal_share"]) == (
+        55.0,
+        300.0,
+        0.25,
+    )
     assert any("signatures" in note for note in data["notes"])  # built without them
 
 
@@ -176,3 +189,28 @@ def test_corrupted_reference_fails_cleanly(files, tmp_path, capsys):
     assert code == 2
     assert "bad.pnref" in _flat(capsys.readouterr().err)
     assert not out.exists()
+
+
+def test_a_six_leak_table_keeps_one_line_per_leak_on_a_terminal():
+    import io
+
+    from rich.console import Console
+
+    from _diag_synth import synth_signatures, synth_table
+    from pneufdd.cli.diagnose import leak_table, repair_lines
+    from pneufdd.diagnosis.engine import diagnose
+    from pneufdd.diagnosis.reference.model import ReferenceModel
+    from test_report_html import _six_leaks
+
+    ref = ReferenceModel.build(synth_table(40, seed=100), signatures=synth_signatures())
+    result = _six_leaks(diagnose(ref, synth_table(10, {"X_B": 1.1e-3}, seed=9)))
+    out = io.StringIO()
+    Console(file=out, width=120).print(leak_table(result))
+    body = [line for line in out.getvalue().splitlines() if re.match(r"^\s*[1-6]\s{2,}\S", line)]
+    assert len(body) == 6  # no row folds onto a second line
+    assert all("+2 more" in line for line in body)  # the groups of four name two
+    assert "#1" in out.getvalue()
+    lines = repair_lines(result)
+    assert lines[1].startswith("  1. DNC_B (fitting, tube, hose or coupling): $40")
+    assert "95 % interval 1,900-2,300" in lines[-1]
+    assert "more leaks may be present: up to 12 SLPM more at HMPL_H" in result.summary()

@@ -102,8 +102,20 @@ def test_json_has_required_fields(reference):
         "cost_basis",
         "confidence",
         "ambiguity_group",
+        "flow_slpm_interval",
+        "repair_cost",
+        "repair",
+        "payback_days",
     }
     assert leak["flow_slpm"] == pytest.approx(7e-4 / 1.294 * 60_000, rel=0.1)
+    low, high = leak["flow_slpm_interval"]
+    assert low < leak["flow_slpm"] < high
+    # one leak: its interval is the total's, its repair the only one
+    assert data["totals"]["flow_slpm_interval"] == pytest.approx([low, high])
+    assert data["repair_order"] == ["X_A"]
+    assert data["remainder"]["explained_fraction"] == pytest.approx(
+        data["fit"]["explained_fraction"]
+    )
     assert data["cost_settings"]["hours"] == 4000.0
     # the synthetic signatures hold no mean flows per cycle: continuous leakage assumed,
     # and said so

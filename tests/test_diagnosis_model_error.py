@@ -142,8 +142,10 @@ def test_supply_beside_a_line_leak_may_be_the_other_line():
 def test_localisation_settings_round_trip_and_validation():
     settings = LocalisationSettings(max_leaks=1, model_error_floor=0.05)
     assert LocalisationSettings.from_dict(settings.to_dict()) == settings
-    with pytest.raises(InputError, match="max_leaks"):
-        LocalisationSettings(max_leaks=3)
+    assert LocalisationSettings(max_leaks=3).max_leaks == 3  # any number up to the limit
+    for wrong in (0, 33, 2.0, True):
+        with pytest.raises(InputError, match="max_leaks"):
+            LocalisationSettings(max_leaks=wrong)
     with pytest.raises(InputError, match="min_mass_flow"):
         LocalisationSettings(min_mass_flow=-1.0)
     with pytest.raises(InputError, match="colour"):
@@ -193,7 +195,7 @@ def test_imitated_size_is_the_rms_of_the_deviations_projected_on_the_second_leak
 def test_a_second_leak_the_first_leaks_model_error_imitates_is_an_alternative(
     scale, other, expected
 ):
-    from pneufdd.diagnosis.engine import _drop_doubtful_second_leak, run_whitener
+    from pneufdd.diagnosis.engine import _drop_doubtful_leaks, run_whitener
 
     ref, sizes = _imitating_reference(
         np.array([scale, -scale, 0.5 * scale]), large=1, small=3, small_size=3e-4, other=other
@@ -206,7 +208,7 @@ def test_a_second_leak_the_first_leaks_model_error_imitates_is_an_alternative(
     assert len(two.leaks) == 2
     notes: list[str] = []
     settings = replace(settings, min_leak_confidence=0.0)  # the imitation check alone
-    result = _drop_doubtful_second_leak(ref, effects, observed, 10, whiten, settings, two, notes)
+    result = _drop_doubtful_leaks(ref, effects, observed, 10, whiten, settings, two, notes)
     assert len(result.leaks) == expected
     if expected == 1:
         assert str(result.leaks[0].location) == str(effects.locations[1])
@@ -229,7 +231,7 @@ def test_references_saved_before_the_imitation_check_read_it_off():
 
 @pytest.mark.parametrize("margin", [1e-6, -1e-6])
 def test_a_second_leak_less_likely_than_its_threshold_is_an_alternative(margin):
-    from pneufdd.diagnosis.engine import _drop_doubtful_second_leak, run_whitener
+    from pneufdd.diagnosis.engine import _drop_doubtful_leaks, run_whitener
 
     ref = ReferenceModel.build(synth_table(60, seed=100), signatures=synth_signatures())
     effects = ref.leak_effects()
@@ -241,7 +243,7 @@ def test_a_second_leak_less_likely_than_its_threshold_is_an_alternative(margin):
     weakest = min(leak.confidence for leak in two.leaks)
     settings = replace(settings, min_leak_confidence=weakest + margin)
     notes: list[str] = []
-    result = _drop_doubtful_second_leak(ref, effects, observed, 10, whiten, settings, two, notes)
+    result = _drop_doubtful_leaks(ref, effects, observed, 10, whiten, settings, two, notes)
     if margin < 0:
         assert result is two
         assert not notes

@@ -122,6 +122,8 @@ TINY = CampaignDesign(
     reference_recordings=2,
     uncertainty_plants=1,
     seed_offset=9_000_000,  # a test's seeds (below the development and campaign ranges)
+    leaks_per_run=(3,),
+    multi_leak_runs=1,
 )
 
 
@@ -132,8 +134,12 @@ def test_a_tiny_campaign_judges_a_plant(tmp_path):
     manifest = json.loads((tmp_path / "c" / "manifest.json").read_text())
     (plant,) = manifest["machines"][0]["plants"]
     assert plant["plant_seed"] == 9_000_000
-    assert len(plant["runs"]) == 9 + 2 + 1  # 9 locations, 2 leak-free runs, 1 pair
-    assert len({r["seed"] for r in plant["runs"]}) == 12  # every run its own seed
+    # 9 locations, 2 leak-free runs, 1 pair, 1 run with 3 leaks
+    assert len(plant["runs"]) == 9 + 2 + 1 + 1
+    assert len({r["seed"] for r in plant["runs"]}) == 13  # every run its own seed
+    (multi,) = [r for r in plant["runs"] if r["kind"] == "multi"]
+    assert len(multi["leaks"]) == 3
+    assert set(multi["leaks"].values()) == {"60slpm"}
     assert {r["sensors"] for r in runs if not r.get("stalled")} == {"full", "supply-only"}
     # the plant differs from its twin but keeps the machine's name
     assert "press-fit-cell" in (tmp_path / "c" / "plants" / "press-fit-cell-s1-p1.toml").read_text()
@@ -141,9 +147,13 @@ def test_a_tiny_campaign_judges_a_plant(tmp_path):
     assert tally.leak_runs == 9
     assert tally.detected == 9
     assert tally.inside >= 8
-    assert seen[-1] == ("diagnosing campaign runs", 12, 12)
+    assert seen[-1] == ("diagnosing campaign runs", 13, 13)
+    assert tally.multi[3].runs == 1  # the 3-leak run is scored on its own
+    record = next(r for r in runs if r["kind"] == "multi" and r["sensors"] == "full")
+    assert {"total_flow", "total_flow_interval", "more_leaks", "hidden"} <= set(record)
     again = rescore(tmp_path / "c")
     assert again.tallies[("press-fit-cell", 1.0, "full")].figures() == tally.figures()
+    assert again.tallies[("press-fit-cell", 1.0, "full")].multi_figures() == tally.multi_figures()
     with pytest.raises(InputError, match="holds a campaign"):
         run_campaign(TINY, tmp_path / "c", workers=1)
 
@@ -274,3 +284,101 @@ def test_evaluate_refuses_a_campaign_of_captures(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps({"design": design, "machines": []}))
     with pytest.raises(InputError, match="triggered captures"):
         read_manifest(tmp_path)
+
+
+def test_many_leak_designs_keep_the_other_runs_seeds():
+    from pneufdd.evaluation.campaign import _plan_runs
+    from pneufdd.sim import load_machine
+
+    machine = load_machine("press-fit-cell")
+    plain = _plan_runs(TINY_PLAIN, machine, 0, 0, 0)
+    many = _plan_runs(dataclasses.replace(TINY_PLAIN, leaks_per_run=(3, 4, 6)), machine, 0, 0, 0)
+    assert many[: len(plain)] == plain  # the single leaks, leak-free runs and pairs
+    extra = many[len(plain) :]
+    assert [len(leaks) for _, leaks, _ in extra] == [3, 4, 6]
+    assert all(kind == "multi" for kind, _, _ in extra)
+    seeds = [seed for _, _, seed in many]
+    assert len(set(seeds)) == len(seeds)
+    again = _plan_runs(dataclasses.replace(TINY_PLAIN, leaks_per_run=(3, 4, 6)), machine, 0, 0, 0)
+    assert again == many  # drawn from the plant's own seed
+    with pytest.raises(InputError, match="leak locations"):
+        _plan_runs(dataclasses.replace(TINY_PLAIN, leaks_per_run=(10,)), machine, 0, 0, 0)
+    with pytest.raises(InputError, match="leaks per run"):
+        dataclasses.replace(TINY_PLAIN, leaks_per_run=(2,))
+
+
+TINY_PLAIN = dataclasses.replace(TINY, leaks_per_run=())
+
+
+def test_many_leak_runs_are_scored_against_the_remainder_they_state():
+    from pneufdd.evaluation.scoring import MultiTally
+
+    truth = {"X_A": 1e-3, "Y_B": 2e-3, "supply": 5e-4}
+    tally = MultiTally()
+    # all three found, the total 10 % low, its interval holding the truth
+    tally.add(
+        RunOutcome(
+            "multi",
+            truth,
+            True,
+            10,
+            10,
+            (
+                _leak("X_A", ["X_A"], [1e-3], 0.9),
+                _leak("Y_B", ["Y_B", "Y_A"], [1.8e-3], 0.9),
+                _leak("supply", ["supply"], [3.5e-4], 0.8),
+            ),
+            (),
+            2.0,
+            True,
+            total_flow=3.15e-3,
+            total_interval=(3.0e-3, 3.6e-3),
+        )
+    )
+    # the supply leak missed, but within the bound stated there
+    tally.add(
+        RunOutcome(
+            "multi",
+            truth,
+            True,
+            10,
+            10,
+            (_leak("X_A", ["X_A"], [1e-3], 0.9), _leak("Y_B", ["Y_B"], [2e-3], 0.9)),
+            (),
+            3.0,
+            True,
+            total_flow=3.0e-3,
+            total_interval=(2.9e-3, 3.1e-3),
+            more_leaks=False,
+            hidden={"supply": 6e-4},
+        )
+    )
+    # a missed leak beyond its bound, no remainder stated: not covered
+    tally.add(
+        RunOutcome(
+            "multi",
+            truth,
+            True,
+            10,
+            10,
+            (_leak("X_A", ["X_A"], [1e-3], 0.9), _leak("Q_B", ["Q_B"], [2e-3], 0.9)),
+            (),
+            4.0,
+            True,
+            total_flow=3.0e-3,
+            total_interval=(2.9e-3, 3.1e-3),
+            hidden={"supply": 1e-4, "Y_B": 1e-3},
+        )
+    )
+    f = tally.figures()
+    assert f["all_in_group"] == pytest.approx(1 / 3)
+    assert f["leaks_found"] == pytest.approx(6 / 9)
+    assert f["total_flow_error_median"] == pytest.approx(1.0 - 3.0 / 3.5, rel=1e-9)
+    assert f["total_interval_covers"] == pytest.approx(1 / 3)
+    assert f["runs_missing_a_leak"] == 2
+    assert f["remainder_stated"] == pytest.approx(1 / 2)
+    assert f["missed_within_bound"] == pytest.approx(1 / 3)
+    assert f["spurious_per_run"] == pytest.approx(1 / 3)
+    lines = "\n".join(tally.lines(3, {"all_in_group": 0.85, "remainder_stated": 1.0}))
+    assert "all_in_group >= 0.85: FAIL" in lines
+    assert "remainder_stated >= 1: FAIL" in lines

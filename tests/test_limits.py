@@ -297,6 +297,9 @@ def test_cost_settings_are_bounded(base, tmp_path: Path) -> None:
         ("--hours", "1e308", "hours (--hours): received 1e+308; allowed: 0 to 8784"),
         ("--price", "inf", "price_per_kwh (--price): received inf; allowed: 0 to 100"),
         ("--kw-per-100cfm", "1e9", "kw_per_100_cfm (--kw-per-100cfm): received 1000000000.0"),
+        ("--repair-fitting", "-1", "repair_fitting (--repair-fitting): received -1.0; allowed: 0"),
+        ("--repair-seal", "nan", "repair_seal (--repair-seal): received nan"),
+        ("--seal-share", "1.5", "seal_share (--seal-share): received 1.5; allowed: 0 to 1 "),
         (
             "--threads",
             "100000000",

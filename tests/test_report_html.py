@@ -117,3 +117,70 @@ def test_leak_free_report(case):
     assert not result.detected
     text = render_report(ref, run, result)
     assert "No leak detected" in text
+
+
+def _six_leaks(result):
+    """``result`` with six located leaks, their totals, repair order and remainder."""
+    from pneufdd.diagnosis.cost import LeakTotals
+    from pneufdd.diagnosis.findings import LeakFinding
+    from pneufdd.diagnosis.localisation.remainder import HiddenLeak, Remainder
+    from pneufdd.location import Location
+
+    names = ["DNC_A", "DNC_B", "HGD2_A", "HMPL_V_B", "SLT_B", "supply"]
+    leaks = [
+        LeakFinding(
+            Location.parse(name),
+            (i + 1) * 2e-4,
+            (i + 1) * 1e-4,
+            1e-3,
+            100.0 * (6 - i),
+            0.9,
+            (
+                Location.parse(name),
+                Location.parse("DRQD_A"),
+                Location.parse("DRQD_B"),
+                Location.parse("SLT_A"),
+            ),
+            "average flow over the operating cycle",
+            mass_flow_interval=((i + 1) * 1.5e-4, (i + 1) * 2.5e-4),
+            repair_cost=40.0 if i % 2 else 145.0,
+            repair_kind="fitting, tube, hose or coupling",
+        )
+        for i, name in enumerate(names)
+    ]
+    remainder = Remainder(
+        0.88,
+        (
+            HiddenLeak(Location.parse("HMPL_H_A"), 2.6e-4),
+            HiddenLeak(Location.parse("HGD2_B"), 1e-4),
+        ),
+        more_leaks_possible=True,
+        reasons=("a further leak would lower the residual by 18 %",),
+    )
+    totals = LeakTotals(
+        4.2e-3, (3.9e-3, 4.5e-3), 2.1e-3, (1.9e-3, 2.3e-3), 2100.0, (1900.0, 2300.0)
+    )
+    return replace(
+        result, leaks=leaks, remainder=remainder, totals=totals, repair_order=(1, 3, 5, 0, 2, 4)
+    )
+
+
+def test_a_long_leak_list_and_its_remainder_are_reported(case):
+    ref, run, result = case
+    many = _six_leaks(result)
+    text = render_report(ref, run, many)
+    checker = _Checker()
+    checker.feed(text)
+    checker.close()
+    assert checker.errors == []
+    assert checker.stack == []
+    table = text.split("<h2>Leaks, ranked by annual cost</h2>")[1].split("</table>")[0]
+    assert table.count("<tr>") == 1 + 6 + 1  # the header, one row per leak, the total
+    assert "HMPL_V_B" in table
+    assert "27.8-46.4" in table
+    remainder = text.split("<h2>What the leaks do not explain</h2>")[1].split("<h2>")[0]
+    assert "more leaks may be present" in remainder
+    assert "HMPL_H" in remainder
+    assert "12.1" in remainder
+    assert "explain 88 %" in remainder
+    assert "; more leaks may be present</div>" in text  # the verdict says so too

@@ -38,6 +38,7 @@ __all__ = [
     "MAX_CYCLES",
     "MAX_HOURS_PER_YEAR",
     "MAX_JSON_DEPTH",
+    "MAX_LEAKS",
     "MAX_MESSAGE_CHARS",
     "MAX_PAYLOAD_BYTES",
     "MAX_RATE_HZ",
@@ -120,6 +121,13 @@ MAX_TDMS_LISTED_OBJECTS = 2_000_000
 """Most objects listed over all segments of a TDMS file (each segment's list, summed):
 npTDMS visits every one, about 8 us each (a 0.5 MB file of 20,000 objects repeated in
 2,000 segments took 328 s and 334 MB)."""
+
+MAX_LEAKS = 32
+"""Most simultaneous leaks one diagnosis explains a run with (``--max-leaks``;
+``LocalisationSettings.max_leaks``): every location of a machine of up to 15
+actuators (the largest built-in has 19 locations). The forward search costs a few set
+fits per leak found and the check by simulation ``k + 4`` simulations per explanation
+of ``k`` leaks, so the limit bounds a diagnosis's time, not its memory."""
 
 MAX_RATE_HZ = 10e6
 """Fastest plausible sample rate of any channel [Hz]; ``import`` refuses faster too."""

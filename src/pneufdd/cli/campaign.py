@@ -19,6 +19,16 @@ def _split(text: str, what: str) -> tuple[str, ...]:
     return items
 
 
+def _counts(text: str | None) -> tuple[int, ...]:
+    """``--leaks-per-run`` as integers (empty when not given)."""
+    if text is None:
+        return ()
+    items = _split(text, "--leaks-per-run")
+    if not all(item.isdigit() for item in items):
+        raise InputError(describe("--leaks-per-run", text, "comma-separated integers, e.g. 3,4,6"))
+    return tuple(int(item) for item in items)
+
+
 def campaign(
     machine: Annotated[
         list[str],
@@ -48,9 +58,21 @@ def campaign(
             "orifice ('2.5mm') or flow at nominal supply pressure ('30slpm')."
         ),
     ] = "1,2,3,4,5,6",
-    reps: Annotated[int, typer.Option(min=1, help="Runs per location, size and plant.")] = 1,
+    reps: Annotated[
+        int, typer.Option(min=0, help="Runs per location, size and plant (0: no single leaks).")
+    ] = 1,
     leak_free_runs: Annotated[int, typer.Option(min=0, help="Leak-free runs per plant.")] = 70,
     pairs: Annotated[int, typer.Option(min=0, help="Two-leak runs per plant.")] = 20,
+    leaks_per_run: Annotated[
+        str | None,
+        typer.Option(
+            help="Designs with this many simultaneous leaks at random locations and sizes "
+            "(of --sizes), comma separated, e.g. 3,4,6; beside the single leaks and pairs.",
+        ),
+    ] = None,
+    multi_leak_runs: Annotated[
+        int, typer.Option(min=0, help="Runs per plant of each --leaks-per-run design.")
+    ] = 20,
     run_cycles: Annotated[int, typer.Option(min=1, help="Cycles judged per run.")] = 10,
     reference_cycles: Annotated[
         int, typer.Option(min=10, help="Leak-free cycles of each plant's reference.")
@@ -150,6 +172,8 @@ def campaign(
         seed_offset=seed_offset,
         calibrate=calibrate,
         capture=triggered,
+        leaks_per_run=_counts(leaks_per_run),
+        multi_leak_runs=multi_leak_runs,
     )
     # every file the campaign will write, checked before any work against its inputs
     inputs = {f"--machine {name}": Path(name) for name in machine}

@@ -9,6 +9,7 @@ error never leaves a partial file behind.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -26,58 +27,129 @@ if TYPE_CHECKING:
     from rich.table import Table
 
     from pneufdd.diagnosis.cost import CostSettings
-    from pneufdd.diagnosis.findings import Diagnosis
+    from pneufdd.diagnosis.findings import Diagnosis, LeakFinding
     from pneufdd.diagnosis.localisation.search import LocalisationSettings
     from pneufdd.diagnosis.reference.model import ReferenceModel
     from pneufdd.features.step_table import StepTable
 
-__all__ = ["leak_table", "register"]
+__all__ = ["leak_table", "register", "repair_lines"]
+
+
+GROUP_SHOWN = 2
+"""Ambiguity-group members a console row names before "+N more" (the JSON has all)."""
+
+
+def _group_text(leak: LeakFinding) -> str:
+    names = [str(x) for x in leak.ambiguity_group]
+    if len(names) > GROUP_SHOWN:
+        return ", ".join(names[:GROUP_SHOWN]) + f" +{len(names) - GROUP_SHOWN} more"
+    return ", ".join(names)
+
+
+def _interval_text(low: float, high: float) -> str:
+    from pneufdd.physics.units import kg_s_to_slpm
+
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return "n/a"
+    return f"{float(kg_s_to_slpm(low)):.1f}-{float(kg_s_to_slpm(high)):.1f}"
 
 
 def leak_table(result: Diagnosis, title: str = "Leaks, largest annual cost first") -> Table:
-    """A rich table of the diagnosis' leaks."""
+    """A rich table of the diagnosis' leaks, their totals and the repair order.
+
+    Each row names at most :data:`GROUP_SHOWN` members of its ambiguity group, so a
+    table of many leaks keeps one line per leak on a normal terminal.
+    """
+    from rich import box
     from rich.markup import escape
     from rich.table import Table
 
     from pneufdd.diagnosis.cost import COST_BASIS_AVERAGE
+    from pneufdd.physics.units import kg_s_to_slpm
 
-    table = Table(title=title)
-    for name in (
-        "#",
-        "location",
-        "ambiguity group",
-        "flow [SLPM]",
-        "avg flow [SLPM]",
-        "orifice \\[mm]",  # escaped: rich reads [mm] as markup
-        "cost [$/yr]",
-        "confidence",
-    ):
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False)
+    columns = (
+        ("#", "right"),
+        ("location", "left"),
+        ("ambiguity group", "left"),
+        ("flow (95 %)", "right"),
+        ("avg", "right"),
+        ("orifice", "right"),
+        ("$/yr", "right"),
+        ("conf.", "right"),
+        ("repair", "right"),
+    )
+    for name, justify in columns:
+        # text columns wrap on a narrow terminal instead of cutting; numbers stay whole
+        wrap = name in ("location", "ambiguity group")
         table.add_column(
             name,
-            justify="left" if name in ("location", "ambiguity group") else "right",
-            overflow="fold",  # a narrow terminal wraps text instead of cutting it
+            justify=justify,  # type: ignore[arg-type]
+            overflow="fold" if wrap else "ellipsis",
+            no_wrap=not wrap,
+            min_width=18 if name == "ambiguity group" else None,
         )
+    rank = {index: place for place, index in enumerate(result.repair_order, start=1)}
     for i, leak in enumerate(result.leaks, start=1):
         table.add_row(
             str(i),
             escape(str(leak.location)),  # names from the machine file are plain text
-            escape(", ".join(str(x) for x in leak.ambiguity_group)),
-            f"{leak.flow_slpm:.1f}",
+            escape(_group_text(leak)),
+            f"{leak.flow_slpm:.1f} ({_interval_text(*leak.mass_flow_interval)})",
             f"{leak.average_flow_slpm:.1f}",
             f"{leak.orifice_mm:.2f}",
             f"{leak.annual_cost:,.0f}",
             f"{100 * leak.confidence:.0f} %",
+            f"#{rank[i - 1]}" if i - 1 in rank else "",
         )
     table.add_section()
-    table.add_row("", "total", "", "", "", "", f"{result.total_annual_cost:,.0f}", "")
+    totals = result.totals
+    table.add_row(
+        "",
+        "total",
+        "",
+        ""
+        if totals is None
+        else f"{float(kg_s_to_slpm(totals.mass_flow)):.1f} "
+        f"({_interval_text(*totals.mass_flow_interval)})",
+        "" if totals is None else f"{float(kg_s_to_slpm(totals.average_mass_flow)):.1f}",
+        "",
+        f"{result.total_annual_cost:,.0f}",
+        "",
+        "",
+    )
     table.caption = (
-        "flow: while the leak's line is pressurised, at supply pressure (what a leak "
-        "detector finds); avg flow: mean over the operating cycle; cost: eq. 1.1 of the "
-        "avg flow x operating hours"
+        "flow [SLPM]: while the leak's line is pressurised, at supply pressure (what a leak "
+        "detector finds), its 95 % interval from the fit (the total's from the leaks' "
+        "joint covariance); avg [SLPM]: mean over the operating cycle; orifice \\[mm]: "
+        "equivalent sharp-edged orifice; $/yr: eq. 1.1 of the avg flow x operating hours; "
+        "conf.: confidence that a leak lies in the group; repair: order by annual cost per "
+        "repair cost"
     )
     if any(leak.cost_basis != COST_BASIS_AVERAGE for leak in result.leaks):
         table.caption += " (continuous leakage assumed where no average flow is known)"
     return table
+
+
+def repair_lines(result: Diagnosis) -> list[str]:
+    """The repair order as plain lines: what to repair first, its cost and payback."""
+    if not result.repair_order:
+        return []
+    out = ["repair order (most saved per repair dollar first):"]
+    for place, i in enumerate(result.repair_order, start=1):
+        leak = result.leaks[i]
+        payback = leak.payback_days
+        pays = "never pays back" if not math.isfinite(payback) else f"pays back in {payback:.0f} d"
+        out.append(
+            f"  {place}. {leak.location} ({leak.repair_kind}): ${leak.repair_cost:,.0f}, saves "
+            f"${leak.annual_cost:,.0f}/yr, {pays}"
+        )
+    if result.totals is not None:
+        low, high = result.totals.annual_cost_interval
+        out.append(
+            f"total ${result.totals.annual_cost:,.0f}/yr (95 % interval {low:,.0f}-{high:,.0f})"
+        )
+    return out
 
 
 def diagnose(
@@ -95,9 +167,26 @@ def diagnose(
     hours: HoursOption = 7000.0,
     price: PriceOption = 0.05,
     kw_per_100cfm: KwOption = 18.0,
+    repair_fitting: Annotated[
+        float,
+        typer.Option(help="Repair cost of a leaking fitting, tube, hose or coupling [$]."),
+    ] = 40.0,
+    repair_seal: Annotated[
+        float, typer.Option(help="Repair cost of resealing an actuator [$].")
+    ] = 250.0,
+    seal_share: Annotated[
+        float,
+        typer.Option(
+            help="Share of the leaks on a line whose actuator's seal vents to the "
+            "atmosphere (rod side, rodless band) that are that seal (docs/assumptions.md)."
+        ),
+    ] = 0.5,
     max_leaks: Annotated[
         int | None,
-        typer.Option(help="Most simultaneous leaks considered, 1 or 2 (default: the reference's)."),
+        typer.Option(
+            help="Most simultaneous leaks considered, 1 to 32 (default: the reference's; "
+            "references built since issue 38: as many as the evidence supports).",
+        ),
     ] = None,
     simulate: Annotated[
         bool | None,
@@ -156,18 +245,25 @@ def diagnose(
 
     from pneufdd.diagnosis.cost import CostSettings
     from pneufdd.diagnosis.reference.file import load_reference
-    from pneufdd.limits import MAX_WORKERS, check_count
+    from pneufdd.limits import MAX_LEAKS, MAX_WORKERS, check_count
 
     inputs: dict[str, Path | None] = {"--reference": reference, "--map": tag_map}
     inputs.update({"RUN" if len(runs) == 1 else f"RUN {i + 1}": p for i, p in enumerate(runs)})
     check_outputs({"--json": json_out, "--report": report}, inputs, overwrite=overwrite)
-    if max_leaks is not None and max_leaks not in (1, 2):
-        raise InputError(describe("--max-leaks", max_leaks, [1, 2]))
+    if max_leaks is not None:
+        check_count("--max-leaks", max_leaks, MAX_LEAKS, low=1)
     for option, count in (("--workers", workers), ("--threads", threads)):
         if count is not None:
             check_count(option, count, MAX_WORKERS, low=1)
     console = Console()
-    settings = CostSettings(hours=hours, price_per_kwh=price, kw_per_100_cfm=kw_per_100cfm)
+    settings = CostSettings(
+        hours=hours,
+        price_per_kwh=price,
+        kw_per_100_cfm=kw_per_100cfm,
+        repair_fitting=repair_fitting,
+        repair_seal=repair_seal,
+        seal_share=seal_share,
+    )
     from pneufdd.cli.diagnose_batch import is_batch, run_batch
 
     runs = _pooled_runs(runs, pool, tag_map, startup_cycles)
@@ -229,6 +325,10 @@ def _print_result(console: Console, run: Path, result: Diagnosis) -> None:
         )
     if result.leaks:
         console.print(leak_table(result))
+        for line in repair_lines(result):
+            console.print(line, highlight=False, markup=False)
+    if result.detected or result.remainder is not None:
+        console.print(result.summary(), highlight=False, markup=False)
     if result.supply is not None and (result.detected or result.supply.verdict != "no leak"):
         supply = result.supply
         console.print(

@@ -72,8 +72,10 @@ class LeakDiagnoser(BaseEstimator):  # type: ignore[misc]
         Analog channels of the sensor set (``["P_In", "Q_In"]``: the supply meter);
         None uses every analog channel of the recordings, an empty sequence only the
         PLC's digital signals.
-    max_leaks : int
-        Largest number of simultaneous leaks considered (1 or 2) [-].
+    max_leaks : int or None
+        Largest number of simultaneous leaks considered; None (the default): as many
+        as the evidence supports, up to every location and
+        :data:`~pneufdd.limits.MAX_LEAKS` [-].
     simulate_explanations : bool
         When the leak signatures do not explain a run (typically two large leaks),
         check the best explanations with the machine's digital twin.
@@ -129,7 +131,7 @@ class LeakDiagnoser(BaseEstimator):  # type: ignore[misc]
     def __init__(
         self,
         channels: Sequence[str] | None = None,
-        max_leaks: int = 2,
+        max_leaks: int | None = None,
         simulate_explanations: bool = True,
         signature_mass_flows: Sequence[float] = SIGNATURE_MASS_FLOWS,
         signature_cycles: int = 2,

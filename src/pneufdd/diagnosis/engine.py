@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
@@ -22,13 +21,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pneufdd.array_types import FloatArray
-from pneufdd.diagnosis.cost import CostSettings, cost_leaks
+from pneufdd.diagnosis.cost import CostSettings, LeakTotals
+from pneufdd.diagnosis.costing import cost_localisation
 from pneufdd.diagnosis.detection.residuals import supply_check
 from pneufdd.diagnosis.effects.model import LeakEffectModel
-from pneufdd.diagnosis.effects.piecewise import Whitener
-from pneufdd.diagnosis.effects.signatures import SignatureSet
+from pneufdd.diagnosis.effects.piecewise import WhitenedEffects, Whitener
 from pneufdd.diagnosis.findings import Diagnosis, LeakFinding
 from pneufdd.diagnosis.localisation.model_choice import Explanation
+from pneufdd.diagnosis.localisation.remainder import HiddenLeak, Remainder, hidden_leak_bounds
 from pneufdd.diagnosis.localisation.search import (
     Localisation,
     LocalisationSettings,
@@ -39,14 +39,20 @@ from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.diagnosis.reference.sensor_sets import sensor_set_report
 from pneufdd.errors import ChannelError, InputError, MachineError, describe
 from pneufdd.features.step_table import StepTable
-from pneufdd.location import SUPPLY
 from pneufdd.parallel import resolve_threads
 from pneufdd.physics.units import kg_s_to_slpm
 
 if TYPE_CHECKING:
     pass
 
-__all__ = ["check_compatible", "diagnose", "imitated_size", "run_whitener", "whitener"]
+__all__ = [
+    "check_compatible",
+    "diagnose",
+    "imitated_size",
+    "run_whitener",
+    "undetected_remainder",
+    "whitener",
+]
 
 
 def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "run") -> StepTable:
@@ -147,39 +153,31 @@ def whitener(
     return whiten
 
 
-def _average_flows(
-    signatures: SignatureSet, found: tuple[SizedLocation, ...]
-) -> list[float | None]:
-    """Mean leaked flow of each leak over the operating cycle [kg/s] (None: unknown)."""
-    averages = [
-        signatures.average_flow(signatures.locations.index(leak.location), leak.mass_flow)
-        for leak in found
-    ]
-    supply = [leak for leak in found if leak.location == SUPPLY]
-    if len(found) == 2 and len(supply) == 1:
-        # a line leak next to a supply leak blows from a lower pressure
-        line_leak = next(leak for leak in found if leak.location != SUPPLY)
-        both = signatures.average_flows_with_supply(
-            signatures.locations.index(line_leak.location),
-            line_leak.mass_flow,
-            supply[0].mass_flow,
-        )
-        if both is not None:
-            averages = [both[0] if leak is line_leak else both[1] for leak in found]
-    return averages
+def undetected_remainder(
+    reference: ReferenceModel, observed: FloatArray, n_cycles: int
+) -> Remainder | None:
+    """For a run without a detected leak: the largest leak each location could hide.
 
-
-def _nominal_pressures(
-    reference: ReferenceModel, signatures: SignatureSet, found: tuple[SizedLocation, ...]
-) -> list[float]:
-    """Pressure at which each leak's nominal flow is stated [Pa]."""
-    pressures = []
-    for leak in found:
-        p = float(signatures.nominal_pressure[signatures.locations.index(leak.location)])
-        if not math.isfinite(p) or p <= 0:
-            p = reference.supply_pressure
-        pressures.append(p if math.isfinite(p) and p > 0 else 6.0e5)
-    return pressures
+    The run's change under the noise weighting (:func:`whitener`), no leak fitted:
+    :func:`~pneufdd.diagnosis.localisation.remainder.hidden_leak_bounds` with the
+    residual scale of the change itself (at least 1). None without signatures.
+    """
+    sig = reference.signatures
+    if sig is None:
+        return None
+    whiten = whitener(reference, n_cycles)
+    target = np.asarray(whiten(observed)[0], dtype=np.float64)
+    model = WhitenedEffects(
+        sig.sizes, sig.deltas, whiten, target, reference.localisation.max_extrapolation
+    )
+    s2 = max(1.0, float(target @ target) / max(target.size, 1))
+    unexplained = max(0.0, float(target @ target) - target.size)
+    bounds, cap = hidden_leak_bounds(model, target, None, (), s2, unexplained=unexplained)
+    hidden = sorted(
+        (HiddenLeak(loc, float(bounds[i]), bool(cap[i])) for i, loc in enumerate(sig.locations)),
+        key=lambda leak: -leak.mass_flow,
+    )
+    return Remainder(0.0, tuple(hidden))
 
 
 def run_whitener(
@@ -258,14 +256,18 @@ def _locate_weighted(
     32.3 SLPM at the supply).
     """
     chosen, grouped = _weightings(reference, effects, observed, n_cycles, settings)
+
+    def imitation(larger: Sequence[tuple[int, float]], smaller: tuple[int, float]) -> float | None:
+        return imitated_size(reference, effects, n_cycles, larger, smaller)
+
     if not settings.group_model_error or grouped is chosen:
-        return locate(observed, effects, chosen, settings), chosen
-    result = locate(observed, effects, grouped, settings)
+        return locate(observed, effects, chosen, settings, imitation), chosen
+    result = locate(observed, effects, grouped, settings, imitation)
     if len(result.leaks) != 1:
         return result, grouped
-    apart = locate(observed, effects, chosen, settings)
+    apart = locate(observed, effects, chosen, settings, imitation)
     group = set(result.leaks[0].ambiguity_group)
-    if len(apart.leaks) == 2 and not all(leak.location in group for leak in apart.leaks):
+    if len(apart.leaks) >= 2 and not all(leak.location in group for leak in apart.leaks):
         return apart, chosen
     return result, grouped
 
@@ -274,14 +276,15 @@ def imitated_size(
     reference: ReferenceModel,
     effects: LeakEffectModel,
     n_cycles: int,
-    larger: tuple[int, float],
+    larger: tuple[int, float] | Sequence[tuple[int, float]],
     smaller: tuple[int, float],
 ) -> float | None:
     r"""How large a second leak the model error of the first imitates [kg/s].
 
     A real machine's effect of the larger leak ``(location index, size)`` differs from
     its signature; on plausible plant ``k`` by :math:`d^{(k)}`
-    (:attr:`SignatureSet.plant_deviations`). Fitting the smaller leak's signature
+    (:attr:`SignatureSet.plant_deviations`). Of several larger leaks (a sequence of
+    them) the deviations add, plant by plant. Fitting the smaller leak's signature
     :math:`e` (at its fitted size :math:`f`, linearised) to that deviation alone gives
     the size :math:`f_k = f\, \langle W d^{(k)}, W e \rangle / \lVert W e \rVert^2`
     under the noise weighting :math:`W` of the run (:func:`whitener` without model
@@ -294,9 +297,15 @@ def imitated_size(
         RMS of :math:`f_k` [kg/s]; None without plausible-plant deviations.
     """
     sig = effects.signatures
-    deviations = sig.deviations(larger[0], larger[1])
-    if deviations is None or smaller[1] <= 0.0:
+    leaks: list[tuple[int, float]] = (
+        [larger]  # type: ignore[list-item]
+        if isinstance(larger[0], int | np.integer)
+        else list(larger)  # type: ignore[arg-type]
+    )
+    parts = [sig.deviations(int(loc), float(size)) for loc, size in leaks]
+    if any(part is None for part in parts) or not parts or smaller[1] <= 0.0:
         return None
+    deviations = np.sum([part for part in parts if part is not None], axis=0)
     weigh = whitener(reference, n_cycles)
     direction = weigh(effects.effect(smaller[0], smaller[1]))[0]
     norm = float(direction @ direction)
@@ -306,58 +315,69 @@ def imitated_size(
     return float(np.sqrt(np.mean(sizes**2)))
 
 
-def _imitated_second_leak(
+def _imitated_leak(
     reference: ReferenceModel,
     effects: LeakEffectModel,
     n_cycles: int,
     settings: LocalisationSettings,
     localisation: Localisation,
-) -> str | None:
-    """Why the second of two leaks is not reported, when it is no larger than the first's
-    model error imitates (:attr:`LocalisationSettings.imitation_z`); else None."""
+) -> tuple[SizedLocation, str] | None:
+    """The smallest of several leaks and why it is not reported, when it is no larger
+    than the other leaks' model error imitates (:attr:`LocalisationSettings.imitation_z`);
+    else None."""
     found = localisation.leaks
-    if len(found) != 2 or settings.imitation_z <= 0.0 or localisation.checked_by_simulation:
+    if len(found) < 2 or settings.imitation_z <= 0.0 or localisation.checked_by_simulation:
         return None
     index = effects.locations.index
-    large, small = sorted(found, key=lambda leak: -leak.mass_flow)
+    small = min(found, key=lambda leak: leak.mass_flow)
+    larger = [leak for leak in found if leak is not small]
     imitated = imitated_size(
         reference,
         effects,
         n_cycles,
-        (index(large.location), large.mass_flow),
+        [(index(leak.location), leak.mass_flow) for leak in larger],
         (index(small.location), small.mass_flow),
     )
     if imitated is None or small.mass_flow > settings.imitation_z * imitated:
         return None
-    return (
-        f"a second leak at {small.location} of {kg_s_to_slpm(small.mass_flow):.1f} SLPM "
-        f"would lower the residual, but the model error of the leak at {large.location} "
-        f"alone imitates one of {kg_s_to_slpm(imitated):.1f} SLPM there (RMS over plausible "
-        "plants): one leak is reported and the pair is listed as an alternative"
+    names = ", ".join(str(leak.location) for leak in larger)
+    other = "leak" if len(larger) == 1 else "leaks"
+    fewer = "one leak is" if len(found) == 2 else f"{len(found) - 1} leaks are"
+    kind = "pair" if len(found) == 2 else "larger explanation"
+    return small, (
+        f"a {'second' if len(found) == 2 else 'further'} leak at {small.location} of "
+        f"{kg_s_to_slpm(small.mass_flow):.1f} SLPM would lower the residual, but the model "
+        f"error of the {other} at {names} alone imitates one of "
+        f"{kg_s_to_slpm(imitated):.1f} SLPM there (RMS over plausible plants): {fewer} "
+        f"reported and the {kind} is listed as an alternative"
     )
 
 
-def _unconfident_second_leak(
+def _unconfident_leak(
     settings: LocalisationSettings, localisation: Localisation
-) -> str | None:
-    """Why one of two leaks is not reported, when it is less likely than
-    :attr:`LocalisationSettings.min_leak_confidence` to lie in its ambiguity group (the
-    residual chose two leaks, but the one-leak explanations hold the weight); else None."""
+) -> tuple[SizedLocation, str] | None:
+    """The least likely of several leaks and why it is not reported, when it is less
+    likely than :attr:`LocalisationSettings.min_leak_confidence` to lie in its
+    ambiguity group (the residual chose it, but the explanations without it hold the
+    weight); else None."""
     found = localisation.leaks
-    if len(found) != 2:
+    if len(found) < 2:
         return None
     weakest = min(found, key=lambda leak: leak.confidence)
     if weakest.confidence >= settings.min_leak_confidence:
         return None
-    return (
-        f"a second leak at {weakest.location} of {kg_s_to_slpm(weakest.mass_flow):.1f} SLPM "
-        f"would lower the residual, but its confidence ({weakest.confidence:.2f}) is below "
-        f"{settings.min_leak_confidence:.2f}: one leak is reported and the pair is listed "
+    fewer = "one leak is" if len(found) == 2 else f"{len(found) - 1} leaks are"
+    kind = "pair" if len(found) == 2 else "larger explanation"
+    return weakest, (
+        f"a {'second' if len(found) == 2 else 'further'} leak at {weakest.location} of "
+        f"{kg_s_to_slpm(weakest.mass_flow):.1f} SLPM would lower the residual, but its "
+        f"confidence ({weakest.confidence:.2f}) is below "
+        f"{settings.min_leak_confidence:.2f}: {fewer} reported and the {kind} is listed "
         "as an alternative"
     )
 
 
-def _drop_doubtful_second_leak(
+def _drop_doubtful_leaks(
     reference: ReferenceModel,
     effects: LeakEffectModel,
     observed: FloatArray,
@@ -367,39 +387,61 @@ def _drop_doubtful_second_leak(
     localisation: Localisation,
     notes: list[str],
 ) -> Localisation:
-    """One leak instead of two when the second is what the first's model error imitates,
-    or less likely than not; the pair becomes the first alternative and ``notes`` say
-    why. ``localisation`` itself otherwise."""
-    why = _imitated_second_leak(
-        reference, effects, n_cycles, settings, localisation
-    ) or _unconfident_second_leak(settings, localisation)
-    if why is None:
-        return localisation
-    return _one_leak_instead(observed, effects, whiten, settings, localisation, notes, why)
+    """One leak fewer while the smallest is what the others' model error imitates, or
+    one is less likely than not; each larger explanation becomes the first alternative
+    and ``notes`` say why. ``localisation`` itself when no leak is doubtful."""
+    for _ in range(len(localisation.leaks)):
+        doubt = _imitated_leak(
+            reference, effects, n_cycles, settings, localisation
+        ) or _unconfident_leak(settings, localisation)
+        if doubt is None:
+            return localisation
+        fewer = _fewer_leaks_instead(
+            observed, effects, whiten, settings, localisation, notes, *doubt
+        )
+        if fewer is localisation:
+            return localisation
+        localisation = fewer
+    return localisation
 
 
-def _one_leak_instead(
+def _fewer_leaks_instead(
     observed: FloatArray,
     effects: LeakEffectModel,
     whiten: Whitener,
     settings: LocalisationSettings,
     localisation: Localisation,
     notes: list[str],
+    doubtful: SizedLocation,
     why: str,
 ) -> Localisation:
-    """The one-leak localisation, with the two leaks of ``localisation`` as its first
-    alternative; ``localisation`` itself when no single leak explains the run."""
-    single = locate(observed, effects, whiten, replace(settings, max_leaks=1))
-    if len(single.leaks) != 1:
+    """The localisation with one leak fewer, the leaks of ``localisation`` as its first
+    alternative; ``localisation`` itself when no fewer leaks explain the run. Its
+    remainder says that the doubtful leak may be present."""
+    n = len(localisation.leaks)
+    fewer = locate(observed, effects, whiten, replace(settings, max_leaks=n - 1))
+    if not 1 <= len(fewer.leaks) <= n - 1:
         return localisation
-    pair = Explanation(
+    larger = Explanation(
         tuple(leak.location for leak in localisation.leaks),
         tuple(leak.mass_flow for leak in localisation.leaks),
         localisation.rss,
     )
     notes.append(why)
-    others = tuple(a for a in single.alternatives if set(a.locations) != set(pair.locations))
-    return replace(single, alternatives=(pair, *others)[: max(settings.max_alternatives, 1)])
+    others = tuple(a for a in fewer.alternatives if set(a.locations) != set(larger.locations))
+    remainder = fewer.remainder
+    if remainder is not None:
+        kept = tuple(r for r in remainder.reasons if not r.startswith("the search stopped"))
+        reason = (
+            f"a leak at {doubtful.location} of {kg_s_to_slpm(doubtful.mass_flow):.1f} SLPM "
+            "lowers the residual but is not reported (see the notes)"
+        )
+        remainder = replace(remainder, more_leaks_possible=True, reasons=(reason, *kept))
+    return replace(
+        fewer,
+        alternatives=(larger, *others)[: max(settings.max_alternatives, 1)],
+        remainder=remainder,
+    )
 
 
 def _locate_and_cost(
@@ -410,8 +452,9 @@ def _locate_and_cost(
     localisation_settings: LocalisationSettings,
     notes: list[str],
     threads: int = 1,
-) -> tuple[Localisation | None, list[LeakFinding], float]:
-    """Location, size and cost of the leaks behind a detected deviation."""
+) -> tuple[Localisation | None, list[LeakFinding], float, LeakTotals | None, tuple[int, ...]]:
+    """Location, size and cost of the leaks behind a detected deviation; their
+    totals with intervals, and the order to repair them."""
     effects = reference.leak_effects(threads=threads)
     if effects is None:
         notes.append(
@@ -419,12 +462,12 @@ def _locate_and_cost(
             "cannot be estimated (rebuild the reference with signatures; recordings "
             "without a machine description need --machine DESCRIPTION)"
         )
-        return None, [], 0.0
+        return None, [], 0.0, None, ()
     sig = effects.signatures
     localisation, whiten = _locate_weighted(
         reference, effects, observed, n_cycles, localisation_settings
     )
-    localisation = _drop_doubtful_second_leak(
+    localisation = _drop_doubtful_leaks(
         reference, effects, observed, n_cycles, whiten, localisation_settings, localisation, notes
     )
     if not localisation.leaks:
@@ -436,16 +479,7 @@ def _locate_and_cost(
             "the best explanations with the digital twin"
         )
     found = localisation.leaks
-    leaks, total = cost_leaks(
-        [leak.location for leak in found],
-        [leak.mass_flow for leak in found],
-        _nominal_pressures(reference, sig, found),
-        [leak.confidence for leak in found],
-        [leak.ambiguity_group for leak in found],
-        settings,
-        _average_flows(sig, found),
-        [leak.group_mass_flows for leak in found],
-    )
+    leaks, total, totals, order = cost_localisation(reference, sig, localisation, settings)
     if found and sig.mean_flow is None:
         notes.append(
             "the reference holds no mean leak flows per cycle: costs assume the leaks blow "
@@ -458,7 +492,7 @@ def _locate_and_cost(
             "deviation: another fault (or a leak outside the candidate locations) may be "
             "present"
         )
-    return localisation, leaks, total
+    return localisation, leaks, total, totals, order
 
 
 def diagnose(
@@ -517,8 +551,10 @@ def diagnose(
     found: Localisation | None = None
     leaks: list[LeakFinding] = []
     total = 0.0
+    totals: LeakTotals | None = None
+    order: tuple[int, ...] = ()
     if detected:
-        found, leaks, total = _locate_and_cost(
+        found, leaks, total, totals, order = _locate_and_cost(
             reference,
             observed,
             m,
@@ -527,6 +563,11 @@ def diagnose(
             notes,
             n_threads,
         )
+        remainder = None if found is None else found.remainder
+        if remainder is not None and remainder.more_leaks_possible:
+            notes.append("more leaks may be present: " + "; ".join(remainder.reasons))
+    else:
+        remainder = undetected_remainder(reference, observed, m)
     return Diagnosis(
         detected=bool(detected),
         cycles_analyzed=int(m),
@@ -548,4 +589,7 @@ def diagnose(
         gaps_repaired=int(run.repaired_gaps),
         supply=supply_check(reference.feature_names, reference.features, X),
         sensor_set=sensor_set_report(reference.channels),
+        totals=totals,
+        repair_order=order,
+        remainder=remainder,
     )

@@ -21,6 +21,7 @@ import numpy as np
 
 from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.detection.residuals import SupplyCheck
+from pneufdd.diagnosis.localisation.remainder import Remainder
 from pneufdd.diagnosis.localisation.search import Localisation
 from pneufdd.diagnosis.reference.sensor_sets import SensorSetReport
 from pneufdd.location import Location
@@ -30,12 +31,15 @@ from pneufdd.signals.quality import MAX_REPAIR_S
 if TYPE_CHECKING:
     import pandas as pd
 
-    from pneufdd.diagnosis.cost import CostSettings
+    from pneufdd.diagnosis.cost import CostSettings, LeakTotals
 
-__all__ = ["Diagnosis", "LeakFinding"]
+__all__ = ["Diagnosis", "LeakFinding", "summary_sentence"]
 
 M_TO_MM = 1e3
 """Millimetres per metre, for the orifice diameter an engineer reads [mm/m]."""
+
+DAYS_PER_YEAR = 365.0
+"""Calendar days per year, for a repair's payback [d]."""
 
 
 @dataclass(frozen=True)
@@ -69,6 +73,13 @@ class LeakFinding:
     group_mass_flows : tuple of float
         Nominal flow each member of the ambiguity group would need to explain the run
         (empty when not known) [kg/s].
+    mass_flow_interval : tuple of float
+        95 % interval of ``mass_flow`` from the fit (NaN when not known) [kg/s].
+    repair_cost : float
+        Expected cost of repairing it (:func:`pneufdd.diagnosis.cost.repair_cost`;
+        NaN when not known) [$].
+    repair_kind : str
+        What is likely repaired there.
 
     Examples
     --------
@@ -89,6 +100,9 @@ class LeakFinding:
     ambiguity_group: tuple[Location, ...]
     cost_basis: str
     group_mass_flows: tuple[float, ...] = ()
+    mass_flow_interval: tuple[float, float] = (math.nan, math.nan)
+    repair_cost: float = math.nan
+    repair_kind: str = ""
 
     @property
     def flow_slpm(self) -> float:
@@ -104,6 +118,15 @@ class LeakFinding:
     def orifice_mm(self) -> float:
         """Equivalent sharp-edged orifice diameter [mm]."""
         return M_TO_MM * self.orifice_diameter
+
+    @property
+    def payback_days(self) -> float:
+        """Days of its annual cost that pay its repair (inf when it costs nothing) [d]."""
+        if not math.isfinite(self.repair_cost):
+            return math.nan
+        if self.annual_cost <= 0:
+            return math.inf
+        return DAYS_PER_YEAR * self.repair_cost / self.annual_cost
 
 
 @dataclass(frozen=True)
@@ -160,6 +183,17 @@ class Diagnosis:
     sensor_set : SensorSetReport, optional
         What the reference's sensor set can and cannot locate or size
         (:func:`pneufdd.diagnosis.reference.sensor_sets.sensor_set_report`).
+    totals : LeakTotals, optional
+        The leaks' total nominal flow, mean flow and cost with 95 % intervals from
+        the fit (None when no leak was located).
+    repair_order : tuple of int
+        Indices into :attr:`leaks` in the order to repair them: most saved per repair
+        dollar first (:func:`pneufdd.diagnosis.cost.repair_order`).
+    remainder : Remainder, optional
+        What the leaks leave unexplained: the share explained, the largest leak that
+        could still hide at each other location, and whether more leaks may be
+        present; for a run without a detected leak, the largest leak each location
+        could hide (None without leak signatures).
     """
 
     detected: bool
@@ -183,6 +217,28 @@ class Diagnosis:
     gaps_repaired: int = 0
     supply: SupplyCheck | None = None
     sensor_set: SensorSetReport | None = None
+    totals: LeakTotals | None = None
+    repair_order: tuple[int, ...] = ()
+    remainder: Remainder | None = None
+
+    def summary(self) -> str:
+        """One sentence: what was found, how much of the deviation it explains, and
+        what could still hide (the message of the console, the report and the JSON).
+
+        Examples
+        --------
+        >>> from pneufdd.diagnosis.localisation.remainder import HiddenLeak
+        >>> from pneufdd.location import Location
+        >>> r = Remainder(0.88, (HiddenLeak(Location("HGD2", "A"), 2.6e-4),
+        ...                      HiddenLeak(Location("HMPL_V", "B"), 1.9e-4)),
+        ...               more_leaks_possible=True)
+        >>> text = Diagnosis(True, 10, np.zeros(10), 1.0, 5.0, 1.0, 0.0, 0.0, np.zeros(0),
+        ...     0, [], 0.0, None, np.zeros(3), None, remainder=r).summary()
+        >>> print(text.replace("; ", ";\\n"))
+        leak detected: 0 leaks located, explaining 88 % of the deviation;
+        more leaks may be present: up to 12 SLPM more at HGD2, 8.8 SLPM at HMPL_V (95 % bounds)
+        """
+        return summary_sentence(self.detected, len(self.leaks), self.remainder)
 
     def to_pandas(self) -> pd.DataFrame:
         """The leaks as a table, one row per leak, largest annual cost first.
@@ -250,9 +306,19 @@ class Diagnosis:
                     "cost_basis": leak.cost_basis,
                     "confidence": num(leak.confidence),
                     "ambiguity_group": [str(x) for x in leak.ambiguity_group],
+                    "flow_slpm_interval": [
+                        num(float(kg_s_to_slpm(x))) for x in leak.mass_flow_interval
+                    ],
+                    "repair_cost": num(leak.repair_cost),
+                    "repair": leak.repair_kind,
+                    "payback_days": num(leak.payback_days),
                 }
                 for leak in self.leaks
             ],
+            "repair_order": [str(self.leaks[i].location) for i in self.repair_order],
+            "summary": self.summary(),
+            "totals": None if self.totals is None else _totals_dict(self.totals),
+            "remainder": None if self.remainder is None else _remainder_dict(self.remainder),
             "alternative_explanations": []
             if self.localisation is None
             else [
@@ -294,6 +360,98 @@ class Diagnosis:
                 "hours": self.settings.hours,
                 "price_per_kwh": self.settings.price_per_kwh,
                 "kw_per_100_cfm": self.settings.kw_per_100_cfm,
+                "repair_fitting": self.settings.repair_fitting,
+                "repair_seal": self.settings.repair_seal,
+                "seal_share": self.settings.seal_share,
+                "repair_basis": "repair order: annual cost per expected repair cost, "
+                "highest first (docs/cost.md)",
             },
             "notes": list(self.notes),
         }
+
+
+def _slpm(x: float) -> float | None:
+    return None if not math.isfinite(x) else float(kg_s_to_slpm(x))
+
+
+def _totals_dict(totals: LeakTotals) -> dict[str, Any]:
+    """The ``totals`` entry of :meth:`Diagnosis.to_dict`."""
+
+    def num(x: float) -> float | None:
+        return None if not math.isfinite(x) else float(x)
+
+    return {
+        "flow_slpm": _slpm(totals.mass_flow),
+        "flow_slpm_interval": [_slpm(x) for x in totals.mass_flow_interval],
+        "average_flow_slpm": _slpm(totals.average_mass_flow),
+        "average_flow_slpm_interval": [_slpm(x) for x in totals.average_mass_flow_interval],
+        "annual_cost": num(totals.annual_cost),
+        "annual_cost_interval": [num(x) for x in totals.annual_cost_interval],
+        "level": totals.level,
+        "basis": "sum of the reported leaks; interval from the fit's covariance of their "
+        "sizes (the remainder says what may hide elsewhere)",
+    }
+
+
+def _remainder_dict(remainder: Remainder) -> dict[str, Any]:
+    """The ``remainder`` entry of :meth:`Diagnosis.to_dict`."""
+    return {
+        "explained_fraction": remainder.explained,
+        "more_leaks_possible": remainder.more_leaks_possible,
+        "reasons": list(remainder.reasons),
+        "complete_confidence": remainder.complete_confidence,
+        "level": remainder.level,
+        "basis": "largest additional leak at each location that the residual cannot "
+        "reject (one-sided profile-likelihood bound, the reported leaks refit)",
+        "hidden_leaks_by_group": [
+            {"group": name, "flow_slpm": _slpm(flow), "at_size_cap": cap}
+            for name, flow, cap in remainder.groups()
+        ],
+        "hidden_leaks": [
+            {"location": str(h.location), "flow_slpm": _slpm(h.mass_flow), "at_size_cap": h.at_cap}
+            for h in remainder.hidden
+        ],
+    }
+
+
+def _flow_text(flow: float) -> str:
+    slpm = float(kg_s_to_slpm(flow))
+    return f"{slpm:.0f}" if slpm >= 10 else f"{slpm:.2g}"
+
+
+def summary_sentence(detected: bool, n_leaks: int, remainder: Remainder | None) -> str:
+    """The sentence of :meth:`Diagnosis.summary` [-].
+
+    Examples
+    --------
+    >>> summary_sentence(False, 0, None)
+    'no leak detected'
+    """
+    if not detected:
+        head = "no leak detected"
+        if remainder is None or not remainder.hidden:
+            return head
+        name, flow, cap = remainder.groups()[0]
+        largest = "any size" if cap else f"{_flow_text(flow)} SLPM"
+        return f"{head}; the largest leak the run cannot rule out: {largest} at {name} (95 % bound)"
+    found = f"leak detected: {n_leaks} leak{'' if n_leaks == 1 else 's'} located"
+    if remainder is None:
+        return found
+    found += f", explaining {100 * remainder.explained:.0f} % of the deviation"
+    groups = remainder.groups()[:2]
+    where = ", ".join(
+        f"{'any size' if cap else _flow_text(flow) + ' SLPM'} at {name}"
+        for name, flow, cap in groups
+    )
+    if remainder.more_leaks_possible:
+        if not groups:
+            return f"{found}; more leaks may be present"
+        first, rest = where.split(", ", 1) if ", " in where else (where, "")
+        more = f"up to {first.replace(' at ', ' more at ', 1)}" + (f", {rest}" if rest else "")
+        return f"{found}; more leaks may be present: {more} ({100 * remainder.level:.0f} % bounds)"
+    if not groups:
+        return f"{found}; no sign of further leaks"
+    return (
+        f"{found}; no sign of further leaks (the largest that could hide: {where}, "
+        f"{100 * remainder.level:.0f} % bounds)"
+    )

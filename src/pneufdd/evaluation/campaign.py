@@ -55,6 +55,12 @@ from pneufdd.evaluation.captures import (
     run_recordings,
     run_step_table,
 )
+from pneufdd.evaluation.multi_leak import (
+    MULTI_TARGETS,
+    check_multi_design,
+    multi_record,
+    plan_multi_runs,
+)
 from pneufdd.evaluation.scoring import Tally, outcome_from_record
 from pneufdd.features.step_summaries import machine_sequence
 from pneufdd.features.step_table import feature_names
@@ -130,7 +136,7 @@ class CampaignDesign:
         Single-leak sizes as the simulator takes them: turns of the GR-3/8B leak valve
         (``"3"``), ``"2.5mm"`` or ``"30slpm"``.
     reps : int
-        Runs per location and size and plant [-].
+        Runs per location and size and plant (0: no single-leak runs) [-].
     leak_free_runs : int
         Leak-free runs per plant [-].
     pairs : int
@@ -157,6 +163,11 @@ class CampaignDesign:
         once per machine from the description as written.
     capture : CaptureDesign, optional
         Triggered captures instead of continuous recordings (:mod:`.captures`).
+    leaks_per_run : tuple of int
+        Designs with that many simultaneous leaks at random locations and sizes
+        (:mod:`~pneufdd.evaluation.multi_leak`; empty: none) [-].
+    multi_leak_runs : int
+        Runs per plant of each of those designs [-].
     """
 
     machines: tuple[str, ...]
@@ -175,12 +186,14 @@ class CampaignDesign:
     seed_offset: int = 100_000_000
     calibrate: bool = False
     capture: CaptureDesign | None = None
+    leaks_per_run: tuple[int, ...] = ()
+    multi_leak_runs: int = 20
 
     def __post_init__(self) -> None:
         if not self.machines:
             raise InputError(describe("campaign machines", [], "at least one machine"))
         check_sensor_set_names(self.sensor_sets, "campaign sensor sets")
-        for name in ("plants", "reps", "run_cycles", "signature_cycles"):
+        for name in ("plants", "run_cycles", "signature_cycles"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise InputError(describe(f"campaign {name}", value, "an integer >= 1"))
@@ -196,7 +209,7 @@ class CampaignDesign:
         ):
             option = f"campaign {name} (--{name.replace('_', '-')})"
             check_count(option, getattr(self, name), limit, low)
-        for name in ("leak_free_runs", "pairs"):
+        for name in ("reps", "leak_free_runs", "pairs"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise InputError(describe(f"campaign {name}", value, "an integer >= 0"))
@@ -235,7 +248,10 @@ class CampaignDesign:
                 )
             )
         runs = (
-            self.reps * len(self.leak_sizes) * 60 + self.leak_free_runs + self.pairs
+            self.reps * len(self.leak_sizes) * 60
+            + self.leak_free_runs
+            + self.pairs
+            + check_multi_design(self.leaks_per_run, self.multi_leak_runs)
         )  # at most 29 actuators
         if runs >= 9_000:
             raise InputError(describe("campaign runs per plant", runs, "< 9000"))
@@ -275,9 +291,10 @@ class CampaignResult:
         out: list[str] = []
         for (machine, scale, sensors), t in sorted(self.tallies.items()):
             targets = TARGETS.get(sensors) if scale == 1.0 else None
+            multi = MULTI_TARGETS.get(sensors) if scale == 1.0 else None
             out.append("")
             out.append(f"=== {machine}, plant scale {scale:g}, sensor set {sensors} ===")
-            out.extend(t.lines(targets))
+            out.extend(t.lines(targets, multi))
         out.append("")
         out.append(
             "runs not judged (the plant stalled, or completed no cycle, with these leaks): "
@@ -467,6 +484,7 @@ def run_job(job: Job) -> list[dict[str, Any]]:
                 else [[str(x) for x in alt.locations] for alt in loc.alternatives],
                 "seconds": seconds,
                 "simulated": bool(loc is not None and loc.checked_by_simulation),
+                **multi_record(result),
             }
         )
     return records
@@ -510,7 +528,7 @@ def _plan_runs(
         }
         runs.append(("pair", leaks, _seed(design, m, s, k, index)))
         index += 1
-    return runs
+    return runs + plan_multi_runs(design, locations, lambda i: _seed(design, m, s, k, i), index)
 
 
 def _plant_file(folder: Path, machine_name: str, scale: float, k: int) -> Path:
@@ -748,6 +766,7 @@ def _run_campaign(
     summary = {
         f"{machine} | scale {scale:g} | {sensors}": {
             "figures": t.figures(),
+            "multi_leaks": t.multi_figures(),
             "reliability": t.reliability(),
         }
         for (machine, scale, sensors), t in result.tallies.items()

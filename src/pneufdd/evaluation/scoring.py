@@ -9,6 +9,9 @@ accumulates them per (machine, plant scale, sensor set) and computes the figures
 - leak-free runs: flagged (run level); per cycle: leak-free and leak cycles flagged;
 - two leaks: both true locations inside the reported groups (and, separately,
   inside the groups or one listed alternative explanation);
+- many leaks (:class:`MultiTally`, per number of leaks): all true locations inside
+  the reported groups, the total flow's error and its interval, and whether a
+  missed leak lies within the remainder the diagnosis states;
 - diagnosis time per run;
 - **reliability**: reported leaks binned by their confidence against the share of them
   that are true (a reported leak is true when a true leak location lies in its
@@ -18,6 +21,7 @@ accumulates them per (machine, plant scale, sensor set) and computes the figures
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,6 +32,7 @@ from pneufdd.location import Location
 
 __all__ = [
     "CONFIDENCE_BINS",
+    "MultiTally",
     "RunOutcome",
     "Tally",
     "outcome_from_record",
@@ -53,7 +58,7 @@ class RunOutcome:
 
     Attributes
     ----------
-    kind : {"single", "free", "pair"}
+    kind : {"single", "free", "pair", "multi"}
         The run's design.
     truth : dict
         True leak location -> nominal flow at the description's nominal supply
@@ -70,6 +75,14 @@ class RunOutcome:
         Diagnosis time [s].
     simulated : bool
         Explanations were checked by simulation.
+    total_flow : float
+        Sum of the reported leaks' nominal flows [kg/s].
+    total_interval : tuple of float
+        Its 95 % interval [kg/s].
+    more_leaks : bool
+        The diagnosis says more leaks may be present.
+    hidden : dict
+        Location -> largest leak that could still hide there [kg/s].
     """
 
     kind: str
@@ -81,6 +94,10 @@ class RunOutcome:
     alternatives: tuple[tuple[str, ...], ...]
     seconds: float
     simulated: bool
+    total_flow: float = math.nan
+    total_interval: tuple[float, float] = (math.nan, math.nan)
+    more_leaks: bool = False
+    hidden: Mapping[str, float] = field(default_factory=dict)
 
 
 def outcome_from_record(record: Mapping[str, Any]) -> RunOutcome:
@@ -103,7 +120,17 @@ def outcome_from_record(record: Mapping[str, Any]) -> RunOutcome:
         alternatives=tuple(tuple(str(x) for x in alt) for alt in record["alternatives"]),
         seconds=float(record["seconds"]),
         simulated=bool(record["simulated"]),
+        total_flow=_float(record.get("total_flow")),
+        total_interval=tuple(  # type: ignore[arg-type]
+            _float(x) for x in record.get("total_flow_interval", (None, None))
+        ),
+        more_leaks=bool(record.get("more_leaks", False)),
+        hidden={str(k): float(v) for k, v in record.get("hidden", {}).items()},
     )
+
+
+def _float(x: Any) -> float:
+    return math.nan if x is None else float(x)
 
 
 def _one_actuator(locations: set[str]) -> bool:
@@ -146,6 +173,7 @@ class Tally:
     confidences: list[float] = field(default_factory=list)
     confidence_true: list[bool] = field(default_factory=list)
     by_location: dict[str, list[bool]] = field(default_factory=dict)
+    multi: dict[int, MultiTally] = field(default_factory=dict)
 
     def add(self, run: RunOutcome) -> None:
         """Count one run."""
@@ -154,6 +182,11 @@ class Tally:
         for leak in run.leaks:
             self.confidences.append(leak.confidence)
             self.confidence_true.append(any(loc in leak.group for loc in run.truth))
+        if run.kind == "multi":
+            self.cycle_leak += run.cycles
+            self.cycle_leak_flagged += run.cycles_flagged
+            self.multi.setdefault(len(run.truth), MultiTally()).add(run)
+            return
         if run.kind == "free":
             self.free_runs += 1
             self.free_flagged += int(run.detected)
@@ -257,8 +290,37 @@ class Tally:
             )
         return rows
 
-    def lines(self, targets: Mapping[str, float] | None = None) -> list[str]:
-        """The figures as printable lines (with PASS/FAIL against ``targets``)."""
+    def lines(
+        self,
+        targets: Mapping[str, float] | None = None,
+        multi_targets: Mapping[int, Mapping[str, float]] | None = None,
+    ) -> list[str]:
+        """The figures as printable lines (with PASS/FAIL against ``targets``, and the
+        many-leak designs' against ``multi_targets`` per number of leaks)."""
+        out: list[str] = []
+        singles_or_pairs = bool(self.leak_runs or self.free_runs or self.pairs)
+        if singles_or_pairs:
+            out.extend(self._lines(targets))
+        for k, multi in sorted(self.multi.items()):
+            out.extend(multi.lines(k, (multi_targets or {}).get(k)))
+        if not singles_or_pairs:
+            out.extend(self._reliability_lines())
+        return out
+
+    def _reliability_lines(self) -> list[str]:
+        out = ["reliability (confidence bin: reported leaks, share true, mean confidence):"]
+        for low, high, n, share, mean in self.reliability():
+            out.append(
+                f"  [{low:.2f}, {high:.2f}{']' if high >= 1.0 else ')'}: {n:5d} leaks, "
+                f"{_pcts(share)} true, mean confidence {_num(mean, 3)}"
+            )
+        return out
+
+    def multi_figures(self) -> dict[str, dict[str, float | int | None]]:
+        """The many-leak designs' figures, by the number of leaks per run."""
+        return {str(k): multi.figures() for k, multi in sorted(self.multi.items())}
+
+    def _lines(self, targets: Mapping[str, float] | None = None) -> list[str]:
         f = self.figures()
         out = [
             f"single-leak runs detected:            {_pct(self.detected, self.leak_runs)}",
@@ -290,12 +352,7 @@ class Tally:
                 "lowest location accuracy: "
                 + ", ".join(f"{loc} {100 * np.mean(v):.0f} %" for loc, v in worst)
             )
-        out.append("reliability (confidence bin: reported leaks, share true, mean confidence):")
-        for low, high, n, share, mean in self.reliability():
-            out.append(
-                f"  [{low:.2f}, {high:.2f}{']' if high >= 1.0 else ')'}: {n:5d} leaks, "
-                f"{_pcts(share)} true, mean confidence {_num(mean, 3)}"
-            )
+        out.extend(self._reliability_lines())
         if targets:
             checks = self.checks(targets)
             out.append(
@@ -326,8 +383,135 @@ LOWER_IS_BETTER = frozenset(
         "size_error_p90",
         "spurious_second_leak",
         "leak_free_flagged",
+        "total_flow_error_median",
+        "total_flow_error_p90",
+        "spurious_per_run",
     }
 )
+
+
+@dataclass
+class MultiTally:
+    """Outcome counts of the runs with one number of simultaneous leaks.
+
+    A true leak is *found* when its location lies in a reported leak's ambiguity
+    group. A run that misses a leak *states the remainder* when the diagnosis says
+    more leaks may be present, or when its bound of a hidden leak at every missed
+    location is at least that leak's true flow (it said a leak that large may still
+    be there); both are counted apart too.
+    """
+
+    runs: int = 0
+    detected: int = 0
+    all_found: int = 0
+    true_leaks: int = 0
+    found_leaks: int = 0
+    total_errors: list[float] = field(default_factory=list)
+    interval_covers: int = 0
+    runs_missing: int = 0
+    missing_stated: int = 0
+    missing_flagged: int = 0
+    missed_leaks: int = 0
+    missed_within_bound: int = 0
+    spurious: int = 0
+    reported: list[int] = field(default_factory=list)
+    group_sizes: list[int] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
+    simulated: int = 0
+
+    def add(self, run: RunOutcome) -> None:
+        """Count one run."""
+        self.runs += 1
+        self.detected += int(run.detected)
+        self.seconds.append(run.seconds)
+        self.simulated += int(run.simulated)
+        groups = [set(leak.group) for leak in run.leaks]
+        found = {loc for loc in run.truth if run.detected and any(loc in g for g in groups)}
+        missed = [loc for loc in run.truth if loc not in found]
+        self.true_leaks += len(run.truth)
+        self.found_leaks += len(found)
+        self.all_found += int(not missed)
+        self.reported.append(len(run.leaks))
+        self.group_sizes.extend(len(g) for g in groups)
+        self.spurious += sum(1 for g in groups if not g & set(run.truth))
+        truth = sum(run.truth.values())
+        estimate = run.total_flow if math.isfinite(run.total_flow) else 0.0
+        if truth > 0:
+            self.total_errors.append(abs(estimate / truth - 1.0))
+        low, high = run.total_interval
+        self.interval_covers += int(math.isfinite(low) and low <= truth <= high)
+        if missed:
+            self.runs_missing += 1
+            self.missing_flagged += int(run.more_leaks)
+            within = [run.hidden.get(loc, 0.0) >= run.truth[loc] for loc in missed]
+            self.missed_leaks += len(missed)
+            self.missed_within_bound += sum(within)
+            self.missing_stated += int(run.more_leaks or all(within))
+
+    def figures(self) -> dict[str, float | int | None]:
+        """The figures as numbers (rates as fractions; None when not measured)."""
+
+        def rate(a: int, b: int) -> float | None:
+            return None if b == 0 else a / b
+
+        errors = np.asarray(self.total_errors)
+        return {
+            "runs": self.runs,
+            "detected": rate(self.detected, self.runs),
+            "all_in_group": rate(self.all_found, self.runs),
+            "leaks_found": rate(self.found_leaks, self.true_leaks),
+            "total_flow_error_median": float(np.median(errors)) if errors.size else None,
+            "total_flow_error_p90": float(np.percentile(errors, 90)) if errors.size else None,
+            "total_within_10pct": rate(int(np.sum(errors <= 0.10)), int(errors.size)),
+            "total_interval_covers": rate(self.interval_covers, self.runs),
+            "runs_missing_a_leak": self.runs_missing,
+            "remainder_stated": rate(self.missing_stated, self.runs_missing),
+            "missed_within_bound": rate(self.missed_within_bound, self.missed_leaks),
+            "more_leaks_flagged": rate(self.missing_flagged, self.runs_missing),
+            "spurious_per_run": rate(self.spurious, self.runs),
+            "mean_reported": float(np.mean(self.reported)) if self.reported else None,
+            "mean_group": float(np.mean(self.group_sizes)) if self.group_sizes else None,
+            "seconds_mean": float(np.mean(self.seconds)) if self.seconds else None,
+            "seconds_max": float(np.max(self.seconds)) if self.seconds else None,
+            "checked_by_simulation": rate(self.simulated, self.runs),
+        }
+
+    def lines(self, k: int, targets: Mapping[str, float] | None = None) -> list[str]:
+        """The figures as printable lines (with PASS/FAIL against ``targets``)."""
+        f = self.figures()
+        out = [
+            f"--- runs with {k} leaks ---",
+            f"all {k} leaks inside reported groups: {_pct(self.all_found, self.runs)}",
+            f"leaks found:                          {_pct(self.found_leaks, self.true_leaks)}",
+            f"total flow error, median / 90th pct:  {_pcts(f['total_flow_error_median'])} / "
+            f"{_pcts(f['total_flow_error_p90'])}; within 10 %: "
+            f"{_pcts(f['total_within_10pct'])}; interval holds the truth: "
+            f"{_pct(self.interval_covers, self.runs)}",
+            f"runs missing a leak: {self.runs_missing}; every missed leak within the stated "
+            f"remainder: {_pct(self.missing_stated, self.runs_missing)}; 'more leaks may be "
+            f"present' said: {_pct(self.missing_flagged, self.runs_missing)}",
+            f"missed leaks within their hidden-leak bound: "
+            f"{_pct(self.missed_within_bound, self.missed_leaks)}",
+            f"reported leaks per run {_num(f['mean_reported'], 2)}, matching no true leak "
+            f"{_num(f['spurious_per_run'], 2)}; mean group size {_num(f['mean_group'], 3)}",
+            f"diagnosis time per run, mean / max:   {_num(f['seconds_mean'], 2)} s / "
+            f"{_num(f['seconds_max'], 2)} s; checked by simulation "
+            f"{_pct(self.simulated, self.runs)}",
+        ]
+        if targets:
+            checks = {}
+            for name, bound in targets.items():
+                value = f.get(name)
+                lower = name in LOWER_IS_BETTER
+                label = f"{name} {'<=' if lower else '>='} {bound:g}"
+                checks[label] = value is not None and (
+                    float(value) <= bound if lower else float(value) >= bound
+                )
+            out.append(
+                "targets: "
+                + "; ".join(f"{k}: {'PASS' if v else 'FAIL'}" for k, v in checks.items())
+            )
+        return out
 
 
 def _num(x: float | int | None, digits: int) -> str:

@@ -185,18 +185,25 @@ def _figures(
     return out
 
 
+def _slpm_range(low: float, high: float) -> str:
+    return f"{_fmt(float(kg_s_to_slpm(low)), 1)}-{_fmt(float(kg_s_to_slpm(high)), 1)}"
+
+
 def _leak_table(diagnosis: Diagnosis) -> str:
     if not diagnosis.leaks:
         return "<p>No leak located.</p>"
     rows = []
+    rank = {index: place for place, index in enumerate(diagnosis.repair_order, start=1)}
     for i, leak in enumerate(diagnosis.leaks, start=1):
         group = ", ".join(str(x) for x in leak.ambiguity_group)
         rows.append(
             "<tr>"
             f"<td>{i}</td><td class='l'>{_e(leak.location)}</td><td class='l'>{_e(group)}</td>"
-            f"<td>{_fmt(leak.flow_slpm, 1)}</td><td>{_fmt(leak.average_flow_slpm, 1)}</td>"
+            f"<td>{_fmt(leak.flow_slpm, 1)}</td><td>{_slpm_range(*leak.mass_flow_interval)}</td>"
+            f"<td>{_fmt(leak.average_flow_slpm, 1)}</td>"
             f"<td>{_fmt(leak.orifice_mm, 2)}</td>"
             f"<td>{_fmt(leak.annual_cost, 0)}</td><td>{_fmt(100 * leak.confidence, 0)} %</td>"
+            f"<td>{rank.get(i - 1, '')}</td><td>{_fmt(leak.repair_cost, 0)}</td>"
             "</tr>"
         )
     s = diagnosis.settings
@@ -210,14 +217,30 @@ def _leak_table(diagnosis: Diagnosis) -> str:
         if continuous
         else ""
     )
+    totals = diagnosis.totals
+    total_row = (
+        "<tr><th colspan='3' class='l'>total</th>"
+        + (
+            f"<th>{_fmt(float(kg_s_to_slpm(totals.mass_flow)), 1)}</th>"
+            f"<th>{_slpm_range(*totals.mass_flow_interval)}</th>"
+            f"<th>{_fmt(float(kg_s_to_slpm(totals.average_mass_flow)), 1)}</th><th></th>"
+            f"<th>{_fmt(diagnosis.total_annual_cost, 0)} "
+            f"({_fmt(totals.annual_cost_interval[0], 0)}-"
+            f"{_fmt(totals.annual_cost_interval[1], 0)})</th>"
+            if totals is not None
+            else f"<th colspan='5'></th><th>{_fmt(diagnosis.total_annual_cost, 0)}</th>"
+        )
+        + "<th colspan='3'></th></tr>"
+    )
     return (
         "<table><tr><th>#</th><th class='l'>location</th><th class='l'>ambiguity group</th>"
-        "<th>flow while pressurised [SLPM]</th><th>average flow over the cycle [SLPM]</th>"
+        "<th>flow while pressurised [SLPM]</th><th>95 % interval [SLPM]</th>"
+        "<th>average flow over the cycle [SLPM]</th>"
         "<th>equivalent orifice [mm]</th><th>annual cost [$]</th>"
-        "<th>confidence</th></tr>"
+        "<th>confidence</th><th>repair order</th><th>repair cost [$]</th></tr>"
         + "".join(rows)
-        + f"<tr><th colspan='6' class='l'>total</th><th>{_fmt(diagnosis.total_annual_cost, 0)}"
-        "</th><th></th></tr></table>"
+        + total_row
+        + "</table>"
         + basis
         + "<p><i>Flow while pressurised</i>: the leak flow while its line holds pressure, at "
         "the machine's supply pressure (what an ultrasonic leak detector finds; the "
@@ -229,7 +252,44 @@ def _leak_table(diagnosis: Diagnosis) -> str:
         f"{_fmt(s.kw_per_100_cfm, 1)} kW per 100 cfm; a line that stays pressurised while "
         "the machine stands idle leaks more than this. SLPM at 0 degC, 1013 mbar "
         "(1.294 kg/m<sup>3</sup>); orifice: sharp-edged (C<sub>d</sub> = 0.61), choked "
-        "from the leak's nominal pressure.</p>"
+        "from the leak's nominal pressure. Intervals: 95 % from the fit; the total's from "
+        "the leaks' joint covariance, so it can be narrower than its parts suggest (leaks "
+        "the sensors cannot separate have a well determined sum). <i>Repair order</i>: "
+        "most annual cost saved per repair dollar first; expected repair cost "
+        f"${_fmt(s.repair_fitting, 0)} for a fitting, tube, hose or coupling, "
+        f"${_fmt(s.repair_seal, 0)} for an actuator seal, which is taken to be "
+        f"{_fmt(100 * s.seal_share, 0)} % of the leaks on a line whose actuator's seal "
+        "vents to the atmosphere (docs/assumptions.md).</p>"
+    )
+
+
+def _remainder_section(diagnosis: Diagnosis) -> str:
+    """What the leaks leave: the share explained and where a leak could still hide."""
+    remainder = diagnosis.remainder
+    if remainder is None:
+        return "<p>No leak signatures: nothing can be said about leaks the run hides.</p>"
+    intro = f"<p>{_e(diagnosis.summary())}.</p>"
+    if remainder.reasons:
+        intro += (
+            "<p class='note'>More leaks may be present: "
+            + "; ".join(_e(r) for r in remainder.reasons)
+            + ".</p>"
+        )
+    rows = "".join(
+        f"<tr><td class='l'>{_e(name)}</td><td>"
+        + ("any size (the sensors barely see it)" if cap else _fmt(float(kg_s_to_slpm(flow)), 1))
+        + "</td></tr>"
+        for name, flow, cap in remainder.groups()
+    )
+    return (
+        intro + "<p>For each location group without a reported leak (the supply; each actuator's "
+        "two lines), the largest additional leak the run cannot rule out: a one-sided "
+        f"{_fmt(100 * remainder.level, 0)} % bound, the reported leaks refit around it. "
+        f"The reported leaks explain {_fmt(100 * remainder.explained, 0)} % of the "
+        "weighted deviation.</p>"
+        "<table><tr><th class='l'>location group</th><th>largest hidden leak [SLPM]</th></tr>"
+        + rows
+        + "</table>"
     )
 
 
@@ -282,7 +342,13 @@ def render_report(
     run = check_compatible(reference, run)
     verdict = (
         f"<div class='verdict leak'>Leak detected: {len(diagnosis.leaks)} leak(s) located, "
-        f"total {_fmt(diagnosis.total_annual_cost, 0)} $/year</div>"
+        f"total {_fmt(diagnosis.total_annual_cost, 0)} $/year"
+        + (
+            "; more leaks may be present"
+            if diagnosis.remainder is not None and diagnosis.remainder.more_leaks_possible
+            else ""
+        )
+        + "</div>"
         if diagnosis.detected
         else "<div class='verdict ok'>No leak detected</div>"
     )
@@ -361,6 +427,7 @@ def render_report(
         f"<header class='run'>{_e(context)} | report {_e(stamp)}</header>"
         f"<h1>{_e(title)}</h1>{verdict}{notes}"
         f"<h2>Leaks, ranked by annual cost</h2>{_leak_table(diagnosis)}"
+        f"<h2>What the leaks do not explain</h2>{_remainder_section(diagnosis)}"
         f"<h2>Ambiguity groups</h2>{ambiguity}"
         f"<h2>Detection</h2>{detection}"
         f"<h2>Figures</h2>{figures}"

@@ -22,9 +22,72 @@ import numpy.typing as npt
 
 from pneufdd.array_types import FloatArray
 
-__all__ = ["PiecewiseLinear", "WhitenedEffects"]
+__all__ = ["PiecewiseLinear", "WhitenedEffects", "box_least_squares"]
 
 Whitener = Callable[[FloatArray], FloatArray]
+
+
+def _off(k: int) -> FloatArray:
+    """``k x k`` ones with a zero diagonal: the pairs of a set of ``k`` leaks."""
+    return np.ones((k, k)) - np.eye(k)
+
+
+def box_least_squares(
+    A: FloatArray, b: FloatArray, lo: FloatArray, hi: FloatArray, start: FloatArray
+) -> FloatArray:
+    """``argmin |A x - b|`` with ``lo <= x <= hi``, for a few unknowns.
+
+    The bounded-variable least-squares active-set method (Stark & Parker 1995) on the
+    normal equations: the unconstrained solution of the free variables, a step that
+    would leave the box stopping at the first bound and fixing that variable; once
+    the free variables are solved inside the box, the fixed variable whose gradient
+    points most into the box is freed. In the few cases it does not settle within
+    its iterations (near-collinear columns), :func:`scipy.optimize.lsq_linear`
+    solves it. This is the small, repeated problem of :meth:`WhitenedEffects.fit_set`
+    without scipy's per-call overhead.
+
+    Examples
+    --------
+    >>> A = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    >>> box_least_squares(A, np.array([2.0, -1.0, 1.0]), np.zeros(2), np.full(2, 5.0),
+    ...                   np.zeros(2)).round(6).tolist()
+    [1.5, 0.0]
+    """
+    G = A.T @ A
+    g = A.T @ b
+    k = g.size
+    ridge = 1e-12 * max(float(np.max(np.diag(G), initial=0.0)), 1e-300)
+    x = np.clip(np.asarray(start, dtype=np.float64), lo, hi)
+    free = (x > lo) & (x < hi)
+    for _ in range(6 * k + 10):
+        solved = False
+        for _ in range(k + 1):  # solve the free variables inside the box
+            F = np.flatnonzero(free)
+            if F.size == 0:
+                solved = True
+                break
+            rhs = g[F] - G[np.ix_(F, ~free)] @ x[~free]
+            z = np.linalg.solve(G[np.ix_(F, F)] + ridge * np.eye(F.size), rhs)
+            if np.all((z > lo[F]) & (z < hi[F])):
+                x[F] = z
+                solved = True
+                break
+            d = z - x[F]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                room = np.where(d > 0, (hi[F] - x[F]) / d, np.where(d < 0, (lo[F] - x[F]) / d, 1.0))
+            alpha = float(np.clip(np.min(room), 0.0, 1.0))
+            x[F] = np.clip(x[F] + alpha * d, lo[F], hi[F])
+            free[F] = (x[F] > lo[F]) & (x[F] < hi[F])
+        if not solved:
+            continue
+        w = g - G @ x  # minus the gradient
+        gain = np.where(~free & (x <= lo), w, np.where(~free & (x >= hi), -w, 0.0))
+        if float(np.max(gain, initial=0.0)) <= 1e-12 * max(float(np.max(np.abs(g))), 1e-300):
+            return x
+        free[int(np.argmax(gain))] = True
+    from scipy.optimize import lsq_linear
+
+    return np.asarray(lsq_linear(A, b, bounds=(lo, np.maximum(hi, lo + 1e-300))).x)
 
 
 class PiecewiseLinear:
@@ -139,6 +202,9 @@ class WhitenedEffects(PiecewiseLinear):
         VS = (Vf @ Sf.T).reshape(*shape, *shape)  # [V index, S index]
         SS = (Sf @ Sf.T).reshape(*shape, *shape)
         self.rss_null = yy
+        li, ki = np.meshgrid(np.arange(n_loc), np.arange(n_seg), indexing="ij")
+        # the Gram matrix's diagonal blocks: what fits of one leak to any residual need
+        self._own = (VV[li, ki, li, ki], VS[li, ki, li, ki], SS[li, ki, li, ki])
         self.single_sizes, self.single_rss = self._singles(yy, yV, yS, VV, VS, SS)
         self.pair_sizes, self.pair_rss = self._pairs(yy, yV, yS, VV, VS, SS)
 
@@ -247,6 +313,163 @@ class WhitenedEffects(PiecewiseLinear):
         return np.asarray(self.pair_sizes[first, second], dtype=np.float64), float(
             self.pair_rss[first, second]
         )
+
+    def additions(self, residual: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The best leak at each location added to what ``residual`` leaves.
+
+        For every location, the size minimising ``|residual - e(a)|`` over its
+        piecewise-linear effect, exactly (every segment, clipped to its ends), in one
+        pass from the stored Gram blocks: the step of a forward search over sets of
+        leaks (:mod:`pneufdd.diagnosis.localisation.subsets`).
+
+        Returns
+        -------
+        sizes : ndarray, shape (n_locations,)
+            Best size at each location [kg/s].
+        rss : ndarray, shape (n_locations,)
+            The whitened residual left [-].
+
+        Examples
+        --------
+        >>> model = WhitenedEffects(np.array([[1.0], [1.0]]),
+        ...     np.array([[[1.0, 0.0]], [[0.0, 2.0]]]), lambda d: np.atleast_2d(d),
+        ...     np.array([3.0, 4.0]))
+        >>> sizes, rss = model.additions(np.array([3.0, 4.0]))
+        >>> sizes.tolist(), rss.tolist()
+        ([3.0, 2.0], [16.0, 9.0])
+        """
+        r = np.asarray(residual, dtype=np.float64)
+        n_loc, n_seg = self.lo.shape
+        rV = (self.intercept.reshape(n_loc * n_seg, -1) @ r).reshape(n_loc, n_seg)
+        rS = (self.slope.reshape(n_loc * n_seg, -1) @ r).reshape(n_loc, n_seg)
+        vv, vs, ss = self._own
+        b = rS - vs
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = np.where(ss > 0, b / ss, self.lo)
+        a = np.clip(a, self.lo, self.hi)
+        rss = float(r @ r) - 2 * rV + vv - 2 * a * b + a * a * ss
+        k = np.argmin(rss, axis=1)
+        rows = np.arange(n_loc)
+        return a[rows, k], np.maximum(rss[rows, k], 0.0)
+
+    def set_effect(
+        self, subset: tuple[int, ...], sizes: FloatArray, coupling: FloatArray | None = None
+    ) -> FloatArray:
+        """Whitened effect of a set of leaks, their pairwise interaction included [-]."""
+        total = np.zeros_like(self.target)
+        for loc, x in zip(subset, sizes, strict=True):
+            total = total + self(loc, float(x))
+        if coupling is not None:
+            a = np.asarray(sizes, dtype=np.float64)
+            total = total + 0.5 * np.einsum("i,j,ijn->n", a, a, coupling * _off(a.size)[..., None])
+        return total
+
+    def fit_set(
+        self,
+        subset: tuple[int, ...],
+        start: FloatArray,
+        coupling: FloatArray | None = None,
+        iterations: int = 20,
+        tolerance: float = 1e-3,
+    ) -> tuple[FloatArray, float]:
+        """Sizes of any number of leaks, with their pairwise bilinear interaction.
+
+        Minimises
+
+        .. math::
+
+            \\left| y - \\sum_i E_{l_i}(a_i) - \\sum_{i<j} a_i a_j K_{ij} \\right|^2,
+            \\qquad a_i \\ge 0,
+
+        from ``start``: on the segments that hold the current sizes every effect is
+        affine, so one step is a bounded linear least-squares problem in all sizes at
+        once (:func:`box_least_squares`, the sizes bounded to their segments; the
+        interaction linearised at the current sizes, a step that raises the residual
+        halved). A size that ends on a segment end moves to the
+        neighbouring segment in the next step. It stops when no size moves by more
+        than ``tolerance`` of itself and no segment is left to try: a local minimum,
+        the generalisation of :meth:`fit` (exact for one or two leaks) and
+        :meth:`refine_pair` to sets of leaks.
+
+        Parameters
+        ----------
+        subset : tuple of int
+            Location indices.
+        start : ndarray
+            Starting sizes [kg/s].
+        coupling : ndarray, shape (k, k, n_components), optional
+            Whitened interaction per unit of both sizes of each pair (symmetric, the
+            diagonal unused) [1/(kg/s)^2]; None: additive.
+        iterations : int
+            Steps at most [-].
+        tolerance : float
+            Relative size change that ends the steps [-].
+
+        Returns
+        -------
+        sizes : ndarray
+            Sizes of ``subset`` [kg/s].
+        rss : float
+            Whitened residual [-].
+
+        Examples
+        --------
+        Three effects, the second at half its slope between sizes 1 and 2 and flat
+        beyond (``E1`` at 1, ``1.5 E1`` from 2 on), an exact mixture:
+
+        >>> E = np.eye(3) + 0.2
+        >>> deltas = np.stack([E, E, E], axis=1) * np.array([1.0, 2.0, 4.0])[None, :, None]
+        >>> deltas[1, 1:] = deltas[1, 0] * 1.5
+        >>> model = WhitenedEffects(np.array([[1.0, 2.0, 4.0]] * 3), deltas,
+        ...     lambda d: np.atleast_2d(d), 0.5 * E[0] + 1.2 * E[1] + 3.0 * E[2])
+        >>> sizes, rss = model.fit_set((0, 1, 2), np.ones(3))
+        >>> [round(float(x), 6) for x in sizes], rss < 1e-20
+        ([0.5, 1.4, 3.0], True)
+        """
+        idx = list(subset)
+        cap = self.size_cap[idx]
+        sizes = np.clip(np.asarray(start, dtype=np.float64), 0.0, cap)
+        k = len(idx)
+        off = _off(k)[..., None]
+
+        def residual_of(x: FloatArray) -> float:
+            r = self.target - self.set_effect(subset, x, coupling)
+            return float(r @ r)
+
+        rss = residual_of(sizes)
+        below = np.zeros(k, dtype=bool)  # last step ended on its segment's lower end
+        still = 0
+        for _ in range(iterations):
+            segs = [
+                self.segment(loc, x * (1.0 - 1e-12) if down else x)
+                for loc, x, down in zip(idx, sizes, below, strict=True)
+            ]
+            A = np.stack([self.slope[loc, g] for loc, g in zip(idx, segs, strict=True)], axis=1)
+            rhs = self.target - sum(
+                self.intercept[loc, g] for loc, g in zip(idx, segs, strict=True)
+            )
+            if coupling is not None:
+                pull = np.einsum("j,ijn->in", sizes, coupling * off)  # d(pair term)/d size
+                A = A + pull.T
+                rhs = rhs - 0.5 * sizes @ pull + sizes @ pull
+            lo = self.lo[idx, segs]
+            hi = np.minimum(self.hi[idx, segs], cap)
+            hi = np.maximum(hi, lo)
+            x = np.clip(box_least_squares(A, rhs, lo, hi, sizes), lo, hi)
+            new = residual_of(x)
+            if new > rss:  # the linearised interaction overshot: a shorter step
+                x = 0.5 * (x + sizes)
+                new = residual_of(x)
+            if new > rss:
+                break
+            moved = np.abs(x - sizes) > tolerance * np.maximum(x, 1e-12)
+            segs_arr = np.asarray(segs)
+            below = (x <= lo * (1.0 + 1e-12)) & (segs_arr > 0)
+            sizes, rss = x, new
+            still = 0 if moved.any() else still + 1
+            if still == 2 or (still == 1 and not below.any()):
+                break
+        return sizes, rss
 
     def _best_1d(self, loc: int, target: FloatArray, extra: FloatArray) -> tuple[float, float]:
         best_a, best_rss = 0.0, np.inf

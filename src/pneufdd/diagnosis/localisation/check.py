@@ -74,11 +74,14 @@ class SimulatedFit(NamedTuple):
         Whitened residual sum of squares of the simulated effect [-].
     jacobian : ndarray, shape (n_components, n_leaks)
         Last estimate of the whitened effect's derivative by size [1/(kg/s)].
+    residual : ndarray, shape (n_components,)
+        What the simulated effect leaves of the whitened observed change [-].
     """
 
     sizes: FloatArray
     rss: float
     jacobian: FloatArray
+    residual: FloatArray
 
 
 class _SizeSearch:
@@ -171,7 +174,7 @@ class _SizeSearch:
         self._residual = self.target - effect
         self._jacobian = np.zeros((self.target.size, self.sizes.size))
         rss = float(self._residual @ self._residual)
-        self.best = SimulatedFit(self.sizes.copy(), rss, self._jacobian)
+        self.best = SimulatedFit(self.sizes.copy(), rss, self._jacobian, self._residual)
         if self._estimate is None:
             self._take_differences(moved)
             return
@@ -215,7 +218,7 @@ class _SizeSearch:
         new_residual = self.target - new_effect
         rss = float(new_residual @ new_residual)
         if rss < self.best.rss:
-            self.best = SimulatedFit(new.copy(), rss, self._jacobian)
+            self.best = SimulatedFit(new.copy(), rss, self._jacobian, new_residual)
         self.sizes, self._effect, self._residual = new, new_effect, new_residual
         if np.all(np.abs(step_x) <= self.tolerance * np.maximum(np.abs(new), self.min_step)):
             self.done = True
@@ -281,7 +284,7 @@ def refine_by_simulation(
     >>> S = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
     >>> sim = lambda x: (x[0] * S[0] + x[1] * S[1] + np.array([0, 0, 0.3 * x[0] * x[1]]))
     >>> y = sim({0: 2.0, 1: 1.0})
-    >>> sizes, rss, _ = refine_by_simulation((0, 1), np.array([1.0, 3.0]), y, sim,
+    >>> sizes, rss, *_ = refine_by_simulation((0, 1), np.array([1.0, 3.0]), y, sim,
     ...                                      np.array([10.0, 10.0]), max_iterations=20,
     ...                                      tolerance=1e-6)
     >>> [round(float(v), 4) for v in sizes], rss < 1e-12
@@ -604,7 +607,7 @@ class _Check:
         linear fit of both sizes to the rest of the data gives ``(rss [-], location,
         size changes [kg/s], Jacobian [1/(kg/s)])``, best first.
         """
-        size, _, slope = self.checked[(first,)]
+        size, _, slope, _ = self.checked[(first,)]
         probe = self.settings.probe_size
         rest = self.target - base
         probed_all = thread_map(
@@ -701,7 +704,7 @@ def verify_explanations(
     >>> fits = {s: (fit(s, y), 1.0) for s in [(0,), (1,), (0, 1)]}
     >>> out = verify_explanations(y, fits, 2, sim, np.array([9.0, 9.0]),
     ...                           SimulationCheckSettings(probe_size=0.5))
-    >>> sizes, rss, _ = out[(0, 1)]
+    >>> sizes, rss, *_ = out[(0, 1)]
     >>> [round(float(v), 2) for v in sizes], rss < 1e-4
     ([2.0, 1.0], True)
     """

@@ -16,6 +16,7 @@ function here:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -33,6 +34,8 @@ __all__ = [
     "ambiguity_group",
     "both_lines_alternatives",
     "choose_leak_count",
+    "more_leak_reasons",
+    "next_leak_weight",
     "same_actuator_pair",
 ]
 
@@ -81,28 +84,46 @@ class Group:
     weight: float
 
 
+def _better(best: Best, dof: int, k: int, than: int, gain: float) -> bool:
+    """``k`` leaks explain the run better than ``than`` by the penalty and the gain."""
+    rss_prev = best[than][2]
+    rss_k = best[k][2]
+    s2 = max(1.0, rss_k / max(dof - k, 1))
+    penalty = 2.0 * np.log(max(dof, 2)) * s2 * (k - than)
+    return bool(rss_prev - rss_k > penalty and rss_k < (1.0 - gain) * rss_prev)
+
+
 def choose_leak_count(
     best: Best,
     dof: int,
     max_leaks: int,
     min_relative_gain: float,
     first_leak_gain: float = 1.0,
+    added_gain: float | None = None,
+    added_after: int = 0,
 ) -> int:
     """Number of leaks: more only when the residual drops by the penalty and the gain.
 
     Against the model chosen so far (at first: no leak), a model with ``k`` leaks is
     taken when its residual is lower by more than ``2 ln(dof) s^2`` per added leak (an
     information criterion with the residual scale ``s^2 = max(1, rss / (dof - k))``
-    of the larger model) *and* by at least ``min_relative_gain`` of the chosen one. Every
-    ``k`` is tried, so two leaks that only together explain the data (their effects
-    interact, or one alone leaves most of the other's misfit) are not missed because no
-    single leak did.
+    of the larger model) *and* by at least ``min_relative_gain`` of the chosen one. For
+    one and two leaks every ``k`` is tried, so two leaks that only together explain
+    the data (their effects interact, or one alone leaves most of the other's misfit)
+    are not missed because no single leak did. From three leaks on the choice is a
+    forward selection: ``k`` leaks are taken only over the chosen ``k - 1``, and the
+    first ``k`` not taken ends it (the sets of three and more are themselves grown
+    from the chosen ones, :mod:`pneufdd.diagnosis.localisation.subsets`).
 
     When that chooses no leak, one leak is still taken if it passes the information
     criterion and lowers the residual by ``first_leak_gain`` (1: no such fallback,
     the residual cannot fall below zero): on a run the detector has flagged, "no
     leak" is already rejected, and the location that explains the deviation best is
     worth reporting with the low confidence its small share of the deviation gives it.
+
+    With ``added_gain``, a model of more than ``added_after`` leaks must lower the
+    residual by that fraction instead (the check by simulation asks more of a leak
+    the signatures did not ask for).
 
     Examples
     --------
@@ -116,22 +137,105 @@ def choose_leak_count(
     >>> weak = {0: ((), np.zeros(0), 500.0), 1: ((0,), np.ones(1), 420.0)}
     >>> choose_leak_count(weak, 50, 1, 0.25), choose_leak_count(weak, 50, 1, 0.25, 0.0)
     (0, 1)
+
+    Three leaks over two, then a fourth that explains too little:
+
+    >>> more = {**best, 1: ((0,), np.ones(1), 300.0), 2: ((0, 1), np.ones(2), 200.0),
+    ...         3: ((0, 1, 2), np.ones(3), 40.0), 4: ((0, 1, 2, 3), np.ones(4), 35.0)}
+    >>> choose_leak_count(more, 50, 4, 0.25), choose_leak_count(more, 50, 2, 0.25)
+    (3, 2)
     """
 
-    def better(k: int, than: int, gain: float) -> bool:
-        rss_prev = best[than][2]
-        rss_k = best[k][2]
-        s2 = max(1.0, rss_k / max(dof - k, 1))
-        penalty = 2.0 * np.log(max(dof, 2)) * s2 * (k - than)
-        return bool(rss_prev - rss_k > penalty and rss_k < (1.0 - gain) * rss_prev)
+    def gain(k: int) -> float:
+        return min_relative_gain if added_gain is None or k <= added_after else added_gain
 
     chosen = 0
     for k in range(1, max_leaks + 1):
-        if k in best and better(k, chosen, min_relative_gain):
+        if k >= 3 and (chosen != k - 1 or k not in best):
+            break
+        if k in best and _better(best, dof, k, chosen, gain(k)):
             chosen = k
+        elif k >= 3:
+            break
     if chosen == 0 and 1 in best and max_leaks >= 1:
-        chosen = int(better(1, 0, first_leak_gain))
+        chosen = int(_better(best, dof, 1, 0, first_leak_gain))
     return chosen
+
+
+def next_leak_weight(rss: float, rss_next: float, chosen: int, dof: int) -> float:
+    """Probability-like weight of "no further leak" against one leak more.
+
+    The Akaike-type weight of the chosen model (residual ``rss``, ``chosen`` leaks)
+    against the best with one leak more (``rss_next``; inf: none was fitted), both
+    scored like :func:`choose_leak_count` scores them (residual plus
+    ``2 ln(dof) s^2`` per leak, ``s^2`` of the larger model): 1 without such a
+    model, 0.5 when the added leak lowers the residual by exactly the penalty.
+
+    Examples
+    --------
+    >>> round(next_leak_weight(60.0, 57.0, 1, 50), 3), next_leak_weight(60.0, math.inf, 2, 50)
+    (0.934, 1.0)
+    >>> round(next_leak_weight(80.0, 60.0, 1, 50), 3)
+    0.016
+    """
+    if not math.isfinite(rss_next):
+        return 1.0
+    s2 = max(1.0, rss_next / max(dof - chosen - 1, 1))
+    margin = rss - rss_next - 2.0 * np.log(max(dof, 2)) * s2
+    return float(1.0 / (1.0 + np.exp(min(margin / (2.0 * s2), 700.0))))
+
+
+def more_leak_reasons(
+    rss: float,
+    rss_next: float,
+    chosen: int,
+    dof: int,
+    limit: int,
+    min_relative_gain: float,
+    misfit_ratio: float = math.inf,
+) -> tuple[str, ...]:
+    """Why more leaks than the ``chosen`` may be present (empty: no sign of any).
+
+    - the best explanation with one leak more (residual ``rss_next``; inf: none)
+      lowers the chosen one's residual ``rss`` by more than the information
+      criterion's penalty of :func:`choose_leak_count`, though not by the relative
+      gain the choice needs; or the search stopped at its ``limit`` of leaks;
+    - the chosen explanation leaves more than ``misfit_ratio`` per residual
+      component: far more than noise and model error explain (leaks the search
+      cannot separate, or another fault).
+
+    Examples
+    --------
+    >>> more_leak_reasons(400.0, 330.0, 1, 50, 2, 0.25)  # doctest: +NORMALIZE_WHITESPACE
+    ('a further leak would lower the residual by 17 %: more than the information
+    criterion asks, less than the 25 % the model choice needs',)
+    >>> more_leak_reasons(400.0, 390.0, 1, 50, 2, 0.25)
+    ()
+    >>> more_leak_reasons(4000.0, math.inf, 1, 50, 2, 0.25, 20.0)
+    ('the leaks found leave 80 times the residual that noise and model error explain',)
+    """
+    reasons = []
+    if math.isfinite(rss_next) and rss > 0:
+        s2 = max(1.0, rss_next / max(dof - chosen - 1, 1))
+        drop = 1.0 - rss_next / rss
+        if rss - rss_next > 2.0 * np.log(max(dof, 2)) * s2:
+            if chosen >= limit:
+                reasons.append(
+                    f"the search stopped at its limit of {limit} leak(s); one more would "
+                    f"lower the residual by {math.floor(100 * drop)} %"
+                )
+            else:
+                reasons.append(
+                    f"a further leak would lower the residual by {math.floor(100 * drop)} %: more "
+                    "than the information criterion asks, less than the "
+                    f"{100 * min_relative_gain:.0f} % the model choice needs"
+                )
+    if rss > misfit_ratio * max(dof, 1):
+        reasons.append(
+            f"the leaks found leave {rss / max(dof, 1):.0f} times the residual that noise "
+            "and model error explain"
+        )
+    return tuple(reasons)
 
 
 def same_actuator_pair(locations: Sequence[Location], subset: Subset) -> bool:

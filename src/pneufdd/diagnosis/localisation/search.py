@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, fields
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -43,9 +43,7 @@ from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.piecewise import WhitenedEffects, Whitener
 from pneufdd.diagnosis.localisation.check import (
     SimulatedEffect,
-    SimulationCheckSettings,
-    refine_all,
-    verify_explanations,
+    SimulatedFit,
 )
 from pneufdd.diagnosis.localisation.model_choice import (
     Best,
@@ -56,223 +54,26 @@ from pneufdd.diagnosis.localisation.model_choice import (
     ambiguity_group,
     both_lines_alternatives,
     choose_leak_count,
-    same_actuator_pair,
+    more_leak_reasons,
+    next_leak_weight,
 )
+from pneufdd.diagnosis.localisation.remainder import (
+    HiddenLeak,
+    Remainder,
+    hidden_leak_bounds,
+    size_spread,
+)
+from pneufdd.diagnosis.localisation.settings import LocalisationSettings, leak_limit
+from pneufdd.diagnosis.localisation.simulated import (
+    Imitation,
+    check_by_simulation,
+    simulate_group_competitors,
+)
+from pneufdd.diagnosis.localisation.subsets import PairTerm, SetSearch
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
 __all__ = ["Localisation", "LocalisationSettings", "SizedLocation", "locate"]
-
-
-_SWITCHES = ("simulate_explanations", "group_model_error")
-"""The settings that are on or off (the rest are numbers)."""
-
-_FILE_KEYS = {"min_mass_flow": "min_flow"}
-"""Settings stored under another key in ``.pnref`` files (the key files have always had)."""
-
-
-@dataclass(frozen=True)
-class LocalisationSettings:
-    """Tuning of leak location and sizing, stored with the reference.
-
-    Attributes
-    ----------
-    max_leaks : int
-        Largest number of simultaneous leaks considered (1 or 2) [-].
-    min_relative_gain : float
-        A model with one more leak must lower the weighted residual by at least this
-        fraction: on development plants (seeds 7,800,000+, model error weighted), a
-        spurious second leak lowered it by at most 32 % and most true second leaks by
-        more than 26 %; 0.25 removed nearly all spurious ones and few true ones [-].
-    first_leak_gain : float
-        When no model passes ``min_relative_gain``, the best single leak is still
-        reported if it passes the information criterion and lowers the residual by
-        this fraction (:func:`~pneufdd.diagnosis.localisation.model_choice.choose_leak_count`); its
-        confidence is then low. 0: in acceptance testing on a scale-2 press-fit-cell
-        plant, a 230 SLPM PRESS_A leak was detected, and PRESS_A fitted best, but it
-        explained 20 % of the deviation and nothing was located. 1 turns the
-        fallback off (references saved before) [-].
-    group_ratio : float
-        Alternatives whose Akaike-type weight is at least this fraction of the best
-        join the ambiguity group [-].
-    collinear_cos : float
-        Alternatives whose weighted signature has at least this cosine similarity
-        with the chosen one join the group [-].
-    min_mass_flow : float
-        Smallest leak reported; a model needing a smaller leak is not considered
-        (2 SLPM by default, below the leak valve's first turn); ``min_flow`` in the
-        ``.pnref`` file [kg/s].
-    relative_tolerance : float
-        Alternatives whose weighted residual is at most ``1 + relative_tolerance``
-        times the best join the group, and disjoint explanations within it are listed:
-        the fit barely changes when they are swapped in, which matters when the
-        residual is dominated by model error rather than noise [-].
-    max_extrapolation : float
-        Largest size considered, as a multiple of the largest simulated size: beyond
-        the ladder the effects are extrapolated linearly, and an unbounded
-        extrapolation lets one huge leak absorb a second, real one [-].
-    refine_top : int
-        Number of best additive pairs refined with their bilinear interaction before
-        the model is chosen [-].
-    max_alternatives : int
-        Largest number of disjoint alternative explanations reported, and of "both
-        lines of one actuator" explanations of a supply leak [-].
-    both_lines_max_ratio : float
-        A supply leak's alternative "both lines of one actuator" is offered only when
-        the additive residual of those two leaks is at most this multiple of the
-        chosen model's (the largest multiple among development pairs where it held
-        the truth was 27.6) [-].
-    simulate_explanations : bool
-        Check explanations by simulation when the signatures misfit (needs the
-        machine's description) [-].
-    misfit_ratio : float
-        Residual per component above which the signature model is deemed not to
-        describe the run, when the signatures chose two leaks [-].
-    severe_misfit_ratio : float
-        The same when the signatures chose one leak: single leaks are interpolated
-        from simulations of that very leak and fit well (development: at most 51 for
-        6-turn leaks), a pair whose interaction the signatures miss leaves 30-1,500 [-].
-    added_leak_gain : float
-        When the signatures chose one leak, simulated explanations add a second only
-        if it lowers the residual by this fraction (on development single leaks a
-        spurious 3-7 SLPM second leak lowered it by 10-44 %) [-].
-    group_checks : int
-        With simulated explanations, alternatives simulated per leak for its
-        ambiguity group (the signature model's best in that slot). 1: on 60
-        development runs of festo-dsd with two leaks and only supply sensors, 1
-        instead of 3 reported the same leaks, groups, sizes, confidences and
-        alternatives with fewer simulations (references saved before keep their 3) [-].
-    probes : int
-        With simulated explanations, second leaks probed by simulation beside the
-        best single leak: the locations whose signature-model pair with it fits best
-        (0: every location). 6 with ``group_checks`` 1 cut the simulations of those
-        60 runs from 2,968 to 1,681 (max per run 89 to 52) with the same results;
-        references saved before probe every location [-].
-    model_error_floor : float
-        Independent model error of every feature, as a fraction of the leak's effect
-        on it, beside the coherent error sampled on plausible plants
-        (:func:`pneufdd.diagnosis.engine.whitener`): 2 %, the calibration class of the
-        sensors (``docs/plant-variation.md``) [-].
-    imitation_z : float
-        A second leak is reported only when its size exceeds this many times the size
-        of it that the larger leak's model error imitates: the RMS over the plausible
-        plants of the size a fit of the second leak gives to a plant's deviation from
-        the larger leak's signature (:func:`pneufdd.diagnosis.engine.imitated_size`).
-        Below it, the two-leak explanation is listed as an alternative. 3: three
-        standard deviations, as the band of eq. 5.3; 0 turns the check off (references
-        saved before it existed) [-].
-    min_leak_confidence : float
-        Of two leaks, each must be at least this likely to lie in its ambiguity group
-        to be reported; otherwise one leak is reported and the pair is listed as an
-        alternative. 0.5: a reported leak is more likely there than not (without the
-        check, a scale-2 carton-sorter run in acceptance testing reported a 5 SLPM
-        second leak at confidence 0.00005); 0 turns the check off (references saved
-        before it) [-].
-    group_model_error : bool
-        The run's weighting holds the model error of every location in the ambiguity
-        groups of the first, noise-weighted explanation, not only of its chosen leaks
-        (:func:`pneufdd.diagnosis.engine.run_whitener`). A line held pressurised all
-        but one step (a 5/2 monostable valve's B line) differs from the supply only in
-        that step, where the twin of a drafted cylinder is least sure; weighted with
-        the supply leak's model error alone, that step ruled the line out. When that
-        weighting finds one leak, the run is located again with the chosen leaks'
-        model error, and two leaks found so are kept unless both lie in the one
-        leak's group (``engine._locate_weighted``). False: references saved before [-].
-    keep_within : float
-        With simulated explanations, one stops being sized by simulation when neither
-        its simulated residual nor the one a linear model predicts for its next step
-        comes within this multiple of the best simulated residual so far
-        (:func:`pneufdd.diagnosis.localisation.check.refine_all`); its start is judged by the
-        signature model's slopes before its difference steps are simulated. Beyond
-        2 an explanation changes no reported leak, group or alternative (an
-        alternative or group member needs at most ``1 + relative_tolerance`` = 1.5
-        times the best, a single leak outweighs a pair from 1 / (1 -
-        ``added_leak_gain``) = 2 times), though a group member forced in by
-        :func:`_forced_member` reports the flow of its pair's fit, stopped or not; 4
-        leaves a factor 2 for what the linear model misses. 0 turns it off
-        (references saved before) [-].
-
-    Examples
-    --------
-    >>> LocalisationSettings.from_dict(LocalisationSettings(max_leaks=1).to_dict()).max_leaks
-    1
-    """
-
-    max_leaks: int = 2
-    min_relative_gain: float = 0.25
-    first_leak_gain: float = 0.0
-    group_ratio: float = 0.05
-    collinear_cos: float = 0.995
-    min_mass_flow: float = 4.3e-5
-    relative_tolerance: float = 0.5
-    max_extrapolation: float = 1.25
-    refine_top: int = 20
-    max_alternatives: int = 3
-    both_lines_max_ratio: float = 30.0
-    simulate_explanations: bool = True
-    misfit_ratio: float = 3.0
-    severe_misfit_ratio: float = 20.0
-    added_leak_gain: float = 0.5
-    group_checks: int = 1
-    model_error_floor: float = 0.02
-    imitation_z: float = 3.0
-    probes: int = 6
-    min_leak_confidence: float = 0.5
-    group_model_error: bool = True
-    keep_within: float = 4.0
-
-    def __post_init__(self) -> None:
-        if isinstance(self.max_leaks, bool) or self.max_leaks not in (1, 2):
-            raise InputError(describe("max_leaks", self.max_leaks, "1 or 2"))
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name in ("max_leaks", *_SWITCHES):
-                continue
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise InputError(describe(f"localisation setting {f.name}", value, "a number"))
-            if not np.isfinite(value) or value < 0:
-                raise InputError(
-                    describe(f"localisation setting {f.name}", value, "a finite number >= 0")
-                )
-        for name in _SWITCHES:
-            if not isinstance(getattr(self, name), bool):
-                raise InputError(describe(name, getattr(self, name), [True, False]))
-        if 0 < self.keep_within < 1:
-            raise InputError(
-                describe("localisation setting keep_within", self.keep_within, "0 (off) or >= 1")
-            )
-
-    def to_dict(self) -> dict[str, float | int | bool]:
-        """JSON-compatible form, with the keys of the ``.pnref`` file.
-
-        Examples
-        --------
-        >>> LocalisationSettings(min_mass_flow=1e-4).to_dict()["min_flow"]
-        0.0001
-        """
-        return {_FILE_KEYS.get(name, name): value for name, value in asdict(self).items()}
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, object]) -> LocalisationSettings:
-        """Inverse of :meth:`to_dict`; unknown keys are an error."""
-        known = {_FILE_KEYS.get(f.name, f.name) for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise InputError(describe("localisation settings", unknown, sorted(known)))
-        attribute = {key: name for name, key in _FILE_KEYS.items()}
-        data = {attribute.get(key, key): value for key, value in data.items()}
-        # settings added later take, for references saved before, the behaviour
-        # those references were built with
-        before = {
-            "imitation_z": 0.0,
-            "probes": 0,
-            "group_checks": 3,
-            "min_leak_confidence": 0.0,
-            "first_leak_gain": 1.0,
-            "group_model_error": False,
-            "keep_within": 0.0,
-        }
-        return cls(**{**before, **data})  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -329,6 +130,14 @@ class Localisation:
     checked_by_simulation : bool
         True when the explanations were checked and sized by simulation
         (:mod:`pneufdd.diagnosis.localisation.check`); ``rss`` is then the simulated residual.
+    remainder : Remainder, optional
+        What the leaks leave: the largest leak that could still hide at each other
+        location, whether more leaks may be present
+        (:mod:`pneufdd.diagnosis.localisation.remainder`).
+    size_spread : ndarray, shape (n_leaks, n_leaks), optional
+        A factor ``F`` of the covariance ``F F^T`` of the leaks' flows, rows in the
+        order of :attr:`leaks` (:func:`~pneufdd.diagnosis.localisation.remainder.size_spread`)
+        [kg/s].
     """
 
     leaks: tuple[SizedLocation, ...]
@@ -338,6 +147,21 @@ class Localisation:
     explained: float
     alternatives: tuple[Explanation, ...] = ()
     checked_by_simulation: bool = False
+    remainder: Remainder | None = None
+    size_spread: FloatArray | None = None
+
+    def flow_variance(self, weights: FloatArray) -> float:
+        """Variance of a weighted sum of the leaks' flows, ``|F^T w|^2`` [(kg/s)^2].
+
+        ``weights`` in the order of :attr:`leaks` (ones: the total flow); inf without
+        :attr:`size_spread`.
+        """
+        if self.size_spread is None or len(self.leaks) == 0:
+            return math.inf if self.leaks else 0.0
+        w = np.asarray(weights, dtype=np.float64)
+        with np.errstate(over="ignore", invalid="ignore"):
+            value = float(np.sum((self.size_spread.T @ w) ** 2))
+        return value if math.isfinite(value) else math.inf
 
 
 def _signature_fits(
@@ -346,7 +170,7 @@ def _signature_fits(
     """Fits of every set of one or two locations, and the best of each size."""
     best: Best = {0: ((), np.zeros(0), rss_null)}
     fits: Fits = {}
-    for k in range(1, min(max_leaks, n_loc) + 1):
+    for k in range(1, min(max_leaks, n_loc, 2) + 1):
         for subset in itertools.combinations(range(n_loc), k):
             coef, rss = model.fit(subset)
             fits[subset] = (coef, rss)
@@ -364,11 +188,15 @@ def _refit_pairs_with_interaction(
     fits: Fits,
     best: Best,
     settings: LocalisationSettings,
-) -> None:
-    """Refit the best additive pairs with their bilinear interaction (in place)."""
+) -> set[Subset]:
+    """Refit the best additive pairs with their bilinear interaction (in place).
+
+    Returns the pairs whose fit now holds the interaction.
+    """
     coupling = effects.pair_coupling()
+    refit: set[Subset] = set()
     if coupling is None or 2 not in best:
-        return
+        return refit
     ranked = sorted(
         (fit[1], sub)
         for sub, fit in fits.items()
@@ -382,114 +210,23 @@ def _refit_pairs_with_interaction(
         a, b, rss = model.refine_pair(sub[0], sub[1], whiten(term)[0], start)
         if rss < fits[sub][1] and min(a, b) >= settings.min_mass_flow:
             fits[sub] = (np.array([a, b]), rss)
+            refit.add(sub)
             if rss < best[2][2]:
                 best[2] = (sub, fits[sub][0], rss)
+    return refit
 
 
-def _check_by_simulation(
-    target: FloatArray,
-    model: WhitenedEffects,
-    fits: Fits,
-    best: Best,
-    chosen: int,
-    simulate: SimulatedEffect,
-    n_loc: int,
-    dof: int,
-    settings: LocalisationSettings,
-    threads: int = 1,
-) -> tuple[Fits, Best, int] | None:
-    """Simulated explanations and the choice among them, or None if none ran."""
-    pairs_too = settings.max_leaks > 1
-    if pairs_too:
-        for sub in itertools.combinations(range(n_loc), 2):
-            fits.setdefault(sub, model.fit(sub))
-    check = SimulationCheckSettings(
-        partners=3 if pairs_too else 0,
-        probed_locations=settings.probes,
-        top_pairs=3 if pairs_too else 0,
-        min_pair_flow=settings.min_mass_flow,
-        keep_within=settings.keep_within or math.inf,
-    )
-    checked = verify_explanations(
-        target,
-        fits,
-        n_loc,
-        simulate,
-        model.size_cap,
-        check,
-        slopes=_slopes(model) if settings.keep_within else None,
-        threads=threads,
-    )
-    if not checked:
+def _pair_term(effects: LeakEffectModel, whiten: Whitener) -> PairTerm | None:
+    """The whitened pairwise interaction of two locations (None: additive model)."""
+    coupling = effects.pair_coupling()
+    if coupling is None:
         return None
-    sim_fits: Fits = {sub: (fit.sizes, fit.rss) for sub, fit in checked.items()}
-    sim_best: Best = {0: best[0]}
-    for cand, (cand_sizes, cand_rss) in sim_fits.items():
-        k = len(cand)
-        if (
-            k <= settings.max_leaks
-            and np.all(cand_sizes >= settings.min_mass_flow)
-            and (k not in sim_best or cand_rss < sim_best[k][2])
-        ):
-            sim_best[k] = (cand, cand_sizes, cand_rss)
-    # a second leak the signatures did not ask for must explain much more: the
-    # simulated residual also holds the run's own random conditions, which a small
-    # extra leak can partly absorb
-    gain = settings.min_relative_gain
-    if chosen <= 1:
-        gain = max(gain, settings.added_leak_gain)
-    count = choose_leak_count(
-        sim_best, dof, min(settings.max_leaks, n_loc), gain, settings.first_leak_gain
-    )
-    return sim_fits, sim_best, count
 
+    def term(first: int, second: int) -> FloatArray | None:
+        raw = coupling(first, second)
+        return None if raw is None else np.asarray(whiten(raw)[0], dtype=np.float64)
 
-def _slopes(model: WhitenedEffects) -> Callable[[Subset, FloatArray], FloatArray]:
-    """The signature model's derivative of the whitened effect of a subset by size."""
-
-    def slopes(subset: Subset, sizes: FloatArray) -> FloatArray:
-        return np.column_stack(
-            [model.derivative(loc, float(x)) for loc, x in zip(subset, sizes, strict=True)]
-        )
-
-    return slopes
-
-
-def _simulate_group_competitors(
-    target: FloatArray,
-    model: WhitenedEffects,
-    fits: Fits,
-    subset: Subset,
-    sizes: FloatArray,
-    simulate: SimulatedEffect,
-    n_loc: int,
-    checks: int,
-    threads: int = 1,
-) -> None:
-    """Size by simulation the locations the signatures rank best in each slot (in place).
-
-    Every competitor is sized to the end: it starts from the size of the leak it
-    replaces, often far from its own: in development runs, one whose starting
-    residual was 42 times the chosen pair's ended as good as it, so stopping such a
-    competitor early would have lost it.
-    """
-    trials: dict[Subset, FloatArray] = {}
-    for slot, loc in enumerate(subset):
-        others = tuple(x for x in subset if x != loc)
-        ranked = sorted(
-            (model.fit(tuple(sorted((*others, alt))))[1], alt)
-            for alt in range(n_loc)
-            if alt not in subset
-        )
-        for _, alt in ranked[:checks]:
-            trial = tuple(sorted((*others, alt)))
-            if trial in fits or trial in trials:
-                continue
-            trials[trial] = np.array(
-                [sizes[subset.index(i)] if i in others else sizes[slot] for i in trial]
-            )
-    for trial, fit in refine_all(trials, target, simulate, model.size_cap, threads=threads).items():
-        fits[trial] = (fit.sizes, fit.rss)
+    return term
 
 
 def _forced_member(
@@ -505,20 +242,40 @@ def _forced_member(
     leaks on both lines of one actuator the smaller may stand for a supply leak; of a
     supply leak next to a leak on one line, the supply may stand for a leak on the
     other line (large ``X_B`` plus small ``X_A`` is how "``X_B`` plus a supply leak"
-    is usually fitted, and the other way round). Returns the location and the size it
-    would need [kg/s], or None.
+    is usually fitted, and the other way round). Among more leaks the same holds
+    for each actuator with both lines chosen, and for the supply leak beside the
+    largest leak on one line whose other line is not chosen. Returns the location
+    and the size it would need [kg/s] (of more than two leaks: the size of the leak
+    it stands for), or None.
     """
-    if len(subset) != 2 or SUPPLY not in locations:
+    if len(subset) < 2 or SUPPLY not in locations:
         return None
     supply = locations.index(SUPPLY)
     loc = subset[slot]
-    other = subset[1 - slot]
-    if same_actuator_pair(locations, subset) and slot == int(np.argmin(sizes)):
-        candidate = supply
-    elif loc == supply and locations[other].other_line() in locations:
-        candidate = locations.index(locations[other].other_line())
+    candidate: int | None = None
+    if loc != supply:
+        partner = locations[loc].other_line()
+        if partner in locations and locations.index(partner) in subset:
+            other = subset.index(locations.index(partner))
+            if sizes[slot] <= sizes[other] and (len(subset) > 2 or slot == int(np.argmin(sizes))):
+                candidate = supply
     else:
+        lines = sorted(
+            (
+                (-float(sizes[i]), locations.index(locations[x].other_line()))
+                for i, x in enumerate(subset)
+                if x != supply
+                and locations[x].other_line() in locations
+                and locations.index(locations[x].other_line()) not in subset
+            ),
+        )
+        if lines:
+            candidate = lines[0][1]
+    if candidate is None or candidate in subset:
         return None
+    if len(subset) > 2:
+        return candidate, float(sizes[slot])
+    other = subset[1 - slot]
     trial = tuple(sorted((other, candidate)))
     return candidate, float(model.fit(trial)[0][trial.index(candidate)])
 
@@ -579,6 +336,7 @@ def locate(
     effects: LeakEffectModel,
     whiten: Whitener,
     settings: LocalisationSettings | None = None,
+    imitation: Imitation | None = None,
 ) -> Localisation:
     """Decompose an observed feature change into non-negative leak contributions.
 
@@ -595,6 +353,12 @@ def locate(
         spread, the supply-fluctuation projection and the run-length scaling.
     settings : LocalisationSettings, optional
         Tuning (defaults as documented there).
+    imitation : callable, optional
+        ``imitation(larger, smaller)``: the size [kg/s] of the leak ``smaller``
+        (``(location index, size)``) that the model error of the leaks ``larger``
+        imitates (:func:`pneufdd.diagnosis.engine.imitated_size`); with it, the check
+        by simulation takes a third and further leak only when it is more than
+        :attr:`LocalisationSettings.imitation_z` times that.
 
     Returns
     -------
@@ -614,38 +378,23 @@ def locate(
     """
     settings = settings or LocalisationSettings()
     signatures = effects.signatures
-    obs = np.asarray(observed, dtype=np.float64)
-    if obs.shape != (signatures.n_features,):
-        raise InputError(
-            describe("shape of observed feature change", obs.shape, [(signatures.n_features,)])
-        )
-    if not np.all(np.isfinite(obs)):
-        raise InputError(describe("observed feature change", "NaN or infinite", "finite"))
+    obs = _observation(observed, signatures.n_features)
     locations = effects.locations
     n_loc = len(locations)
+    limit = leak_limit(settings, n_loc)
     target = whiten(obs)[0]
     model = WhitenedEffects(
         signatures.sizes, signatures.deltas, whiten, target, settings.max_extrapolation
     )
     rss_null = float(target @ target)
     dof = int(target.size)
-    fits, best = _signature_fits(model, n_loc, settings.max_leaks, settings.min_mass_flow, rss_null)
-    _refit_pairs_with_interaction(effects, model, whiten, fits, best, settings)
-    chosen = choose_leak_count(
-        best,
-        dof,
-        min(settings.max_leaks, n_loc),
-        settings.min_relative_gain,
-        settings.first_leak_gain,
-    )
-    simulate: SimulatedEffect | None = None
-    if settings.simulate_explanations and effects.can_simulate:
-
-        def simulate(leaks: Mapping[int, float]) -> FloatArray | None:
-            change = effects.simulate(leaks)
-            return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
-
-    simulated = False
+    fits, best = _signature_fits(model, n_loc, limit, settings.min_mass_flow, rss_null)
+    interacting = _refit_pairs_with_interaction(effects, model, whiten, fits, best, settings)
+    search = SetSearch(model, _pair_term(effects, whiten), settings.min_mass_flow)
+    chosen = _signature_choice(search, fits, best, dof, limit, settings)
+    simulate = _simulator(effects, whiten, settings)
+    checked: dict[Subset, SimulatedFit] | None = None
+    following = best[chosen + 1][2] if chosen + 1 in best else math.inf
     misfit = best[chosen][2] / max(dof, 1)
     if (
         simulate is not None
@@ -653,19 +402,31 @@ def locate(
         and misfit > settings.misfit_ratio
         and (chosen > 1 or misfit > settings.severe_misfit_ratio)
     ):
-        checked = _check_by_simulation(
-            target, model, fits, best, chosen, simulate, n_loc, dof, settings, effects.threads
-        )
-        if checked is not None:
-            fits, best, chosen = checked
-            simulated = True
-    subset, coef, rss = best[chosen]
-    if simulated and simulate is not None:
-        # only simulated explanations are compared: check the alternatives the
-        # signature model ranks best in each slot
-        _simulate_group_competitors(
+        outcome = check_by_simulation(
             target,
             model,
+            fits,
+            best,
+            chosen,
+            simulate,
+            n_loc,
+            dof,
+            limit,
+            settings,
+            effects.threads,
+            locations,
+            imitation,
+        )
+        if outcome is not None:
+            fits, best, chosen, checked, following = outcome
+    subset, coef, rss = best[chosen]
+    s2 = max(1.0, rss / max(dof - len(subset), 1))
+    if checked is not None and simulate is not None:
+        # only simulated explanations are compared: check the alternatives the
+        # signature model ranks best in each slot
+        simulate_group_competitors(
+            target,
+            search,
             fits,
             subset,
             coef,
@@ -673,23 +434,154 @@ def locate(
             n_loc,
             settings.group_checks,
             effects.threads,
+            checked.get(subset),
         )
     else:
+        _signature_competitors(search, fits, subset, coef, rss, s2, settings)
+    explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
+    slots = [
+        (slot, _sized_location(slot, subset, coef, fits, model, locations, s2, explained, settings))
+        for slot in range(len(subset))
+    ]
+    slots.sort(key=lambda item: -item[1].mass_flow)
+    leaks = [leak for _, leak in slots]
+    explanations = _alternatives(fits, locations, subset, coef, rss, model, limit, settings)
+    if checked is not None and subset in checked:
+        residual, jacobian = checked[subset].residual, checked[subset].jacobian
+    else:
+        residual, jacobian = _signature_residual(search, subset, coef, interacting)
+    remainder, spread = _remainder(
+        model,
+        rss,
+        following,
+        chosen,
+        dof,
+        limit,
+        residual,
+        jacobian,
+        subset,
+        s2,
+        explained,
+        locations,
+        settings,
+    )
+    order = [slot for slot, _ in slots]
+    return Localisation(
+        tuple(leaks),
+        rss_null,
+        float(rss),
+        dof,
+        float(explained),
+        tuple(explanations),
+        checked is not None,
+        remainder,
+        None if spread is None else spread[order],
+    )
+
+
+def _observation(observed: FloatArray, n_features: int) -> FloatArray:
+    """The observed change as a checked float array."""
+    obs = np.asarray(observed, dtype=np.float64)
+    if obs.shape != (n_features,):
+        raise InputError(describe("shape of observed feature change", obs.shape, [(n_features,)]))
+    if not np.all(np.isfinite(obs)):
+        raise InputError(describe("observed feature change", "NaN or infinite", "finite"))
+    return obs
+
+
+def _simulator(
+    effects: LeakEffectModel, whiten: Whitener, settings: LocalisationSettings
+) -> SimulatedEffect | None:
+    """The whitened simulated effect of a set of leaks (None: no check by simulation)."""
+    if not (settings.simulate_explanations and effects.can_simulate):
+        return None
+
+    def simulate(leaks: Mapping[int, float]) -> FloatArray | None:
+        change = effects.simulate(leaks)
+        return None if change is None else np.asarray(whiten(change)[0], dtype=np.float64)
+
+    return simulate
+
+
+def _signature_choice(
+    search: SetSearch, fits: Fits, best: Best, dof: int, limit: int, settings: LocalisationSettings
+) -> int:
+    """How many leaks the signatures explain the run with; sets of three and more
+    are grown from the chosen pair (one level further than taken: what a further
+    leak would explain)."""
+    gain, first = settings.min_relative_gain, settings.first_leak_gain
+    chosen = choose_leak_count(best, dof, min(limit, 2), gain, first)
+    n_loc = search.model.lo.shape[0]
+    if chosen == 2 and n_loc > 2:
+
+        def accept(k: int) -> bool:
+            return k <= limit and choose_leak_count(best, dof, k, gain, first) == k
+
+        search.grow(fits, best, min(limit + 1, n_loc), accept)
+        chosen = choose_leak_count(best, dof, limit, gain, first)
+    elif chosen + 1 not in best and chosen < n_loc and chosen + 1 <= 2:
+        # one level further, for what a further leak would explain: the best pair
+        pairs = [(fit[1], sub) for sub, fit in fits.items() if len(sub) == 2]
+        if not pairs:
+            pair_rss = search.model.pair_rss
+            first_loc, second = np.unravel_index(int(np.argmin(pair_rss)), pair_rss.shape)
+            sub = (int(min(first_loc, second)), int(max(first_loc, second)))
+            pairs = [(float(pair_rss[sub]), sub)]
+            fits_ahead = {sub: search.model.fit(sub)}
+        else:
+            fits_ahead = {sub: fits[sub] for _, sub in pairs}
+        valid = [
+            (rss, sub) for rss, sub in pairs if np.all(fits_ahead[sub][0] >= settings.min_mass_flow)
+        ]
+        if valid:
+            rss, sub = min(valid)
+            best[2] = (sub, fits_ahead[sub][0], rss)
+    return chosen
+
+
+def _signature_competitors(
+    search: SetSearch,
+    fits: Fits,
+    subset: Subset,
+    sizes: FloatArray,
+    rss: float,
+    s2: float,
+    settings: LocalisationSettings,
+) -> None:
+    """Fits of the chosen set with one leak swapped, for the ambiguity groups (in place).
+
+    One or two leaks: exact. Three or more: each location in each slot, the others
+    kept (:meth:`SetSearch.swaps`), refit when it could join the group (its residual
+    within three times the group's margins).
+    """
+    model = search.model
+    if len(subset) <= 2:
+        n_loc = model.lo.shape[0]
         for loc in subset:
             others = tuple(x for x in subset if x != loc)
             for alt in range(n_loc):
                 if alt not in others:
                     trial = tuple(sorted((*others, alt)))
                     fits.setdefault(trial, model.fit(trial))
-    s2 = max(1.0, rss / max(dof - len(subset), 1))
-    explained = 0.0 if rss_null <= 0 else max(0.0, 1.0 - rss / rss_null)
-    leaks = [
-        _sized_location(slot, subset, coef, fits, model, locations, s2, explained, settings)
-        for slot in range(len(subset))
-    ]
-    leaks.sort(key=lambda leak: -leak.mass_flow)
+        return
+    margin = max(settings.relative_tolerance * rss, 2.0 * s2 * np.log(1.0 / settings.group_ratio))
+    search.swaps(subset, sizes, fits, refit_below=rss + 3.0 * margin)
+
+
+def _alternatives(
+    fits: Fits,
+    locations: tuple[Location, ...],
+    subset: Subset,
+    sizes: FloatArray,
+    rss: float,
+    model: WhitenedEffects,
+    limit: int,
+    settings: LocalisationSettings,
+) -> list[Explanation]:
+    """Disjoint explanations of at most ``limit`` leaks that fit about as well, and the
+    both-lines readings of a supply leak."""
     explanations = alternative_explanations(
-        fits,
+        {sub: fit for sub, fit in fits.items() if len(sub) <= limit},
         locations,
         subset,
         rss,
@@ -700,7 +592,7 @@ def locate(
     for both_lines in both_lines_alternatives(
         locations,
         subset,
-        coef,
+        sizes,
         model,
         rss,
         settings.min_mass_flow,
@@ -709,6 +601,70 @@ def locate(
     ):
         if all(set(both_lines.locations) != set(e.locations) for e in explanations):
             explanations.append(both_lines)
-    return Localisation(
-        tuple(leaks), rss_null, float(rss), dof, float(explained), tuple(explanations), simulated
+    return explanations
+
+
+def _signature_residual(
+    search: SetSearch, subset: Subset, sizes: FloatArray, interacting: set[Subset]
+) -> tuple[FloatArray, FloatArray]:
+    """The signature model's whitened residual of a set and its Jacobian by size."""
+    model = search.model
+    coupling = search.coupling(subset) if len(subset) > 2 or subset in interacting else None
+    residual = model.target - model.set_effect(subset, sizes, coupling)
+    columns = [model.derivative(loc, float(x)) for loc, x in zip(subset, sizes, strict=True)]
+    jacobian = np.column_stack(columns) if columns else np.zeros((model.target.size, 0))
+    if coupling is not None:
+        k = len(subset)
+        pull = np.einsum("j,ijn->in", sizes, coupling * (1.0 - np.eye(k))[..., None])
+        jacobian = jacobian + pull.T
+    return residual, jacobian
+
+
+def _remainder(
+    model: WhitenedEffects,
+    rss: float,
+    following: float,
+    chosen: int,
+    dof: int,
+    limit: int,
+    residual: FloatArray,
+    jacobian: FloatArray,
+    subset: Subset,
+    s2: float,
+    explained: float,
+    locations: tuple[Location, ...],
+    settings: LocalisationSettings,
+) -> tuple[Remainder, FloatArray | None]:
+    """What the chosen leaks leave (:mod:`.remainder`) and the spread of their sizes;
+    ``following`` is the residual of the best explanation with one leak more [-]."""
+    unexplained = max(0.0, rss - (dof - len(subset)))
+    bounds, at_cap = hidden_leak_bounds(
+        model, residual, jacobian, subset, s2, unexplained=unexplained
     )
+    hidden = sorted(
+        (
+            HiddenLeak(locations[i], float(bounds[i]), bool(at_cap[i]))
+            for i in range(len(locations))
+            if i not in subset
+        ),
+        key=lambda leak: -leak.mass_flow,
+    )
+    reasons = more_leak_reasons(
+        rss,
+        following,
+        chosen,
+        dof,
+        limit,
+        settings.min_relative_gain,
+        settings.severe_misfit_ratio,
+    )
+    remainder = Remainder(
+        explained=explained,
+        hidden=tuple(hidden),
+        more_leaks_possible=bool(reasons),
+        reasons=reasons,
+        complete_confidence=next_leak_weight(rss, following, chosen, dof),
+        next_leak_gain=1.0 - following / rss if math.isfinite(following) and rss > 0 else math.nan,
+    )
+    spread = size_spread(jacobian, s2) if subset else None
+    return remainder, spread
