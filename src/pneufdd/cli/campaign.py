@@ -29,6 +29,28 @@ def _counts(text: str | None) -> tuple[int, ...]:
     return tuple(int(item) for item in items)
 
 
+# the options of --capture triggered (docs/captures.md)
+CaptureOption = Annotated[
+    str,
+    typer.Option(
+        help="How plants are recorded: continuous (one file per reference recording "
+        "and run) or triggered (short captures from a trigger, pooled: docs/captures.md)."
+    ),
+]
+CapturesPerReferenceOption = Annotated[
+    int, typer.Option(min=1, help="--capture triggered: captures per plant reference.")
+]
+CapturesPerRunOption = Annotated[
+    int, typer.Option(min=1, help="--capture triggered: captures pooled into one run.")
+]
+CyclesPerFileOption = Annotated[
+    int, typer.Option(min=1, help="--capture triggered: cycles from each trigger.")
+]
+PreTriggerOption = Annotated[
+    float, typer.Option(help="--capture triggered: span recorded before each trigger [s].")
+]
+
+
 def campaign(
     machine: Annotated[
         list[str],
@@ -103,26 +125,11 @@ def campaign(
             "and take that plant's signatures from the calibrated twin.",
         ),
     ] = False,
-    capture: Annotated[
-        str,
-        typer.Option(
-            help="How plants are recorded: continuous (one file per reference recording "
-            "and run) or triggered (short captures from a trigger, pooled: "
-            "docs/captures.md)."
-        ),
-    ] = "continuous",
-    captures_per_reference: Annotated[
-        int, typer.Option(min=1, help="--capture triggered: captures per plant reference.")
-    ] = 20,
-    captures_per_run: Annotated[
-        int, typer.Option(min=1, help="--capture triggered: captures pooled into one run.")
-    ] = 10,
-    cycles_per_file: Annotated[
-        int, typer.Option(min=1, help="--capture triggered: cycles from each trigger.")
-    ] = 1,
-    pre_trigger_s: Annotated[
-        float, typer.Option(help="--capture triggered: span recorded before each trigger [s].")
-    ] = 0.3,
+    capture: CaptureOption = "continuous",
+    captures_per_reference: CapturesPerReferenceOption = 20,
+    captures_per_run: CapturesPerRunOption = 10,
+    cycles_per_file: CyclesPerFileOption = 1,
+    pre_trigger_s: PreTriggerOption = 0.3,
     workers: Annotated[
         int | None,
         typer.Option(
