@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -52,7 +53,7 @@ def plan(
         typer.Option("--turns", help="Test leak valve (GR-3/8B) opened this many turns (0-6)."),
     ] = None,
     cycles: Annotated[
-        int, typer.Option("--cycles", help="Cycles to record at each port (1-10000).")
+        int, typer.Option("--cycles", min=1, max=10_000, help="Cycles to record at each port.")
     ] = 20,
     out: Annotated[
         Path | None,
@@ -76,9 +77,11 @@ def plan(
 
     if orifice_mm is not None and turns is not None:
         raise InputError(describe("--orifice-mm and --turns", "both", "one of them"))
+    if orifice_mm is not None and not (math.isfinite(orifice_mm) and 0.1 <= orifice_mm <= 20):
+        raise InputError(describe("--orifice-mm", orifice_mm, "a nozzle of 0.1 to 20 mm"))
+    if turns is not None and not (math.isfinite(turns) and 0 < turns <= 6):
+        raise InputError(describe("--turns", turns, "more than 0, at most 6 turns (GR-3/8B)"))
     orifice = f"{turns}turns" if turns is not None else f"{orifice_mm or 1.0}mm"
-    if orifice_mm is not None and not orifice_mm > 0:
-        raise InputError(describe("--orifice-mm", orifice_mm, "a diameter > 0 mm"))
     if out is not None:
         if out.exists() and not out.is_dir():
             raise InputError(describe("--out", str(out), "a folder (or a path to create one)"))
@@ -201,7 +204,7 @@ def apply(
     ] = None,
     tag_map: MapOption = None,
     threads: Annotated[
-        int, typer.Option("--threads", help="Threads for the check by simulation (1-64).")
+        int, typer.Option("--threads", min=1, max=64, help="Threads for the check by simulation.")
     ] = 1,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace existing output files.")
