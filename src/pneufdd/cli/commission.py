@@ -101,20 +101,10 @@ def plan(
 
 def _read_plan(folder: Path) -> CommissioningPlan:
     """The plan of ``commission plan``: its folder or its plan.json (at most 4 MiB)."""
+    from pneufdd.cli.plan_files import read_plan_json
     from pneufdd.diagnosis.commission_plan import CommissioningPlan
-    from pneufdd.limits import check_json_depth, read_text_capped
 
-    path = folder / "plan.json" if folder.is_dir() else folder
-    if not path.is_file():
-        raise InputError(
-            describe("--plan", str(folder), "a folder holding plan.json (commission plan)")
-        )
-    text = read_text_capped(path, "--plan")
-    check_json_depth(text, f"--plan {path}")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(describe(f"--plan {path}", repr(exc), "a plan.json")) from exc
+    path, data = read_plan_json(folder, "commission plan")
     return CommissioningPlan.from_dict(data, f"--plan {path}")
 
 
