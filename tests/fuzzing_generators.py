@@ -270,11 +270,16 @@ COMMANDS: dict[str, Entry] = {
         expensive=True,
         fixed=("--scheduler",),
     ),
-    "commission apply": Entry(_commission_apply, ok=frozenset({EXIT_OK, EXIT_LEAK})),
+    # commission and standstill: in the full corpus only; the quick slice runs the
+    # commands of fuzzing.BUILDERS (test_quick_slice_of_the_fuzz_corpus)
+    "commission apply": Entry(
+        _commission_apply, ok=frozenset({EXIT_OK, EXIT_LEAK}), quick=False
+    ),
     "commission plan": Entry(
         lambda k: ["commission", "plan", "--reference",
                    k.put(_commission(k.root)[0], "reference", ".pnref"),
-                   "--out", k.out("--out", "")]
+                   "--out", k.out("--out", "")],
+        quick=False,
     ),
     "demo": Entry(
         lambda k: ["demo", "--reference-cycles", "10", "--out", k.out("--out", "")], expensive=True
@@ -370,9 +375,12 @@ COMMANDS: dict[str, Entry] = {
             k.out("--out", ".parquet"),
         ]
     ),
-    "standstill analyse": Entry(_standstill_analyse, ok=frozenset({EXIT_OK, EXIT_LEAK})),
+    "standstill analyse": Entry(
+        _standstill_analyse, ok=frozenset({EXIT_OK, EXIT_LEAK}), quick=False
+    ),
     "standstill plan": Entry(
-        lambda k: ["standstill", "plan", "--machine", k.machine(), "--out", k.out("--out", "")]
+        lambda k: ["standstill", "plan", "--machine", k.machine(), "--out", k.out("--out", "")],
+        quick=False,
     ),
     "steps": Entry(lambda k: ["steps", k.run()]),
     # users add reads its password from standard input, which the corpus closes: the
