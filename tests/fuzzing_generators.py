@@ -270,8 +270,8 @@ COMMANDS: dict[str, Entry] = {
         expensive=True,
         fixed=("--scheduler",),
     ),
-    # commission and standstill: in the full corpus only; the quick slice runs the
-    # commands of fuzzing.BUILDERS (test_quick_slice_of_the_fuzz_corpus)
+    # commission: in the full corpus only; the quick slice runs the commands of
+    # fuzzing.BUILDERS (test_quick_slice_of_the_fuzz_corpus)
     "commission apply": Entry(
         _commission_apply, ok=frozenset({EXIT_OK, EXIT_LEAK}), quick=False
     ),
@@ -299,12 +299,6 @@ COMMANDS: dict[str, Entry] = {
         ok=frozenset({EXIT_OK, EXIT_LEAK}),
         fixed=("--scheduler",),
     ),  # --scheduler: a Dask address
-    "energy": Entry(  # added with commission: main's energy merge had no entry
-        lambda k: ["energy", k.run(), "--reference", k.pnref(), "--twin-cycles", "2",
-                   "--json", k.out("--json", ".json")],
-        ok=frozenset({EXIT_OK, EXIT_LEAK}),
-        quick=False,
-    ),
     "evaluate": Entry(
         lambda k: ["evaluate", k.campaign(), "--workers", "1", "--out", k.out("--out", "")],
         quick=False,
@@ -312,6 +306,12 @@ COMMANDS: dict[str, Entry] = {
     "features": Entry(
         lambda k: ["features", k.run(), "--group", "air", "--actuator", "PRESS",
                    "--out", k.out("--out", ".csv")]
+    ),
+    "energy": Entry(
+        lambda k: ["energy", k.run(), "--reference", k.pnref(), "--twin-cycles", "2",
+                   "--json", k.out("--json", ".json")],
+        ok=frozenset({EXIT_OK, EXIT_LEAK}),
+        quick=False,  # seconds per run: the twin runs each what-if
     ),
     "faults": Entry(lambda k: ["faults"]),  # no options: only a stray argument varies
     "history": Entry(
@@ -375,12 +375,9 @@ COMMANDS: dict[str, Entry] = {
             k.out("--out", ".parquet"),
         ]
     ),
-    "standstill analyse": Entry(
-        _standstill_analyse, ok=frozenset({EXIT_OK, EXIT_LEAK}), quick=False
-    ),
+    "standstill analyse": Entry(_standstill_analyse, ok=frozenset({EXIT_OK, EXIT_LEAK})),
     "standstill plan": Entry(
-        lambda k: ["standstill", "plan", "--machine", k.machine(), "--out", k.out("--out", "")],
-        quick=False,
+        lambda k: ["standstill", "plan", "--machine", k.machine(), "--out", k.out("--out", "")]
     ),
     "steps": Entry(lambda k: ["steps", k.run()]),
     # users add reads its password from standard input, which the corpus closes: the
