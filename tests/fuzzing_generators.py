@@ -173,6 +173,40 @@ def _standstill_analyse(kit: Kit) -> list[str]:
             "--json", kit.out("--json", ".json")]  # fmt: skip
 
 
+def _commission(root: Path) -> tuple[Path, Path, Path]:
+    """A reference with signatures of the base machine, its commissioning plan (EJECT_B)
+    and a run with the 1.0 mm test orifice there (cached): the working inputs of
+    ``commission plan`` and ``commission apply``."""
+    store = root / "_commission"
+    ref, plan_json, run = store / "ref.pnref", store / "plan" / "plan.json", store / "run.parquet"
+    if not run.exists():
+        from pneufdd.sim import load_machine, simulate
+
+        store.mkdir(parents=True, exist_ok=True)
+        machine = load_machine(MACHINE)
+        simulate(machine, cycles=11, seed=fuzzing.SEED + 30).write(store / "free.parquet")
+        code = _quietly(
+            ["reference", "build", "free.parquet", "--out", "ref.pnref", "--signature-cycles",
+             "1", "--signature-sizes", "10,40,120", "--uncertainty-plants", "0"], store,
+        )  # fmt: skip
+        code = code or _quietly(
+            ["commission", "plan", "--reference", "ref.pnref", "--ports", "EJECT_B",
+             "--cycles", "4", "--out", "plan"], store,
+        )  # fmt: skip
+        if code != 0:
+            raise RuntimeError(f"the base commissioning plan failed with exit {code}")
+        simulate(machine, cycles=6, leaks={"EJECT_B": "1.0mm"}, seed=fuzzing.SEED + 31).write(run)
+    return ref, plan_json, run
+
+
+def _commission_apply(kit: Kit) -> list[str]:
+    ref, plan_json, run = _commission(kit.root)
+    return ["commission", "apply", "--reference", kit.put(ref, "reference", ".pnref"),
+            "--plan", kit.put(plan_json, "plan", ".json"),
+            "--run", "EJECT_B=./" + kit.put(run, "recording", ".parquet"),
+            "--out", kit.out("--out", ".pnref"), "--json", kit.out("--json", ".json")]  # fmt: skip
+
+
 def _history(base: dict[str, Path], root: Path) -> Path:
     """A history database with the base run's cycles in it (cached)."""
     store = root / "_history"
@@ -235,6 +269,17 @@ COMMANDS: dict[str, Entry] = {
         lambda k: ["campaign", *CAMPAIGN_ARGS, "--out", k.out("--out", "")],
         expensive=True,
         fixed=("--scheduler",),
+    ),
+    # commission: in the full corpus only; the quick slice runs the commands of
+    # fuzzing.BUILDERS (test_quick_slice_of_the_fuzz_corpus)
+    "commission apply": Entry(
+        _commission_apply, ok=frozenset({EXIT_OK, EXIT_LEAK}), quick=False
+    ),
+    "commission plan": Entry(
+        lambda k: ["commission", "plan", "--reference",
+                   k.put(_commission(k.root)[0], "reference", ".pnref"),
+                   "--out", k.out("--out", "")],
+        quick=False,
     ),
     "demo": Entry(
         lambda k: ["demo", "--reference-cycles", "10", "--out", k.out("--out", "")], expensive=True

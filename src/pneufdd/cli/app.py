@@ -16,6 +16,7 @@ from pneufdd import __version__
 from pneufdd.cli import (
     build_twin,
     campaign,
+    commission,
     demo,
     diagnose,
     energy,
@@ -61,6 +62,7 @@ for module in (
     build_twin,
     standstill,
     energy,
+    commission,
 ):
     module.register(app)
 

@@ -108,20 +108,10 @@ def plan(
 def _read_plan(folder: Path) -> StandstillPlan:
     """The plan of ``standstill plan``: a folder holding plan.json, or the file itself
     (at most 4 MiB, JSON nested at most 64 levels: docs/limits.md)."""
-    from pneufdd.limits import check_json_depth, read_text_capped
+    from pneufdd.cli.plan_files import read_plan_json
     from pneufdd.standstill.plan import StandstillPlan
 
-    path = folder / "plan.json" if folder.is_dir() else folder
-    if not path.is_file():
-        raise InputError(
-            describe("--plan", str(folder), "a folder holding plan.json (standstill plan)")
-        )
-    text = read_text_capped(path, "--plan")
-    check_json_depth(text, f"--plan {path}")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(describe(f"--plan {path}", repr(exc), "a plan.json")) from exc
+    path, data = read_plan_json(folder, "standstill plan")
     return StandstillPlan.from_dict(data, str(path))
 
 
