@@ -27,7 +27,8 @@ from pneufdd.diagnosis.detection.residuals import supply_check
 from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.piecewise import Whitener
 from pneufdd.diagnosis.effects.signatures import SignatureSet
-from pneufdd.diagnosis.findings import Diagnosis, LeakFinding
+from pneufdd.diagnosis.fault_choice import judge_faults, leak_findings, needs_fault_check
+from pneufdd.diagnosis.findings import Diagnosis, Finding, LeakFinding
 from pneufdd.diagnosis.localisation.model_choice import Explanation
 from pneufdd.diagnosis.localisation.search import (
     Localisation,
@@ -47,6 +48,13 @@ if TYPE_CHECKING:
     pass
 
 __all__ = ["check_compatible", "diagnose", "imitated_size", "run_whitener", "whitener"]
+
+
+_LEAK_ONLY_NOTES = ("leak detected but no combination", "the leak model explains only")
+"""Notes that read the deviation as a leak, left out when another fault explains it."""
+
+_Located = tuple[LeakEffectModel, Whitener]
+"""The effect model and the run's weighting the leaks were located with."""
 
 
 def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "run") -> StepTable:
@@ -410,8 +418,9 @@ def _locate_and_cost(
     localisation_settings: LocalisationSettings,
     notes: list[str],
     threads: int = 1,
-) -> tuple[Localisation | None, list[LeakFinding], float]:
-    """Location, size and cost of the leaks behind a detected deviation."""
+) -> tuple[Localisation | None, list[LeakFinding], float, _Located | None]:
+    """Location, size and cost of the leaks behind a detected deviation, and the
+    effect model and weighting they were located with (None without signatures)."""
     effects = reference.leak_effects(threads=threads)
     if effects is None:
         notes.append(
@@ -419,7 +428,7 @@ def _locate_and_cost(
             "cannot be estimated (rebuild the reference with signatures; recordings "
             "without a machine description need --machine DESCRIPTION)"
         )
-        return None, [], 0.0
+        return None, [], 0.0, None
     sig = effects.signatures
     localisation, whiten = _locate_weighted(
         reference, effects, observed, n_cycles, localisation_settings
@@ -458,7 +467,7 @@ def _locate_and_cost(
             "deviation: another fault (or a leak outside the candidate locations) may be "
             "present"
         )
-    return localisation, leaks, total
+    return localisation, leaks, total, (effects, whiten)
 
 
 def diagnose(
@@ -467,8 +476,10 @@ def diagnose(
     settings: CostSettings | None = None,
     localisation: LocalisationSettings | None = None,
     threads: int | None = None,
+    faults: bool = True,
 ) -> Diagnosis:
-    """Detect, locate, size and cost leaks in ``run`` against ``reference``.
+    """Detect, locate, size and cost leaks in ``run`` against ``reference``; name other
+    faults that explain it better.
 
     Parameters
     ----------
@@ -487,6 +498,9 @@ def diagnose(
         (the result does not depend on it). Default: the cores this process may use
         (:func:`pneufdd.parallel.available_cores`); 1 where several diagnoses already
         share the cores (a campaign's or a batch's workers).
+    faults : bool
+        Test faults other than leaks with the twin when the leaks do not explain a
+        detected run well (:mod:`pneufdd.diagnosis.fault_choice`); False: leaks only.
 
     Returns
     -------
@@ -516,17 +530,36 @@ def diagnose(
     notes: list[str] = []
     found: Localisation | None = None
     leaks: list[LeakFinding] = []
+    findings: list[Finding] = []
     total = 0.0
     if detected:
-        found, leaks, total = _locate_and_cost(
-            reference,
-            observed,
-            m,
-            settings,
-            localisation or reference.localisation,
-            notes,
-            n_threads,
+        chosen = localisation or reference.localisation
+        found, leaks, total, located = _locate_and_cost(
+            reference, observed, m, settings, chosen, notes, n_threads
         )
+        findings = leak_findings(leaks)
+        noise = np.asarray(det.scale_) * math.sqrt(1.0 / m + 1.0 / reference.n_cycles)
+        if (
+            faults
+            and located is not None
+            and needs_fault_check(found, located[0], observed, noise, reference.feature_names)
+        ):
+            verdict = judge_faults(
+                located[0],
+                observed,
+                located[1],
+                found,
+                leaks,
+                chosen,
+                notes,
+                n_threads,
+                reference.fault_screens,
+            )
+            findings = verdict.findings
+            if verdict.leaks_replaced:
+                leaks, total = [], 0.0
+            if findings and findings[0].fault_type != "leak":
+                notes[:] = [n for n in notes if not n.startswith(_LEAK_ONLY_NOTES)]
     return Diagnosis(
         detected=bool(detected),
         cycles_analyzed=int(m),
@@ -548,4 +581,5 @@ def diagnose(
         gaps_repaired=int(run.repaired_gaps),
         supply=supply_check(reference.feature_names, reference.features, X),
         sensor_set=sensor_set_report(reference.channels),
+        findings=findings,
     )

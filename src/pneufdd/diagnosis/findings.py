@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 
     from pneufdd.diagnosis.cost import CostSettings
 
-__all__ = ["Diagnosis", "LeakFinding"]
+__all__ = ["FAULT_TYPES", "Diagnosis", "Finding", "GroupMember", "LeakFinding"]
 
 M_TO_MM = 1e3
 """Millimetres per metre, for the orifice diameter an engineer reads [mm/m]."""
@@ -106,6 +106,148 @@ class LeakFinding:
         return M_TO_MM * self.orifice_diameter
 
 
+FAULT_TYPES = ("leak", "internal-leak", "throttle", "friction", "valve", "switch", "supply")
+"""Fault types a :class:`Finding` names (the catalogue's families, ``docs/faults.md``)."""
+
+_UNIT_LABEL = {"%": "% of Cv"}
+"""How a size's unit reads for a kind whose ``%`` means something particular."""
+
+
+@dataclass(frozen=True)
+class GroupMember:
+    """One explanation in a finding's ambiguity group.
+
+    Attributes
+    ----------
+    fault_type : str
+        One of :data:`FAULT_TYPES`.
+    kind : str
+        ``leak`` or a kind of :data:`~pneufdd.sim.faults.FAULT_KINDS`.
+    location : str
+        Where: ``supply``, a line (``PRESS_B``), an actuator (``PRESS``) or a switch.
+    size : float
+        Size it needs to explain the run, in ``unit`` (signed: a throttle -40 % is 40 %
+        closed).
+    unit : str
+        ``SLPM`` (leaks, internal leaks), ``%`` (throttle: of its Cv; friction),
+        ``ms``, ``bar``.
+
+    Examples
+    --------
+    >>> GroupMember("throttle", "throttle", "PRESS_B", -40.0, "%").describe()
+    'PRESS_B throttle -40 % of Cv'
+    >>> GroupMember("leak", "leak", "supply", 31.04, "SLPM").describe()
+    'supply leak 31.0 SLPM'
+    """
+
+    fault_type: str
+    kind: str
+    location: str
+    size: float
+    unit: str
+
+    def describe(self) -> str:
+        """``LOCATION KIND SIZE UNIT``, as an engineer reads it."""
+        unit = _UNIT_LABEL.get(self.unit, self.unit) if self.kind == "throttle" else self.unit
+        size = f"{self.size:.1f}" if self.unit == "SLPM" else f"{self.size:+.3g}"
+        if self.unit in ("%", "ms"):
+            size = f"{self.size:+.0f}"
+        return f"{self.location} {self.kind} {size} {unit}".strip()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {
+            "type": self.fault_type,
+            "kind": self.kind,
+            "location": self.location,
+            "size": None if not math.isfinite(self.size) else float(self.size),
+            "unit": self.unit,
+        }
+
+
+@dataclass(frozen=True)
+class Finding:
+    """What is wrong, as one finding: a leak or another fault (issue 34).
+
+    Attributes
+    ----------
+    fault_type : str
+        One of :data:`FAULT_TYPES`.
+    kind : str
+        ``leak`` or a kind of :data:`~pneufdd.sim.faults.FAULT_KINDS`.
+    location : str
+        Most likely place.
+    size : float
+        Its size in its own unit (``unit``).
+    unit : str
+        ``SLPM`` (leaks and internal leaks: flow at the supply pressure), ``%``
+        (a throttle's Cv; friction), ``ms`` (valve delay, late switch), ``bar``
+        (regulator drift).
+    ambiguity_group : tuple of GroupMember
+        Explanations the sensors cannot tell apart, the finding's own first; may span
+        types.
+    confidence : float
+        Confidence that the fault lies in the ambiguity group [-].
+    annual_cost : float or None
+        A leak's annual cost (eq. 1.1) [$/yr]; None for other faults.
+    cycle_time_change : float or None
+        Change of the cycle's duration the fault causes, per cycle [s] (by the twin at
+        the fitted size); None for leaks.
+
+    Examples
+    --------
+    >>> f = Finding("throttle", "throttle", "PRESS_B", -40.0, "%",
+    ...             (GroupMember("throttle", "throttle", "PRESS_B", -40.0, "%"),
+    ...              GroupMember("friction", "friction", "PRESS", 60.0, "%")), 0.8, None, 0.21)
+    >>> f.describe()
+    'PRESS_B throttle -40 % of Cv or PRESS friction +60 %'
+    """
+
+    fault_type: str
+    kind: str
+    location: str
+    size: float
+    unit: str
+    ambiguity_group: tuple[GroupMember, ...]
+    confidence: float
+    annual_cost: float | None = None
+    cycle_time_change: float | None = None
+
+    def describe(self) -> str:
+        """The finding and its ambiguity group in one line."""
+        members = self.ambiguity_group or (
+            GroupMember(self.fault_type, self.kind, self.location, self.size, self.unit),
+        )
+        return " or ".join(m.describe() for m in members)
+
+    def consequence(self) -> str:
+        """What it costs: a leak's annual cost, another fault's cycle time per cycle."""
+        if self.annual_cost is not None:
+            return f"{self.annual_cost:,.0f} $/yr"
+        if self.cycle_time_change is not None:
+            return f"{1e3 * self.cycle_time_change:+.0f} ms per cycle"
+        return ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (``findings`` of ``pneufdd diagnose --json``)."""
+
+        def num(x: float | None) -> float | None:
+            return None if x is None or not math.isfinite(x) else float(x)
+
+        return {
+            "type": self.fault_type,
+            "kind": self.kind,
+            "location": self.location,
+            "size": num(self.size),
+            "unit": self.unit,
+            "confidence": num(self.confidence),
+            "ambiguity_group": [m.to_dict() for m in self.ambiguity_group],
+            "annual_cost": num(self.annual_cost),
+            "cycle_time_change_s": num(self.cycle_time_change),
+            "text": self.describe(),
+        }
+
+
 @dataclass(frozen=True)
 class Diagnosis:
     """Everything :func:`~pneufdd.diagnosis.engine.diagnose` found about one run.
@@ -160,6 +302,9 @@ class Diagnosis:
     sensor_set : SensorSetReport, optional
         What the reference's sensor set can and cannot locate or size
         (:func:`pneufdd.diagnosis.reference.sensor_sets.sensor_set_report`).
+    findings : list of Finding
+        What is wrong: every leak of ``leaks`` and any other fault found, one
+        :class:`Finding` each (``docs/faults.md``, Diagnosis of fault types).
     """
 
     detected: bool
@@ -183,6 +328,7 @@ class Diagnosis:
     gaps_repaired: int = 0
     supply: SupplyCheck | None = None
     sensor_set: SensorSetReport | None = None
+    findings: list[Finding] = field(default_factory=list)
 
     def to_pandas(self) -> pd.DataFrame:
         """The leaks as a table, one row per leak, largest annual cost first.
@@ -263,6 +409,7 @@ class Diagnosis:
                 }
                 for alt in self.localisation.alternatives
             ],
+            "findings": [finding.to_dict() for finding in self.findings],
             "total_annual_cost": num(self.total_annual_cost),
             "supply_check": None if self.supply is None else self.supply.to_dict(),
             "sensor_set": None if self.sensor_set is None else self.sensor_set.to_dict(),
