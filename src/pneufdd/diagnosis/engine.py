@@ -27,7 +27,12 @@ from pneufdd.diagnosis.detection.residuals import supply_check
 from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.piecewise import Whitener
 from pneufdd.diagnosis.effects.signatures import SignatureSet
-from pneufdd.diagnosis.fault_choice import judge_faults, leak_findings, needs_fault_check
+from pneufdd.diagnosis.fault_choice import (
+    FAULT_MODEL_ERROR,
+    judge_faults,
+    leak_findings,
+    needs_fault_check,
+)
 from pneufdd.diagnosis.findings import Diagnosis, Finding, LeakFinding
 from pneufdd.diagnosis.localisation.model_choice import Explanation
 from pneufdd.diagnosis.localisation.search import (
@@ -98,6 +103,7 @@ def whitener(
     magnitude: FloatArray | None = None,
     leaks: Sequence[tuple[int, float]] = (),
     model_error_floor: float = 0.0,
+    predicted_cycles: int = 0,
 ) -> Whitener:
     r"""Weighting of a run's mean feature change: unit variance per residual component.
 
@@ -123,10 +129,18 @@ def whitener(
     Then the house-air fluctuation directions (section 4.4.1) are projected out in the
     weighted space (free nuisance amplitudes). Without ``leaks`` and ``magnitude`` this
     is the detector's statistic scaled to unit noise.
+
+    With ``predicted_cycles`` :math:`c > 0` the noise of a prediction simulated over
+    :math:`c` cycles is added, :math:`\sigma_j^2 / c`: a fault that shifts the timing
+    of a step decorrelates the twin's sensor noise from its baseline's, so its
+    simulated change is no better known than that (the fault hypotheses,
+    :mod:`pneufdd.diagnosis.fault_choice`).
     """
     det = reference.detector
     sigma = np.asarray(det.scale_, dtype=np.float64)
     variance = sigma**2 * (1.0 / n_cycles + 1.0 / reference.n_cycles)
+    if predicted_cycles > 0:
+        variance = variance + sigma**2 / predicted_cycles
     if magnitude is not None:
         variance = variance + (model_error_floor * magnitude) ** 2
     sig = reference.signatures
@@ -537,21 +551,28 @@ def diagnose(
         found, leaks, total, located = _locate_and_cost(
             reference, observed, m, settings, chosen, notes, n_threads
         )
-        findings = leak_findings(leaks)
+        findings = leak_findings(leaks, reference.channels)
         noise = np.asarray(det.scale_) * math.sqrt(1.0 / m + 1.0 / reference.n_cycles)
         if (
             faults
             and located is not None
             and needs_fault_check(found, located[0], observed, noise, reference.feature_names)
         ):
+
+            def weigh(magnitude: FloatArray, leaks: Sequence[tuple[int, float]]) -> Whitener:
+                return whitener(
+                    reference, m, magnitude, leaks, FAULT_MODEL_ERROR, located[0].cycles
+                )
+
             verdict = judge_faults(
                 located[0],
                 observed,
-                located[1],
+                weigh,
                 found,
                 leaks,
                 chosen,
                 notes,
+                reference.channels,
                 n_threads,
                 reference.fault_screens,
             )

@@ -24,7 +24,7 @@ residual plus ``2 ln(dof) s^2`` per fitted size, ``s^2 = max(1, rss_min / (dof -
 from __future__ import annotations
 
 import math
-from collections.abc import MutableMapping, Sequence
+from collections.abc import Callable, MutableMapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,8 +44,10 @@ from pneufdd.physics.units import kg_s_to_slpm
 
 __all__ = [
     "DURATION_BAND",
+    "FAULT_MODEL_ERROR",
     "UNEXPLAINED_SHARE",
     "FaultVerdict",
+    "LeakWeighing",
     "judge_faults",
     "leak_findings",
     "needs_fault_check",
@@ -62,9 +64,9 @@ many times its noise and model-error band [-]."""
 DURATION_FLOOR_S = 0.005
 """Smallest duration band: the PLC's 100 Hz signals quantise a step [s]."""
 
-DURATION_RELATIVE = 0.1
-"""Model-error part of the duration band: this share of the duration's observed change
-(the leak's twin and the plant differ by about that) [-]."""
+DURATION_RELATIVE = 0.25
+"""Model-error part of the duration band: this share of the larger of the duration's
+observed and predicted change (:data:`FAULT_MODEL_ERROR`) [-]."""
 
 
 @dataclass(frozen=True)
@@ -94,8 +96,16 @@ def _leak_member(location: str, mass_flow: float) -> GroupMember:
     return GroupMember("leak", "leak", location, float(kg_s_to_slpm(mass_flow)), "SLPM")
 
 
-def leak_findings(leaks: Sequence[LeakFinding]) -> list[Finding]:
-    """One :class:`Finding` per leak, its ambiguity group of leak locations."""
+def leak_findings(leaks: Sequence[LeakFinding], channels: Sequence[str] = ()) -> list[Finding]:
+    """One :class:`Finding` per leak, its ambiguity group of leak locations.
+
+    A leak on a line without a flow meter of its own (``Q_<LINE>`` not in
+    ``channels``) has a spool leak to the exhaust of that line (``valve-leak-out``)
+    in its group at the same size: both lose the same air from the same chamber to
+    the atmosphere, sized by the same convention (flow from the nominal supply
+    pressure); only a meter between the valve and the cylinder tells them apart
+    (``docs/faults.md``).
+    """
     out = []
     for leak in leaks:
         flows = leak.group_mass_flows or (leak.mass_flow,) * len(leak.ambiguity_group)
@@ -103,6 +113,9 @@ def leak_findings(leaks: Sequence[LeakFinding]) -> list[Finding]:
             _leak_member(str(loc), flow)
             for loc, flow in zip(leak.ambiguity_group, flows, strict=False)
         )
+        line = str(leak.location)
+        if not leak.location.is_supply and f"Q_{line}" not in channels:
+            group += (GroupMember("internal-leak", "valve-leak-out", line, leak.flow_slpm, "SLPM"),)
         out.append(
             Finding(
                 "leak",
@@ -131,7 +144,9 @@ def needs_fault_check(
     :data:`UNEXPLAINED_SHARE` of it unexplained, or when a step's duration differs
     from what the leaks predict (their signature model) by more than
     :data:`DURATION_BAND` times ``max(noise, DURATION_FLOOR_S, DURATION_RELATIVE *
-    |observed|)`` (``noise``: the run mean's standard deviation per feature).
+    max(|observed|, |predicted|))`` (``noise``: the run mean's standard deviation per
+    feature): with the default 4 x 0.25, a step the leaks do not move at all, or move
+    the other way.
     """
     if localisation is None or not localisation.leaks:
         return True
@@ -143,11 +158,12 @@ def needs_fault_check(
     )
     durations = np.array([name.startswith("duration@") for name in feature_names])
     residual = np.abs(observed - predicted)[durations]
+    larger = np.maximum(np.abs(observed), np.abs(predicted))[durations]
     band = np.maximum.reduce(
         [
             noise[durations],
             np.full(int(durations.sum()), DURATION_FLOOR_S),
-            DURATION_RELATIVE * np.abs(observed[durations]),
+            DURATION_RELATIVE * larger,
         ]
     )
     return bool(np.any(residual > DURATION_BAND * band))
@@ -157,14 +173,48 @@ def _weights(ic: FloatArray, s2: float) -> FloatArray:
     return np.asarray(np.exp(-(ic - float(np.min(ic))) / (2.0 * s2)), dtype=np.float64)
 
 
+LeakWeighing = Callable[[FloatArray, Sequence[tuple[int, float]]], Whitener]
+"""The run's weighting for an effect magnitude [feature unit] and the leaks
+``(location index, size [kg/s])`` whose plant model error it carries
+(:func:`pneufdd.diagnosis.engine.whitener` with :data:`FAULT_MODEL_ERROR`)."""
+
+FAULT_MODEL_ERROR = 0.25
+"""Model-error floor of every explanation compared with faults: this share of the
+larger of the observed and the explained change per feature [-].
+
+The twin's effect of a fault on a real plant is known no better than the plant's
+parameters: at plant scale 1 a throttle's Cv is drawn within +-50 %, friction and
+volumes within tens of per cent (``docs/plant-variation.md``), so a fault's effect on
+the plant differs from the twin's by tens of per cent; the leaks carry their sampled
+model error (plausible plants) on top. An assumption (``docs/assumptions.md``)."""
+
+
+def _leak_change(
+    effects: LeakEffectModel, localisation: Localisation | None
+) -> tuple[FloatArray | None, list[tuple[int, float]]]:
+    """The leak explanation's change and its leaks ``(index, size [kg/s])``.
+
+    The simulated change when the leaks were checked by simulation (the twin's cache
+    holds it), else the signature model's; None without leaks."""
+    if localisation is None or not localisation.leaks:
+        return None, []
+    index = effects.locations.index
+    leaks = {index(leak.location): leak.mass_flow for leak in localisation.leaks}
+    change = effects.simulate(leaks) if localisation.checked_by_simulation else None
+    if change is None:
+        change = effects.change(leaks)
+    return change, list(leaks.items())
+
+
 def judge_faults(
     effects: LeakEffectModel,
     observed: FloatArray,
-    whiten: Whitener,
+    weigh: LeakWeighing,
     localisation: Localisation | None,
     leaks: Sequence[LeakFinding],
     settings: LocalisationSettings,
     notes: list[str],
+    channels: Sequence[str] = (),
     threads: int = 1,
     cache: MutableMapping[tuple[str, str, float], FloatArray | None] | None = None,
 ) -> FaultVerdict:
@@ -176,8 +226,9 @@ def judge_faults(
         The reference's twin interface (its description gives the hypotheses).
     observed : ndarray
         Mean feature change of the run [feature unit].
-    whiten : callable
-        The weighting the leaks were located with (the same for every explanation).
+    weigh : callable
+        The run's weighting (:data:`LeakWeighing`), the same rule for every
+        explanation.
     localisation : Localisation or None
         The leak explanation (None: not located).
     leaks : sequence of LeakFinding
@@ -186,6 +237,8 @@ def judge_faults(
         ``group_ratio`` and ``relative_tolerance`` of the ambiguity group.
     notes : list of str
         Appended to: what replaced the leaks, or why the faults were not tested.
+    channels : sequence of str
+        The reference's analog channels (:func:`leak_findings`).
     threads : int
         Simulations that run at once.
     cache : mapping, optional
@@ -200,28 +253,45 @@ def judge_faults(
             "faults other than leaks were not tested: the reference has no digital twin "
             "(no machine description)"
         )
-        return FaultVerdict(leak_findings(leaks), False, False)
+        return FaultVerdict(leak_findings(leaks, channels), False, False)
     hypotheses = fault_hypotheses(effects.machine)
     fits = fit_faults(
-        observed, effects.simulate_fault, whiten, hypotheses, threads=threads, cache=cache
+        observed,
+        effects.simulate_fault,
+        lambda magnitude: weigh(magnitude, ()),
+        hypotheses,
+        threads=threads,
+        cache=cache,
     )
-    target = np.asarray(whiten(observed)[0], dtype=np.float64)
-    dof = int(target.size)
-    rss_null = float(target @ target)
     sized = [f for f in fits if f.simulated]
-    leak_rss = localisation.rss if localisation is not None and localisation.leaks else math.inf
+    leak_change, leak_sizes = _leak_change(effects, localisation)
+    # one weighting for the decision: noise, the leaks' plant model error and a floor
+    # relative to the largest change any contender explains (each was sized with its own)
+    changes = [f.change for f in sized] + ([] if leak_change is None else [leak_change])
+    magnitude = np.max(np.abs(np.vstack([observed, *changes])), axis=0)
+    whiten = weigh(magnitude, leak_sizes)
+
+    def rss_of(change: FloatArray) -> float:
+        r = np.asarray(whiten(observed - change)[0], dtype=np.float64)
+        return float(r @ r)
+
+    dof = int(observed.size)
+    rss_null = rss_of(np.zeros_like(observed))
+    fault_rss = [rss_of(f.change) for f in sized]
+    leak_rss = math.inf if leak_change is None else rss_of(leak_change)
     k_leak = len(leaks)
-    rss_min = min([leak_rss, rss_null, *(f.rss for f in sized)])
+    rss_min = min([leak_rss, rss_null, *fault_rss])
     s2 = max(1.0, rss_min / max(dof - 1, 1))
     penalty = 2.0 * math.log(max(dof, 2)) * s2
     # a fault must pass the criterion against no explanation, as a first leak must
-    candidates = [f for f in sized if rss_null - f.rss > penalty]
-    if not candidates:
-        return FaultVerdict(leak_findings(leaks), False, True, tuple(fits))
+    passing = [(f, r) for f, r in zip(sized, fault_rss, strict=True) if rss_null - r > penalty]
+    if not passing:
+        return FaultVerdict(leak_findings(leaks, channels), False, True, tuple(fits))
+    candidates = [f for f, _ in passing]
     ic = np.array(
-        [*(f.rss + penalty for f in candidates), leak_rss + penalty * k_leak if leaks else math.inf]
+        [*(r + penalty for _, r in passing), leak_rss + penalty * k_leak if leaks else math.inf]
     )
-    rss = np.array([*(f.rss for f in candidates), leak_rss])
+    rss = np.array([*(r for _, r in passing), leak_rss])
     weights = _weights(ic, s2) if np.isfinite(ic).any() else np.zeros(ic.size)
     best = int(np.argmin(ic))
     close = (weights >= settings.group_ratio * weights[best]) | (
@@ -237,7 +307,7 @@ def judge_faults(
     members.sort(key=lambda m: -weights[m[0]])
     fault_members = tuple(m for _, m in members)
     if best == len(candidates):  # the leaks stay; close faults join the largest's group
-        found = leak_findings(leaks)
+        found = leak_findings(leaks, channels)
         if found and fault_members:
             first = found[0]
             found[0] = Finding(
@@ -270,6 +340,6 @@ def judge_faults(
         notes.append(
             f"{finding.describe()} explains the run better than the leak explanation "
             f"({', '.join(f'{leak.location} {leak.flow_slpm:.1f} SLPM' for leak in leaks)}; "
-            f"weighted residual {chosen.rss:.3g} against {leak_rss:.3g}): no leak is reported"
+            f"weighted residual {rss[best]:.3g} against {leak_rss:.3g}): no leak is reported"
         )
     return FaultVerdict([finding], bool(leaks), True, tuple(fits))

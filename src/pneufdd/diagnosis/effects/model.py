@@ -63,6 +63,10 @@ class LeakEffectModel:
         Feature change of a fault other than a leak by simulation
         (:data:`FaultSimulator`), with the same twin, seed and baseline as
         ``simulator``; None when no digital twin is available.
+    machine : MachineDescription, optional
+        The description the twin simulates.
+    cycles : int
+        Cycles the twin averages per simulation (0: no twin).
 
     Examples
     --------
@@ -80,6 +84,7 @@ class LeakEffectModel:
         threads: int = 1,
         fault_simulator: FaultSimulator | None = None,
         machine: MachineDescription | None = None,
+        cycles: int = 0,
     ) -> None:
         self.signatures = signatures
         self.simulator = simulator
@@ -87,6 +92,8 @@ class LeakEffectModel:
         self.fault_simulator = fault_simulator
         self.machine = machine
         """The description the twin simulates (None without a twin)."""
+        self.cycles = cycles
+        """Cycles averaged per simulation (0 without a twin)."""
 
     @classmethod
     def from_description(
@@ -134,7 +141,7 @@ class LeakEffectModel:
             )
         if twin is None:
             return cls(signatures, None, threads)
-        return cls(signatures, twin, threads, twin.fault_change, machine)
+        return cls(signatures, twin, threads, twin.fault_change, machine, cycles)
 
     @property
     def locations(self) -> tuple[Location, ...]:
