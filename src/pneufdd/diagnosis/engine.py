@@ -58,9 +58,6 @@ __all__ = ["check_compatible", "diagnose", "imitated_size", "run_whitener", "whi
 _LEAK_ONLY_NOTES = ("leak detected but no combination", "the leak model explains only")
 """Notes that read the deviation as a leak, left out when another fault explains it."""
 
-_Located = tuple[LeakEffectModel, Whitener]
-"""The effect model and the run's weighting the leaks were located with."""
-
 
 def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "run") -> StepTable:
     """Check that ``run`` comes from the reference's machine and has its channels.
@@ -432,9 +429,9 @@ def _locate_and_cost(
     localisation_settings: LocalisationSettings,
     notes: list[str],
     threads: int = 1,
-) -> tuple[Localisation | None, list[LeakFinding], float, _Located | None]:
+) -> tuple[Localisation | None, list[LeakFinding], float, LeakEffectModel | None]:
     """Location, size and cost of the leaks behind a detected deviation, and the
-    effect model and weighting they were located with (None without signatures)."""
+    effect model they were located with (None without signatures)."""
     effects = reference.leak_effects(threads=threads)
     if effects is None:
         notes.append(
@@ -481,7 +478,7 @@ def _locate_and_cost(
             "deviation: another fault (or a leak outside the candidate locations) may be "
             "present"
         )
-    return localisation, leaks, total, (effects, whiten)
+    return localisation, leaks, total, effects
 
 
 def diagnose(
@@ -545,6 +542,7 @@ def diagnose(
     found: Localisation | None = None
     leaks: list[LeakFinding] = []
     findings: list[Finding] = []
+    tested = False
     total = 0.0
     if detected:
         chosen = localisation or reference.localisation
@@ -556,16 +554,14 @@ def diagnose(
         if (
             faults
             and located is not None
-            and needs_fault_check(found, located[0], observed, noise, reference.feature_names)
+            and needs_fault_check(found, located, observed, noise, reference.feature_names)
         ):
 
             def weigh(magnitude: FloatArray, leaks: Sequence[tuple[int, float]]) -> Whitener:
-                return whitener(
-                    reference, m, magnitude, leaks, FAULT_MODEL_ERROR, located[0].cycles
-                )
+                return whitener(reference, m, magnitude, leaks, FAULT_MODEL_ERROR, located.cycles)
 
             verdict = judge_faults(
-                located[0],
+                located,
                 observed,
                 weigh,
                 found,
@@ -576,7 +572,7 @@ def diagnose(
                 n_threads,
                 reference.fault_screens,
             )
-            findings = verdict.findings
+            findings, tested = verdict.findings, verdict.checked
             if verdict.leaks_replaced:
                 leaks, total = [], 0.0
             if findings and findings[0].fault_type != "leak":
@@ -603,4 +599,5 @@ def diagnose(
         supply=supply_check(reference.feature_names, reference.features, X),
         sensor_set=sensor_set_report(reference.channels),
         findings=findings,
+        faults_tested=tested,
     )

@@ -305,6 +305,9 @@ class Diagnosis:
     findings : list of Finding
         What is wrong: every leak of ``leaks`` and any other fault found, one
         :class:`Finding` each (``docs/faults.md``, Diagnosis of fault types).
+    faults_tested : bool
+        True when faults other than leaks were fitted with the twin (the leaks left
+        the run poorly explained); their cost is then paid.
     """
 
     detected: bool
@@ -329,6 +332,7 @@ class Diagnosis:
     supply: SupplyCheck | None = None
     sensor_set: SensorSetReport | None = None
     findings: list[Finding] = field(default_factory=list)
+    faults_tested: bool = False
 
     def to_pandas(self) -> pd.DataFrame:
         """The leaks as a table, one row per leak, largest annual cost first.
@@ -410,6 +414,7 @@ class Diagnosis:
                 for alt in self.localisation.alternatives
             ],
             "findings": [finding.to_dict() for finding in self.findings],
+            "faults_tested": self.faults_tested,
             "total_annual_cost": num(self.total_annual_cost),
             "supply_check": None if self.supply is None else self.supply.to_dict(),
             "sensor_set": None if self.sensor_set is None else self.sensor_set.to_dict(),
