@@ -109,6 +109,12 @@ class LeakFinding:
 FAULT_TYPES = ("leak", "internal-leak", "throttle", "friction", "valve", "switch", "supply")
 """Fault types a :class:`Finding` names (the catalogue's families, ``docs/faults.md``)."""
 
+
+def _finite_or_none(x: float | None) -> float | None:
+    """``x`` as a JSON number, None when missing or not finite."""
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
 _UNIT_LABEL = {"%": "% of Cv"}
 """How a size's unit reads for a kind whose ``%`` means something particular."""
 
@@ -160,7 +166,7 @@ class GroupMember:
             "type": self.fault_type,
             "kind": self.kind,
             "location": self.location,
-            "size": None if not math.isfinite(self.size) else float(self.size),
+            "size": _finite_or_none(self.size),
             "unit": self.unit,
         }
 
@@ -231,9 +237,7 @@ class Finding:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (``findings`` of ``pneufdd diagnose --json``)."""
 
-        def num(x: float | None) -> float | None:
-            return None if x is None or not math.isfinite(x) else float(x)
-
+        num = _finite_or_none
         return {
             "type": self.fault_type,
             "kind": self.kind,
@@ -373,9 +377,7 @@ class Diagnosis:
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible summary (the ``--json`` output of ``pneufdd diagnose``)."""
 
-        def num(x: float) -> float | None:
-            return None if not math.isfinite(x) else float(x)
-
+        num = _finite_or_none
         return {
             "detected": self.detected,
             "cycles_analyzed": self.cycles_analyzed,
