@@ -557,8 +557,8 @@ def diagnose(
             and needs_fault_check(found, located, observed, noise, reference.feature_names)
         ):
 
-            def weigh(magnitude: FloatArray, leaks: Sequence[tuple[int, float]]) -> Whitener:
-                return whitener(reference, m, magnitude, leaks, FAULT_MODEL_ERROR, located.cycles)
+            def weigh(magnitude: FloatArray, sized: Sequence[tuple[int, float]]) -> Whitener:
+                return whitener(reference, m, magnitude, sized, FAULT_MODEL_ERROR, located.cycles)
 
             verdict = judge_faults(
                 located,
