@@ -1,6 +1,7 @@
 """``pneufdd diagnose``: detect, locate, size and cost leaks in a run.
 
-Exit codes (see :mod:`pneufdd.cli.exit_codes`): 0 no leak, 1 leak found, 2 bad input
+Exit codes (see :mod:`pneufdd.cli.exit_codes`): 0 no leak, 1 leak or other fault found
+(any finding: a detected run), 2 bad input
 (another machine, missing channels, an invalid reference...). Output files are
 rendered completely before anything is written, then written atomically, so an
 error never leaves a partial file behind.
@@ -238,7 +239,8 @@ def diagnose(
         ),
     ] = None,
 ) -> None:
-    """Diagnose RUN against a leak-free reference: exit 0 no leak, 1 leak found, 2 error."""
+    """Diagnose RUN against a leak-free reference: exit 0 no finding, 1 leak or other fault
+    found, 2 error."""
     from dataclasses import replace
 
     from rich.console import Console
@@ -307,6 +309,9 @@ def _print_result(console: Console, run: Path, result: Diagnosis) -> None:
     from pneufdd.physics.units import kg_s_to_slpm
 
     verdict = "[bold red]leak detected[/]" if result.detected else "[bold green]no leak[/]"
+    others = [f for f in result.findings if f.fault_type != "leak"]
+    if others:
+        verdict = "[bold red]fault detected[/]" + (" and leak" if result.leaks else "")
     console.print(
         f"{escape(str(run))}: {verdict} ({result.cycles_analyzed} cycles"
         + (f" after {result.startup_cycles} start-up" if result.startup_cycles else "")
@@ -325,6 +330,14 @@ def _print_result(console: Console, run: Path, result: Diagnosis) -> None:
         )
     if result.leaks:
         console.print(leak_table(result))
+    for finding in result.findings:
+        console.print(
+            f"finding: {finding.fault_type}: {finding.describe()}; confidence "
+            f"{100 * finding.confidence:.0f} %"
+            + (f"; {finding.consequence()}" if finding.consequence() else ""),
+            highlight=False,
+            markup=False,
+        )
         for line in repair_lines(result):
             console.print(line, highlight=False, markup=False)
     if result.detected or result.remainder is not None:

@@ -4,7 +4,7 @@
 code   meaning
 =====  ==============================================================
 0      success; for ``diagnose``: no leak found
-1      ``diagnose`` only: a leak was found
+1      ``diagnose``: a leak or another fault was found (a detected run)
 2      bad input or usage: a file, channel, unit, option or value
 3      internal error (a bug: please report it with the traceback)
 =====  ==============================================================

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
@@ -26,7 +27,13 @@ from pneufdd.diagnosis.costing import cost_localisation
 from pneufdd.diagnosis.detection.residuals import supply_check
 from pneufdd.diagnosis.effects.model import LeakEffectModel
 from pneufdd.diagnosis.effects.piecewise import WhitenedEffects, Whitener
-from pneufdd.diagnosis.findings import Diagnosis, LeakFinding
+from pneufdd.diagnosis.fault_choice import (
+    FAULT_MODEL_ERROR,
+    judge_faults,
+    leak_findings,
+    needs_fault_check,
+)
+from pneufdd.diagnosis.findings import Diagnosis, Finding, LeakFinding
 from pneufdd.diagnosis.localisation.model_choice import Explanation
 from pneufdd.diagnosis.localisation.remainder import HiddenLeak, Remainder, hidden_leak_bounds
 from pneufdd.diagnosis.localisation.search import (
@@ -53,6 +60,14 @@ __all__ = [
     "undetected_remainder",
     "whitener",
 ]
+
+
+_LEAK_ONLY_NOTES = (
+    "leak detected but no combination",
+    "the leak model explains only",
+    "more leaks may be present",
+)
+"""Notes that read the deviation as a leak, left out when another fault explains it."""
 
 
 def check_compatible(reference: ReferenceModel, run: StepTable, where: str = "run") -> StepTable:
@@ -96,6 +111,7 @@ def whitener(
     magnitude: FloatArray | None = None,
     leaks: Sequence[tuple[int, float]] = (),
     model_error_floor: float = 0.0,
+    predicted_cycles: int = 0,
 ) -> Whitener:
     r"""Weighting of a run's mean feature change: unit variance per residual component.
 
@@ -121,10 +137,18 @@ def whitener(
     Then the house-air fluctuation directions (section 4.4.1) are projected out in the
     weighted space (free nuisance amplitudes). Without ``leaks`` and ``magnitude`` this
     is the detector's statistic scaled to unit noise.
+
+    With ``predicted_cycles`` :math:`c > 0` the noise of a prediction simulated over
+    :math:`c` cycles is added, :math:`\sigma_j^2 / c`: a fault that shifts the timing
+    of a step decorrelates the twin's sensor noise from its baseline's, so its
+    simulated change is no better known than that (the fault hypotheses,
+    :mod:`pneufdd.diagnosis.fault_choice`).
     """
     det = reference.detector
     sigma = np.asarray(det.scale_, dtype=np.float64)
     variance = sigma**2 * (1.0 / n_cycles + 1.0 / reference.n_cycles)
+    if predicted_cycles > 0:
+        variance = variance + sigma**2 / predicted_cycles
     if magnitude is not None:
         variance = variance + (model_error_floor * magnitude) ** 2
     sig = reference.signatures
@@ -452,9 +476,17 @@ def _locate_and_cost(
     localisation_settings: LocalisationSettings,
     notes: list[str],
     threads: int = 1,
-) -> tuple[Localisation | None, list[LeakFinding], float, LeakTotals | None, tuple[int, ...]]:
+) -> tuple[
+    Localisation | None,
+    list[LeakFinding],
+    float,
+    LeakTotals | None,
+    tuple[int, ...],
+    LeakEffectModel | None,
+]:
     """Location, size and cost of the leaks behind a detected deviation; their
-    totals with intervals, and the order to repair them."""
+    totals with intervals, the order to repair them, and the effect model they were
+    located with (None without signatures)."""
     effects = reference.leak_effects(threads=threads)
     if effects is None:
         notes.append(
@@ -462,7 +494,7 @@ def _locate_and_cost(
             "cannot be estimated (rebuild the reference with signatures; recordings "
             "without a machine description need --machine DESCRIPTION)"
         )
-        return None, [], 0.0, None, ()
+        return None, [], 0.0, None, (), None
     sig = effects.signatures
     localisation, whiten = _locate_weighted(
         reference, effects, observed, n_cycles, localisation_settings
@@ -492,7 +524,7 @@ def _locate_and_cost(
             "deviation: another fault (or a leak outside the candidate locations) may be "
             "present"
         )
-    return localisation, leaks, total, totals, order
+    return localisation, leaks, total, totals, order, effects
 
 
 def diagnose(
@@ -501,8 +533,10 @@ def diagnose(
     settings: CostSettings | None = None,
     localisation: LocalisationSettings | None = None,
     threads: int | None = None,
+    faults: bool = True,
 ) -> Diagnosis:
-    """Detect, locate, size and cost leaks in ``run`` against ``reference``.
+    """Detect, locate, size and cost leaks in ``run`` against ``reference``; name other
+    faults that explain it better.
 
     Parameters
     ----------
@@ -521,6 +555,9 @@ def diagnose(
         (the result does not depend on it). Default: the cores this process may use
         (:func:`pneufdd.parallel.available_cores`); 1 where several diagnoses already
         share the cores (a campaign's or a batch's workers).
+    faults : bool
+        Test faults other than leaks with the twin when the leaks do not explain a
+        detected run well (:mod:`pneufdd.diagnosis.fault_choice`); False: leaks only.
 
     Returns
     -------
@@ -550,22 +587,47 @@ def diagnose(
     notes: list[str] = []
     found: Localisation | None = None
     leaks: list[LeakFinding] = []
+    findings: list[Finding] = []
+    tested = False
     total = 0.0
     totals: LeakTotals | None = None
     order: tuple[int, ...] = ()
     if detected:
-        found, leaks, total, totals, order = _locate_and_cost(
-            reference,
-            observed,
-            m,
-            settings,
-            localisation or reference.localisation,
-            notes,
-            n_threads,
+        chosen = localisation or reference.localisation
+        found, leaks, total, totals, order, located = _locate_and_cost(
+            reference, observed, m, settings, chosen, notes, n_threads
         )
         remainder = None if found is None else found.remainder
         if remainder is not None and remainder.more_leaks_possible:
             notes.append("more leaks may be present: " + "; ".join(remainder.reasons))
+        findings = leak_findings(leaks, reference.channels)
+        noise = np.asarray(det.scale_) * math.sqrt(1.0 / m + 1.0 / reference.n_cycles)
+        if (
+            faults
+            and located is not None
+            and needs_fault_check(found, located, observed, noise, reference.feature_names)
+        ):
+
+            def weigh(magnitude: FloatArray, sized: Sequence[tuple[int, float]]) -> Whitener:
+                return whitener(reference, m, magnitude, sized, FAULT_MODEL_ERROR, located.cycles)
+
+            verdict = judge_faults(
+                located,
+                observed,
+                weigh,
+                found,
+                leaks,
+                chosen,
+                notes,
+                reference.channels,
+                n_threads,
+                reference.fault_screens,
+            )
+            findings, tested = verdict.findings, verdict.checked
+            if verdict.leaks_replaced:
+                leaks, total, totals, order, remainder = [], 0.0, None, (), None
+            if findings and findings[0].fault_type != "leak":
+                notes[:] = [n for n in notes if not n.startswith(_LEAK_ONLY_NOTES)]
     else:
         remainder = undetected_remainder(reference, observed, m)
     return Diagnosis(
@@ -592,4 +654,6 @@ def diagnose(
         totals=totals,
         repair_order=order,
         remainder=remainder,
+        findings=findings,
+        faults_tested=tested,
     )

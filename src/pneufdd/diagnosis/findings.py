@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
     from pneufdd.diagnosis.cost import CostSettings, LeakTotals
 
-__all__ = ["Diagnosis", "LeakFinding", "summary_sentence"]
+__all__ = ["FAULT_TYPES", "Diagnosis", "Finding", "GroupMember", "LeakFinding", "summary_sentence"]
 
 M_TO_MM = 1e3
 """Millimetres per metre, for the orifice diameter an engineer reads [mm/m]."""
@@ -129,6 +129,152 @@ class LeakFinding:
         return DAYS_PER_YEAR * self.repair_cost / self.annual_cost
 
 
+FAULT_TYPES = ("leak", "internal-leak", "throttle", "friction", "valve", "switch", "supply")
+"""Fault types a :class:`Finding` names (the catalogue's families, ``docs/faults.md``)."""
+
+
+def _finite_or_none(x: float | None) -> float | None:
+    """``x`` as a JSON number, None when missing or not finite."""
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+_UNIT_LABEL = {"%": "% of Cv"}
+"""How a size's unit reads for a kind whose ``%`` means something particular."""
+
+
+@dataclass(frozen=True)
+class GroupMember:
+    """One explanation in a finding's ambiguity group.
+
+    Attributes
+    ----------
+    fault_type : str
+        One of :data:`FAULT_TYPES`.
+    kind : str
+        ``leak`` or a kind of :data:`~pneufdd.sim.faults.FAULT_KINDS`.
+    location : str
+        Where: ``supply``, a line (``PRESS_B``), an actuator (``PRESS``) or a switch.
+    size : float
+        Size it needs to explain the run, in ``unit`` (signed: a throttle -40 % is 40 %
+        closed).
+    unit : str
+        ``SLPM`` (leaks, internal leaks), ``%`` (throttle: of its Cv; friction),
+        ``ms``, ``bar``.
+
+    Examples
+    --------
+    >>> GroupMember("throttle", "throttle", "PRESS_B", -40.0, "%").describe()
+    'PRESS_B throttle -40 % of Cv'
+    >>> GroupMember("leak", "leak", "supply", 31.04, "SLPM").describe()
+    'supply leak 31.0 SLPM'
+    """
+
+    fault_type: str
+    kind: str
+    location: str
+    size: float
+    unit: str
+
+    def describe(self) -> str:
+        """``LOCATION KIND SIZE UNIT``, as an engineer reads it."""
+        unit = _UNIT_LABEL.get(self.unit, self.unit) if self.kind == "throttle" else self.unit
+        size = f"{self.size:.1f}" if self.unit == "SLPM" else f"{self.size:+.3g}"
+        if self.unit in ("%", "ms"):
+            size = f"{self.size:+.0f}"
+        return f"{self.location} {self.kind} {size} {unit}".strip()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {
+            "type": self.fault_type,
+            "kind": self.kind,
+            "location": self.location,
+            "size": _finite_or_none(self.size),
+            "unit": self.unit,
+        }
+
+
+@dataclass(frozen=True)
+class Finding:
+    """What is wrong, as one finding: a leak or another fault (issue 34).
+
+    Attributes
+    ----------
+    fault_type : str
+        One of :data:`FAULT_TYPES`.
+    kind : str
+        ``leak`` or a kind of :data:`~pneufdd.sim.faults.FAULT_KINDS`.
+    location : str
+        Most likely place.
+    size : float
+        Its size in its own unit (``unit``).
+    unit : str
+        ``SLPM`` (leaks and internal leaks: flow at the supply pressure), ``%``
+        (a throttle's Cv; friction), ``ms`` (valve delay, late switch), ``bar``
+        (regulator drift).
+    ambiguity_group : tuple of GroupMember
+        Explanations the sensors cannot tell apart, the finding's own first; may span
+        types.
+    confidence : float
+        Confidence that the fault lies in the ambiguity group [-].
+    annual_cost : float or None
+        A leak's annual cost (eq. 1.1) [$/yr]; None for other faults.
+    cycle_time_change : float or None
+        Change of the cycle's duration the fault causes, per cycle [s] (by the twin at
+        the fitted size); None for leaks.
+
+    Examples
+    --------
+    >>> f = Finding("throttle", "throttle", "PRESS_B", -40.0, "%",
+    ...             (GroupMember("throttle", "throttle", "PRESS_B", -40.0, "%"),
+    ...              GroupMember("friction", "friction", "PRESS", 60.0, "%")), 0.8, None, 0.21)
+    >>> f.describe()
+    'PRESS_B throttle -40 % of Cv or PRESS friction +60 %'
+    """
+
+    fault_type: str
+    kind: str
+    location: str
+    size: float
+    unit: str
+    ambiguity_group: tuple[GroupMember, ...]
+    confidence: float
+    annual_cost: float | None = None
+    cycle_time_change: float | None = None
+
+    def describe(self) -> str:
+        """The finding and its ambiguity group in one line."""
+        members = self.ambiguity_group or (
+            GroupMember(self.fault_type, self.kind, self.location, self.size, self.unit),
+        )
+        return " or ".join(m.describe() for m in members)
+
+    def consequence(self) -> str:
+        """What it costs: a leak's annual cost, another fault's cycle time per cycle."""
+        if self.annual_cost is not None:
+            return f"{self.annual_cost:,.0f} $/yr"
+        if self.cycle_time_change is not None:
+            return f"{1e3 * self.cycle_time_change:+.0f} ms per cycle"
+        return ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (``findings`` of ``pneufdd diagnose --json``)."""
+
+        num = _finite_or_none
+        return {
+            "type": self.fault_type,
+            "kind": self.kind,
+            "location": self.location,
+            "size": num(self.size),
+            "unit": self.unit,
+            "confidence": num(self.confidence),
+            "ambiguity_group": [m.to_dict() for m in self.ambiguity_group],
+            "annual_cost": num(self.annual_cost),
+            "cycle_time_change_s": num(self.cycle_time_change),
+            "text": self.describe(),
+        }
+
+
 @dataclass(frozen=True)
 class Diagnosis:
     """Everything :func:`~pneufdd.diagnosis.engine.diagnose` found about one run.
@@ -194,6 +340,12 @@ class Diagnosis:
         could still hide at each other location, and whether more leaks may be
         present; for a run without a detected leak, the largest leak each location
         could hide (None without leak signatures).
+    findings : list of Finding
+        What is wrong: every leak of ``leaks`` and any other fault found, one
+        :class:`Finding` each (``docs/faults.md``, Diagnosis of fault types).
+    faults_tested : bool
+        True when faults other than leaks were fitted with the twin (the leaks left
+        the run poorly explained); their cost is then paid.
     """
 
     detected: bool
@@ -220,6 +372,8 @@ class Diagnosis:
     totals: LeakTotals | None = None
     repair_order: tuple[int, ...] = ()
     remainder: Remainder | None = None
+    findings: list[Finding] = field(default_factory=list)
+    faults_tested: bool = False
 
     def summary(self) -> str:
         """One sentence: what was found, how much of the deviation it explains, and
@@ -279,9 +433,7 @@ class Diagnosis:
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible summary (the ``--json`` output of ``pneufdd diagnose``)."""
 
-        def num(x: float) -> float | None:
-            return None if not math.isfinite(x) else float(x)
-
+        num = _finite_or_none
         return {
             "detected": self.detected,
             "cycles_analyzed": self.cycles_analyzed,
@@ -329,6 +481,8 @@ class Diagnosis:
                 }
                 for alt in self.localisation.alternatives
             ],
+            "findings": [finding.to_dict() for finding in self.findings],
+            "faults_tested": self.faults_tested,
             "total_annual_cost": num(self.total_annual_cost),
             "supply_check": None if self.supply is None else self.supply.to_dict(),
             "sensor_set": None if self.sensor_set is None else self.sensor_set.to_dict(),

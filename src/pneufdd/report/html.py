@@ -293,6 +293,34 @@ def _remainder_section(diagnosis: Diagnosis) -> str:
     )
 
 
+def _findings_table(diagnosis: Diagnosis) -> str:
+    """One row per finding: type, where, size in its unit, group, confidence, consequence."""
+    if not diagnosis.findings:
+        return "<p>No finding.</p>"
+    rows = []
+    for i, finding in enumerate(diagnosis.findings, start=1):
+        group = " or ".join(m.describe() for m in finding.ambiguity_group)
+        rows.append(
+            "<tr>"
+            f"<td>{i}</td><td class='l'>{_e(finding.fault_type)}</td>"
+            f"<td class='l'>{_e(finding.location)}</td>"
+            f"<td>{_fmt(finding.size, 1)} {_e(finding.unit)}</td>"
+            f"<td class='l'>{_e(group)}</td><td>{_fmt(100 * finding.confidence, 0)} %</td>"
+            f"<td class='l'>{_e(finding.consequence())}</td>"
+            "</tr>"
+        )
+    return (
+        "<table><tr><th>#</th><th class='l'>type</th><th class='l'>location</th>"
+        "<th>size</th><th class='l'>ambiguity group (may span types)</th>"
+        "<th>confidence</th><th class='l'>consequence</th></tr>"
+        + "".join(rows)
+        + "</table><p>Leaks are costed by eq. 1.1 (table below); other faults state the "
+        "change of the cycle time they cause per cycle, by the twin at the fitted size "
+        "(docs/faults.md, Diagnosis of fault types). A throttle's size is the change of its "
+        "Cv in %.</p>"
+    )
+
+
 def _supply_row(diagnosis: Diagnosis) -> str:
     """The eq. 4.19-4.21 supply check as a table row (empty without supply sensors)."""
     supply = diagnosis.supply
@@ -340,6 +368,7 @@ def render_report(
         A complete HTML document.
     """
     run = check_compatible(reference, run)
+    others = sum(finding.fault_type != "leak" for finding in diagnosis.findings)
     verdict = (
         f"<div class='verdict leak'>Leak detected: {len(diagnosis.leaks)} leak(s) located, "
         f"total {_fmt(diagnosis.total_annual_cost, 0)} $/year"
@@ -348,6 +377,7 @@ def render_report(
             if diagnosis.remainder is not None and diagnosis.remainder.more_leaks_possible
             else ""
         )
+        + (f"; {others} other fault(s) found" if others else "")
         + "</div>"
         if diagnosis.detected
         else "<div class='verdict ok'>No leak detected</div>"
@@ -426,6 +456,7 @@ def render_report(
         f"<title>{_e(title)}</title><style>{_STYLE}</style></head><body>"
         f"<header class='run'>{_e(context)} | report {_e(stamp)}</header>"
         f"<h1>{_e(title)}</h1>{verdict}{notes}"
+        f"<h2>Findings</h2>{_findings_table(diagnosis)}"
         f"<h2>Leaks, ranked by annual cost</h2>{_leak_table(diagnosis)}"
         f"<h2>What the leaks do not explain</h2>{_remainder_section(diagnosis)}"
         f"<h2>Ambiguity groups</h2>{ambiguity}"

@@ -31,12 +31,17 @@ from pneufdd.parallel import positive_count
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.signals.segmentation import StepSpec
 from pneufdd.sim import MachineDescription
+from pneufdd.sim.faults import Fault
 
-__all__ = ["LeakEffectModel", "Simulator"]
+__all__ = ["FaultSimulator", "LeakEffectModel", "Simulator"]
 
 Simulator = Callable[[Mapping[Location, float]], FloatArray | None]
 """Feature change of a set of leaks ``{location: nominal flow [kg/s]}``, or None when
 the machine cannot run with them [feature unit]."""
+
+FaultSimulator = Callable[[Fault], FloatArray | None]
+"""Feature change of one fault other than a leak (:class:`~pneufdd.sim.faults.Fault`),
+or None when the machine cannot run with it [feature unit]."""
 
 COUPLING_REFERENCE_SLPM = 30.0
 """Leak size at which a line leak's share of a supply leak's air draw is measured [SLPM]."""
@@ -52,6 +57,16 @@ class LeakEffectModel:
     simulator : callable, optional
         Feature change of any set of leaks by simulation (:data:`Simulator`); None
         when no digital twin is available.
+    threads : int
+        Threads that run independent simulations at once.
+    fault_simulator : callable, optional
+        Feature change of a fault other than a leak by simulation
+        (:data:`FaultSimulator`), with the same twin, seed and baseline as
+        ``simulator``; None when no digital twin is available.
+    machine : MachineDescription, optional
+        The description the twin simulates.
+    cycles : int
+        Cycles the twin averages per simulation (0: no twin).
 
     Examples
     --------
@@ -63,11 +78,22 @@ class LeakEffectModel:
     """
 
     def __init__(
-        self, signatures: SignatureSet, simulator: Simulator | None = None, threads: int = 1
+        self,
+        signatures: SignatureSet,
+        simulator: Simulator | None = None,
+        threads: int = 1,
+        fault_simulator: FaultSimulator | None = None,
+        machine: MachineDescription | None = None,
+        cycles: int = 0,
     ) -> None:
         self.signatures = signatures
         self.simulator = simulator
         self.threads = positive_count(threads, "simulation threads")
+        self.fault_simulator = fault_simulator
+        self.machine = machine
+        """The description the twin simulates (None without a twin)."""
+        self.cycles = cycles
+        """Cycles averaged per simulation (0 without a twin)."""
 
     @classmethod
     def from_description(
@@ -113,7 +139,9 @@ class LeakEffectModel:
                 seed,
                 signatures.baseline if same_run else None,
             )
-        return cls(signatures, twin, threads)
+        if twin is None:
+            return cls(signatures, None, threads)
+        return cls(signatures, twin, threads, twin.fault_change, machine, cycles)
 
     @property
     def locations(self) -> tuple[Location, ...]:
@@ -162,6 +190,17 @@ class LeakEffectModel:
         if self.simulator is None:
             return None
         return self.simulator({self.locations[i]: size for i, size in leaks.items()})
+
+    def simulate_fault(self, fault: Fault) -> FloatArray | None:
+        """Simulated feature change of one fault other than a leak [feature unit].
+
+        The same twin, seed and leak-free baseline as :meth:`simulate` (common random
+        numbers). Returns None when the machine cannot run with it, or without a
+        simulator.
+        """
+        if self.fault_simulator is None:
+            return None
+        return self.fault_simulator(fault)
 
     def pair_coupling(
         self, reference_size: float | None = None

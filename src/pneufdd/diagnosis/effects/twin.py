@@ -51,6 +51,7 @@ from pneufdd.sim import (
     run_simulation,
     vary_machine,
 )
+from pneufdd.sim.faults import Fault
 
 __all__ = [
     "SIGNATURE_SEED",
@@ -184,12 +185,14 @@ def _mean_features(
     sequence: Sequence[StepSpec],
     channels: Sequence[str],
     leak_flows: bool = True,
+    faults: Sequence[Fault] = (),
 ) -> tuple[npt.NDArray[np.float64], list[dict[str, Any]], tuple[str, ...], dict[Location, float]]:
     """Mean features, leak ground truth, feature names and mean flow of each leak [kg/s].
 
-    ``leaks`` maps each location to its size [SLPM at nominal supply pressure].
-    Without ``leak_flows`` the simulator keeps no internal states (faster) and the
-    mean flows are not computed (empty dict).
+    ``leaks`` maps each location to its size [SLPM at nominal supply pressure];
+    ``faults`` are faults other than leaks present from the start
+    (:mod:`pneufdd.sim.faults`). Without ``leak_flows`` the simulator keeps no
+    internal states (faster) and the mean flows are not computed (empty dict).
 
     Raises
     ------
@@ -207,6 +210,7 @@ def _mean_features(
         seed=seed,
         keep_outputs=leak_flows,
         channels=channels,
+        faults=list(faults) or None,
     )
     rec = sim.recording
     found, _, _ = segment_cycles(rec, sequence, f"simulated run with leaks {sizes}")
@@ -546,11 +550,13 @@ class TwinLeakEffect:
         self._base: npt.NDArray[np.float64] | None = (
             None if baseline is None else np.array(baseline, dtype=np.float64)
         )
-        self._cache: dict[tuple[tuple[str, float], ...], npt.NDArray[np.float64] | None] = {}
+        self._cache: dict[tuple[tuple[Any, ...], ...], npt.NDArray[np.float64] | None] = {}
 
-    def _features(self, leaks: Mapping[Location, float]) -> npt.NDArray[np.float64]:
+    def _features(
+        self, leaks: Mapping[Location, float], faults: Sequence[Fault] = ()
+    ) -> npt.NDArray[np.float64]:
         mean, _, names, _ = _mean_features(
-            self.machine, leaks, self.cycles, self.seed, self.sequence, self.channels, False
+            self.machine, leaks, self.cycles, self.seed, self.sequence, self.channels, False, faults
         )
         with self._lock:
             self.simulations += 1
@@ -563,6 +569,29 @@ class TwinLeakEffect:
                 )
             self._columns = np.array([index[n] for n in self.feature_names], dtype=np.int64)
         return np.asarray(mean[self._columns], dtype=np.float64)
+
+    def fault_change(self, fault: Fault) -> npt.NDArray[np.float64] | None:
+        """Feature change of one fault other than a leak, present from the start
+        (:mod:`pneufdd.sim.faults`), against the same leak-free baseline and seed as
+        the leaks [feature unit]; cached like them.
+
+        Returns None when the machine cannot run with it (it stalls, or a cycle does
+        not complete). Faults the description cannot carry raise
+        :class:`~pneufdd.errors.InputError` (a throttle fault on a line without a
+        throttle).
+        """
+        key = (("fault", fault.location, fault.kind, round(fault.size, 6), fault.unit),)
+        if key in self._cache:
+            return self._cache[key]
+        with self._lock:
+            if self._base is None:
+                self._base = self._features({})
+        try:
+            change: npt.NDArray[np.float64] | None = self._features({}, (fault,)) - self._base
+        except MACHINE_CANNOT_RUN:
+            change = None
+        self._cache[key] = change
+        return change
 
     def __call__(self, leaks: Mapping[Location, float]) -> npt.NDArray[np.float64] | None:
         """Feature change of ``leaks`` (location -> nominal flow [kg/s]) [feature unit].

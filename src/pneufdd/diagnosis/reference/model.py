@@ -393,6 +393,16 @@ class ReferenceModel:
             self.machine_description, f"machine description of reference {self.machine!r}"
         )
 
+    @cached_property
+    def fault_screens(self) -> dict[tuple[str, str, float], FloatArray | None]:
+        """Screening simulations of fault hypotheses, ``(kind, location, size) ->
+        feature change`` (:func:`pneufdd.diagnosis.localisation.faults.fit_faults`).
+
+        They do not depend on the run (the twin's common seed), so they are kept for
+        this reference's lifetime in memory: one set per reference, never saved.
+        """
+        return {}
+
     def leak_effects(self, simulation_cycles: int = 2, threads: int = 1) -> LeakEffectModel | None:
         """The leak-effect model of this machine and sensor set; None without signatures.
 
