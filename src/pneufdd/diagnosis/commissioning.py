@@ -316,7 +316,8 @@ def commission(
         source, recording = runs[port]
         table = run_table(reference, recording, source)
         tables[port] = table
-        result = diagnose(reference, table, threads=threads)
+        # the technician fitted a leak: its size is what is measured, not other faults
+        result = diagnose(reference, table, threads=threads, faults=False)
         index = names.index(port)
         size = plan.size_of(port)
         predicted = sig.effect(index, size)
@@ -338,6 +339,6 @@ def commission(
     for port, table in tables.items():
         if results[port].status != CORRECTED:
             continue
-        after, _ = _size_at(diagnose(corrected, table, threads=threads), port)
+        after, _ = _size_at(diagnose(corrected, table, threads=threads, faults=False), port)
         results[port] = replace(results[port], size_after=after)
     return CommissioningResult(corrected, tuple(results[p] for p in plan.ports))
