@@ -142,7 +142,8 @@ def needs_fault_check(
 
     When no leak explains the run, when the leaks leave more than
     :data:`UNEXPLAINED_SHARE` of it unexplained, or when a step's duration differs
-    from what the leaks predict (their signature model) by more than
+    from what the leaks predict (the twin's change when they were checked by
+    simulation, else their signature model) by more than
     :data:`DURATION_BAND` times ``max(noise, DURATION_FLOOR_S, DURATION_RELATIVE *
     max(|observed|, |predicted|))`` (``noise``: the run mean's standard deviation per
     feature): with the default 4 x 0.25, a step the leaks do not move at all, or move
@@ -152,10 +153,11 @@ def needs_fault_check(
         return True
     if 1.0 - localisation.explained > UNEXPLAINED_SHARE:
         return True
-    index = effects.locations.index
-    predicted = effects.change(
-        {index(leak.location): leak.mass_flow for leak in localisation.leaks}
-    )
+    # what the leaks predict: the twin's change where they were checked by simulation
+    # (interacting large leaks, which the signature model misreads), else the model's
+    predicted, _ = _leak_change(effects, localisation)
+    if predicted is None:  # no leak located (handled above)
+        return True
     durations = np.array([name.startswith("duration@") for name in feature_names])
     residual = np.abs(observed - predicted)[durations]
     larger = np.maximum(np.abs(observed), np.abs(predicted))[durations]
