@@ -148,7 +148,9 @@ def test_overflow_and_bad_values_skip_their_cycles_and_never_alarm(tmp_path):
     # overflows; Q_In's sensor reports Bad for 3 s in cycle 4
     burst = ("P_In", starts[1] + 2.0, starts[1] + 7.0)
     bad = ("Q_In", starts[3] + 2.0, starts[3] + 5.0)
-    plc = _plc(tmp_path, rec, [*analog, *digital], burst=burst, bad=bad)
+    # at 2x real time (1 s of queue per tag) only the burst overflows: at 8x a test
+    # worker starved by the other worker of `make test` lost a third cycle's samples
+    plc = _plc(tmp_path, rec, [*analog, *digital], burst=burst, bad=bad, speed=2.0)
     try:
         tags = _tag_map(tmp_path, analog, digital)
         outcomes, _log, sinks, db, source = _monitor(tmp_path, model, plc, tags)
