@@ -35,6 +35,15 @@ def _ok(x: Any) -> bool:
     return isinstance(x, int | float) and math.isfinite(x)
 
 
+def _legend_entry(fig: Any, name: str, style: Mapping[str, Any], **where: int) -> None:
+    """A legend entry without data for a line or band drawn as a shape (``add_hline``,
+    ``add_vrect``), which plotly leaves out of the legend: ``style`` is the trace's
+    ``mode`` and its ``line`` or ``marker``; ``where`` the subplot's ``row`` and ``col``."""
+    import plotly.graph_objects as go
+
+    fig.add_trace(go.Scatter(x=[None], y=[None], name=name, **style), **where)
+
+
 def score_figure(
     cycles: Sequence[Mapping[str, Any]],
     cycle_threshold: float | None,
@@ -61,17 +70,8 @@ def score_figure(
     threshold = float(cycle_threshold) if cycle_threshold is not None else math.nan
     if math.isfinite(threshold):
         fig.add_hline(y=threshold, line_dash="dash", line_color="#d62728", row=1, col=1)
-        fig.add_trace(  # legend entry of the threshold line
-            go.Scatter(
-                x=[None],
-                y=[None],
-                mode="lines",
-                name="per-cycle threshold",
-                line={"dash": "dash", "color": "#d62728"},
-            ),
-            row=1,
-            col=1,
-        )
+        style = {"mode": "lines", "line": {"dash": "dash", "color": "#d62728"}}
+        _legend_entry(fig, "per-cycle threshold", style, row=1, col=1)
     low, high = score_range(scores, threshold)
     fig.update_yaxes(type="log", range=[low, high], title_text="score T [-]", row=1, col=1)
     cusum = [c["cusum"] if _ok(c["cusum"]) else None for c in cycles]
@@ -84,17 +84,8 @@ def score_figure(
     if _ok(cusum_threshold):
         assert cusum_threshold is not None
         fig.add_hline(y=cusum_threshold, line_dash="dot", line_color="#d62728", row=2, col=1)
-        fig.add_trace(
-            go.Scatter(
-                x=[None],
-                y=[None],
-                mode="lines",
-                name="CUSUM decision threshold",
-                line={"dash": "dot", "color": "#d62728"},
-            ),
-            row=2,
-            col=1,
-        )
+        style = {"mode": "lines", "line": {"dash": "dot", "color": "#d62728"}}
+        _legend_entry(fig, "CUSUM decision threshold", style, row=2, col=1)
         top = max(top, cusum_threshold)
     fig.update_yaxes(
         range=[0.0, 1.15 * top if top > 0 else 1.0], title_text="CUSUM [-]", row=2, col=1
@@ -108,17 +99,8 @@ def score_figure(
             line_width=0,
         )
     if gaps:
-        fig.add_trace(
-            go.Scatter(
-                x=[None],
-                y=[None],
-                mode="markers",
-                name="gap: cycles skipped or lost",
-                marker={"color": "#ff7f0e", "symbol": "square"},
-            ),
-            row=2,
-            col=1,
-        )
+        style = {"mode": "markers", "marker": {"color": "#ff7f0e", "symbol": "square"}}
+        _legend_entry(fig, "gap: cycles skipped or lost", style, row=2, col=1)
     fig.update_xaxes(title_text="cycle start (UTC)", row=2, col=1)
     fig.update_layout(title=title, legend=_LEGEND, margin=_MARGIN, height=520)
     return _json(fig)
@@ -184,15 +166,8 @@ def diagnosis_statistic_figure(detection: Mapping[str, Any], title: str) -> str:
     fig = go.Figure(go.Bar(x=cycles, y=scores, marker_color=colours, name="statistic T"))
     if math.isfinite(threshold):
         fig.add_hline(y=threshold, line_dash="dash", line_color="#d62728")
-        fig.add_trace(
-            go.Scatter(
-                x=[None],
-                y=[None],
-                mode="lines",
-                name="per-cycle threshold",
-                line={"dash": "dash", "color": "#d62728"},
-            )
-        )
+        style = {"mode": "lines", "line": {"dash": "dash", "color": "#d62728"}}
+        _legend_entry(fig, "per-cycle threshold", style)
     low, high = score_range([s for s in scores if s is not None], threshold)
     fig.update_yaxes(type="log", range=[low, high], title_text="statistic T [-]")
     fig.update_xaxes(
