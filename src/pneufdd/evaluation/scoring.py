@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from pneufdd.array_types import FloatArray
 from pneufdd.location import Location
 
 __all__ = [
@@ -40,6 +41,21 @@ __all__ = [
 
 CONFIDENCE_BINS: tuple[float, ...] = (0.0, 0.5, 0.7, 0.8, 0.9, 0.95, 1.0000001)
 """Edges of the confidence bins of the reliability table [-]."""
+
+
+def _rate(a: int, b: int) -> float | None:
+    """``a / b``; None when nothing was measured (``b`` 0)."""
+    return None if b == 0 else a / b
+
+
+def _median(values: FloatArray) -> float | None:
+    """The median of ``values``; None when there are none."""
+    return float(np.median(values)) if values.size else None
+
+
+def _p90(values: FloatArray) -> float | None:
+    """The 90th percentile of ``values``; None when there are none."""
+    return float(np.percentile(values, 90)) if values.size else None
 
 
 @dataclass(frozen=True)
@@ -231,34 +247,31 @@ class Tally:
     def figures(self) -> dict[str, float | int | None]:
         """The figures as numbers (rates as fractions; None when not measured)."""
 
-        def rate(a: int, b: int) -> float | None:
-            return None if b == 0 else a / b
-
         errors = np.asarray(self.size_errors)
         return {
             "single_runs": self.leak_runs,
-            "detected": rate(self.detected, self.leak_runs),
-            "in_group": rate(self.inside, self.leak_runs),
+            "detected": _rate(self.detected, self.leak_runs),
+            "in_group": _rate(self.inside, self.leak_runs),
             "mean_group": float(np.mean(self.group_sizes)) if self.group_sizes else None,
-            "size_error_median": float(np.median(errors)) if errors.size else None,
-            "size_error_p90": float(np.percentile(errors, 90)) if errors.size else None,
-            "spurious_second_leak": rate(self.single_extra_leak, self.leak_runs),
-            "single_with_alternative": rate(self.single_with_alternatives, self.leak_runs),
+            "size_error_median": _median(errors),
+            "size_error_p90": _p90(errors),
+            "spurious_second_leak": _rate(self.single_extra_leak, self.leak_runs),
+            "single_with_alternative": _rate(self.single_with_alternatives, self.leak_runs),
             "leak_free_runs": self.free_runs,
-            "leak_free_flagged": rate(self.free_flagged, self.free_runs),
-            "cycle_leak_flagged": rate(self.cycle_leak_flagged, self.cycle_leak),
-            "cycle_free_flagged": rate(self.cycle_free_flagged, self.cycle_free),
+            "leak_free_flagged": _rate(self.free_flagged, self.free_runs),
+            "cycle_leak_flagged": _rate(self.cycle_leak_flagged, self.cycle_leak),
+            "cycle_free_flagged": _rate(self.cycle_free_flagged, self.cycle_free),
             "pair_runs": self.pairs,
-            "pairs_both": rate(self.pairs_both, self.pairs),
-            "pairs_both_or_alternative": rate(self.pairs_both_alt, self.pairs),
+            "pairs_both": _rate(self.pairs_both, self.pairs),
+            "pairs_both_or_alternative": _rate(self.pairs_both_alt, self.pairs),
             "pair_runs_one_actuator": self.pairs_one_actuator,
-            "pairs_one_actuator_both": rate(self.pairs_one_actuator_both, self.pairs_one_actuator),
+            "pairs_one_actuator_both": _rate(self.pairs_one_actuator_both, self.pairs_one_actuator),
             "mean_group_pairs": (
                 float(np.mean(self.pair_group_sizes)) if self.pair_group_sizes else None
             ),
             "seconds_mean": float(np.mean(self.seconds)) if self.seconds else None,
             "seconds_max": float(np.max(self.seconds)) if self.seconds else None,
-            "checked_by_simulation": rate(self.simulated, len(self.seconds)),
+            "checked_by_simulation": _rate(self.simulated, len(self.seconds)),
             "confident_true": self.confident_share(0.9),
         }
 
@@ -451,29 +464,26 @@ class MultiTally:
     def figures(self) -> dict[str, float | int | None]:
         """The figures as numbers (rates as fractions; None when not measured)."""
 
-        def rate(a: int, b: int) -> float | None:
-            return None if b == 0 else a / b
-
         errors = np.asarray(self.total_errors)
         return {
             "runs": self.runs,
-            "detected": rate(self.detected, self.runs),
-            "all_in_group": rate(self.all_found, self.runs),
-            "leaks_found": rate(self.found_leaks, self.true_leaks),
-            "total_flow_error_median": float(np.median(errors)) if errors.size else None,
-            "total_flow_error_p90": float(np.percentile(errors, 90)) if errors.size else None,
-            "total_within_10pct": rate(int(np.sum(errors <= 0.10)), int(errors.size)),
-            "total_interval_covers": rate(self.interval_covers, self.runs),
+            "detected": _rate(self.detected, self.runs),
+            "all_in_group": _rate(self.all_found, self.runs),
+            "leaks_found": _rate(self.found_leaks, self.true_leaks),
+            "total_flow_error_median": _median(errors),
+            "total_flow_error_p90": _p90(errors),
+            "total_within_10pct": _rate(int(np.sum(errors <= 0.10)), int(errors.size)),
+            "total_interval_covers": _rate(self.interval_covers, self.runs),
             "runs_missing_a_leak": self.runs_missing,
-            "remainder_stated": rate(self.missing_stated, self.runs_missing),
-            "missed_within_bound": rate(self.missed_within_bound, self.missed_leaks),
-            "more_leaks_flagged": rate(self.missing_flagged, self.runs_missing),
-            "spurious_per_run": rate(self.spurious, self.runs),
+            "remainder_stated": _rate(self.missing_stated, self.runs_missing),
+            "missed_within_bound": _rate(self.missed_within_bound, self.missed_leaks),
+            "more_leaks_flagged": _rate(self.missing_flagged, self.runs_missing),
+            "spurious_per_run": _rate(self.spurious, self.runs),
             "mean_reported": float(np.mean(self.reported)) if self.reported else None,
             "mean_group": float(np.mean(self.group_sizes)) if self.group_sizes else None,
             "seconds_mean": float(np.mean(self.seconds)) if self.seconds else None,
             "seconds_max": float(np.max(self.seconds)) if self.seconds else None,
-            "checked_by_simulation": rate(self.simulated, self.runs),
+            "checked_by_simulation": _rate(self.simulated, self.runs),
         }
 
     def lines(self, k: int, targets: Mapping[str, float] | None = None) -> list[str]:
