@@ -24,7 +24,7 @@ from pneufdd.energy.measures import Measure, measures_frame, rank
 from pneufdd.energy.pressure import SetPointSearch, lowest_set_point
 from pneufdd.energy.settings import EnergySettings
 from pneufdd.energy.standby import twin_standby
-from pneufdd.energy.twin import TwinRun, run_twin
+from pneufdd.energy.twin import TwinRun, mean_machine, run_twin
 from pneufdd.energy.whatifs import (
     air_off_measure,
     remedy_measures,
@@ -159,10 +159,11 @@ def diagnosed_leaks(
 
 
 def _machine(reference: ReferenceModel | None, machine: MachineLike | None) -> MachineDescription:
+    """The twin the analysis runs: the given or kept description's mean machine."""
     if machine is not None:
-        return load_machine(machine)
+        return mean_machine(load_machine(machine))
     if reference is not None and reference.description is not None:
-        return reference.description
+        return mean_machine(reference.description)
     raise InputError(
         describe(
             "machine description",
