@@ -20,7 +20,7 @@ from pneufdd.energy.breakdown import reconcile
 from pneufdd.energy.changes import Change, apply_changes
 from pneufdd.energy.pressure import lowest_set_point
 from pneufdd.energy.settings import EnergySettings
-from pneufdd.energy.twin import run_twin
+from pneufdd.energy.twin import mean_machine, run_twin
 from pneufdd.errors import MachineError
 from pneufdd.physics.constants import P_ATM, R_AIR
 from pneufdd.physics.units import pa_to_psig, psig_to_pa
@@ -224,3 +224,39 @@ def test_reconcile_takes_line_meters_and_leaks_from_the_meters(press, leaky_run)
     for other in ("FEED", "CLAMP", "EJECT"):
         assert factors[other] == pytest.approx(1.0, abs=0.03)
     assert scaled.sum() == pytest.approx(truth.sum(), rel=0.01)
+
+
+def test_reconcile_does_not_hand_a_step_residual_to_the_actuator_that_owns_the_step(leaky_run):
+    """Air the twin shapes differently (another fill's tail) in EJECT's steps stays shared.
+
+    The meter cannot tell whose air a short step's surplus is; one factor per actuator
+    gave it to the actuator that owns the step (festo-dsd's HGD2: +7.9 % -> +19.2 %).
+    """
+    air = twin_air(leaky_run)
+    groups = np.array([c.split(".")[0] for c in air.components])
+    eject = air.air_kg[:, groups == "EJECT"].sum(axis=1)
+    owns = eject > 0.5 * air.air_kg.sum(axis=1)
+    assert owns.any()
+    measured = air.air_kg.sum(axis=1) + np.where(owns, 0.3 * eject, 0.0)
+    factors, scaled = reconcile(air, measured)
+    assert factors["EJECT"] == factors["FEED"] == factors["CLAMP"] == factors["PRESS"]
+    assert factors["EJECT"] == pytest.approx(1.0, abs=0.03)
+    surplus = float(np.sum(measured) - np.sum(air.air_kg))
+    assert np.sum(scaled) - np.sum(air.air_kg) == pytest.approx(surplus, rel=0.5)
+
+
+def test_mean_machine_steadies_the_set_point_search(press):
+    """Without friction scatter the lowest set point hardly depends on the seed.
+
+    With press-fit-cell's 3 % scatter, 2 measured cycles put it anywhere in 44.7-47.2
+    psig over seeds 1-4; the mean machine within one bisection step (0.5 psi).
+    """
+    mean = mean_machine(press)
+    assert mean.friction_scatter == 0.0
+    assert press.friction_scatter > 0.0
+    found = [lowest_set_point(mean, settings=EnergySettings(seed=s)).min_psig for s in (1, 2, 3, 4)]
+    scattered = [
+        lowest_set_point(press, settings=EnergySettings(seed=s)).min_psig for s in (1, 2, 3, 4)
+    ]
+    assert max(found) - min(found) <= 2 * EnergySettings().resolution_psi
+    assert max(scattered) - min(scattered) > 2 * EnergySettings().resolution_psi
