@@ -129,7 +129,16 @@ class LeakFinding:
         return DAYS_PER_YEAR * self.repair_cost / self.annual_cost
 
 
-FAULT_TYPES = ("leak", "internal-leak", "throttle", "friction", "valve", "switch", "supply")
+FAULT_TYPES = (
+    "leak",
+    "internal-leak",
+    "throttle",
+    "cushion",
+    "friction",
+    "valve",
+    "switch",
+    "supply",
+)
 """Fault types a :class:`Finding` names (the catalogue's families, ``docs/faults.md``)."""
 
 
@@ -177,7 +186,9 @@ class GroupMember:
 
     def describe(self) -> str:
         """``LOCATION KIND SIZE UNIT``, as an engineer reads it."""
-        unit = _UNIT_LABEL.get(self.unit, self.unit) if self.kind == "throttle" else self.unit
+        unit = self.unit
+        if self.kind in ("throttle", "cushion"):  # % of the screw's Cv
+            unit = _UNIT_LABEL.get(self.unit, self.unit)
         size = f"{self.size:.1f}" if self.unit == "SLPM" else f"{self.size:+.3g}"
         if self.unit in ("%", "ms"):
             size = f"{self.size:+.0f}"
@@ -392,6 +403,15 @@ class Diagnosis:
         leak detected: 0 leaks located, explaining 88 % of the deviation;
         more leaks may be present: up to 12 SLPM more at HGD2, 8.8 SLPM at HMPL_V (95 % bounds)
         """
+        others = [f for f in self.findings if f.fault_type != "leak"]
+        if self.detected and others and not self.leaks:
+            first = others[0]
+            return f"fault detected: {first.fault_type} ({first.describe()}); no leak reported"
+        if self.detected and self.faults_tested and not self.findings:
+            return (
+                "deviation detected: neither leaks nor another fault of the catalogue "
+                "explain it (see the notes)"
+            )
         return summary_sentence(self.detected, len(self.leaks), self.remainder)
 
     def to_pandas(self) -> pd.DataFrame:
