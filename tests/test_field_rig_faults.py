@@ -80,6 +80,11 @@ def test_a_setting_set_wrong_is_a_non_leak_fault_on_the_cylinder(rig, name, kind
     assert low <= group[kind, "CYL_B"] <= high
     assert finding.cycle_time_change is not None
     assert finding.cycle_time_change != 0.0
+    # "+x ms on step k": the extension (step 1), whose exhaust is CYL_B
+    assert finding.step_change is not None
+    assert finding.step_change[0] == 1
+    assert finding.step_change[1] == pytest.approx(finding.cycle_time_change, abs=0.03)
+    assert f"ms on step {finding.step_change[0]}" in finding.consequence()
     summary = result.summary()
     assert summary.startswith("fault detected: ")
     assert "no leak reported" in summary

@@ -38,6 +38,7 @@ from pneufdd.diagnosis.localisation.faults import (
     cycle_time_change,
     fault_hypotheses,
     fit_faults,
+    largest_step_change,
 )
 from pneufdd.diagnosis.localisation.search import Localisation, LocalisationSettings
 from pneufdd.physics.units import kg_s_to_slpm
@@ -360,6 +361,7 @@ def judge_faults(
         group,
         share,
         cycle_time_change=cycle_time_change(effects.signatures.feature_names, chosen.change),
+        step_change=largest_step_change(effects.signatures.feature_names, chosen.change),
     )
     if leaks:
         notes.append(

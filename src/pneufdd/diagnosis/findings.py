@@ -233,6 +233,9 @@ class Finding:
     cycle_time_change : float or None
         Change of the cycle's duration the fault causes, per cycle [s] (by the twin at
         the fitted size); None for leaks.
+    step_change : tuple of (int, float) or None
+        The step (1-based) whose duration the fault changes most and by how much [s]
+        (by the twin at the fitted size): "+790 ms on step 1"; None for leaks.
 
     Examples
     --------
@@ -252,6 +255,7 @@ class Finding:
     confidence: float
     annual_cost: float | None = None
     cycle_time_change: float | None = None
+    step_change: tuple[int, float] | None = None
 
     def describe(self) -> str:
         """The finding and its ambiguity group in one line."""
@@ -265,7 +269,11 @@ class Finding:
         if self.annual_cost is not None:
             return f"{self.annual_cost:,.0f} $/yr"
         if self.cycle_time_change is not None:
-            return f"{1e3 * self.cycle_time_change:+.0f} ms per cycle"
+            text = f"{1e3 * self.cycle_time_change:+.0f} ms per cycle"
+            if self.step_change is not None:
+                step, change = self.step_change
+                text += f", {1e3 * change:+.0f} ms on step {step}"
+            return text
         return ""
 
     def to_dict(self) -> dict[str, Any]:
@@ -282,6 +290,9 @@ class Finding:
             "ambiguity_group": [m.to_dict() for m in self.ambiguity_group],
             "annual_cost": num(self.annual_cost),
             "cycle_time_change_s": num(self.cycle_time_change),
+            "step_change": None
+            if self.step_change is None
+            else {"step": self.step_change[0], "duration_change_s": num(self.step_change[1])},
             "text": self.describe(),
         }
 

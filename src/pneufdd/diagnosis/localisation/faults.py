@@ -58,6 +58,7 @@ __all__ = [
     "cycle_time_change",
     "fault_hypotheses",
     "fit_faults",
+    "largest_step_change",
     "residual",
 ]
 
@@ -391,6 +392,28 @@ def fit_faults(
         for rss, h, x, _, change in ranked[len(top) :]
     ]
     return sized + rest
+
+
+def largest_step_change(
+    feature_names: Sequence[str], change: FloatArray
+) -> tuple[int, float] | None:
+    """The step (1-based) whose duration changes most, and its change [s].
+
+    Examples
+    --------
+    >>> largest_step_change(("duration@1", "duration@2", "Q_In.mean@1"),
+    ...                     np.array([0.01, -0.25, 3.0]))
+    (2, -0.25)
+    """
+    steps = [
+        (abs(float(v)), int(name.split("@")[1]), float(v))
+        for name, v in zip(feature_names, change, strict=True)
+        if name.startswith("duration@") and math.isfinite(float(v))
+    ]
+    if not steps:
+        return None
+    _, step, value = max(steps)
+    return step, round(value, 12)
 
 
 def cycle_time_change(feature_names: Sequence[str], change: FloatArray) -> float:
