@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from pneufdd.cli.app import main
+from pneufdd.diagnosis.captures import SESSION_GAP_S
 from pneufdd.diagnosis.reference.file import load_reference
 from pneufdd.diagnosis.reference.honesty import clopper_pearson, reference_honesty
 from pneufdd.sim import as_exported
@@ -52,7 +53,10 @@ def test_reference_from_a_folder_of_one_cycle_captures(
     assert "12 leak-free cycles" in err
     assert "12 of 12 recording(s) start at a cycle start" in err
     assert "P_In is quantised in steps of 1.9e+04 Pa" in err
-    assert "0 of 12 independent cycles in 12 recording(s); 95 % interval 0.00-26.46 %" in err
+    # one acquisition: one session, and the report says what that leaves unmeasured
+    assert "0 of 12 independent cycles in 12 recording(s) of 1 session(s); 95 % " in err
+    assert "interval 0.00-26.46 %" in err
+    assert "captures come from 1 session(s)" in err
     assert "this one has 12 in 12" in err
     model = load_reference(ref)
     assert model.settings.quantum("P_In") == pytest.approx(19_000.0)
@@ -60,6 +64,7 @@ def test_reference_from_a_folder_of_one_cycle_captures(
     honesty = reference_honesty(model)
     assert honesty.cycles == 12
     assert honesty.recordings == 12
+    assert honesty.sessions == 1
     # pooled diagnosis of held-out healthy captures; and a single capture on its own
     out = rig / "pooled.json"
     code = main(["diagnose", str(rig / "run"), "--pool", "--reference", str(ref)])
@@ -134,3 +139,32 @@ def test_clopper_pearson_matches_the_closed_form() -> None:
     assert clopper_pearson(0, n)[1] == pytest.approx(1 - 0.025 ** (1 / n))
     # k = n: the lower bound solves p^n = alpha / 2
     assert clopper_pearson(n, n)[0] == pytest.approx(0.025 ** (1 / n))
+
+
+def test_captures_of_three_sessions_are_left_out_by_session(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Captures of three acquisitions (each simulation starts at the epoch again): three
+    sessions, the cross-validation leaves one out at a time and the file keeps them."""
+    folder = tmp_path / "ref"
+    folder.mkdir()
+    for session in range(3):
+        caps = simulate_captures(RIG, files=4, pre_trigger_s=0.2, capture_s=2.6, seed=10 + session)
+        pause = (caps[1].start_time - caps[0].start_time).total_seconds() - caps[0].duration
+        assert 0.0 <= pause <= SESSION_GAP_S  # one acquisition
+        for k, cap in enumerate(caps):
+            as_exported(cap).write(folder / f"s{session}c{k}.parquet")
+    ref = tmp_path / "rig.pnref"
+    args = ["reference", "build", str(folder), "--machine", str(RIG), "--no-signatures"]
+    assert main([*args, "--out", str(ref)]) == 0
+    err = " ".join(capsys.readouterr().err.split())
+    assert "of 12 independent cycles in 12 recording(s) of 3 session(s)" in err
+    assert "come from" not in err  # three sessions: no warning
+    model = load_reference(ref)
+    assert model.recording_session == (0,) * 4 + (1,) * 4 + (2,) * 4
+    assert model.cycle_session is not None
+    assert model.cycle_session.tolist() == [0] * 4 + [1] * 4 + [2] * 4
+    det = model.detector
+    assert det.grouped_cv_
+    assert 0.0 <= det.recording_correlation_ <= 1.0
+    assert reference_honesty(model).sessions == 3

@@ -217,7 +217,9 @@ def test_the_rig_from_the_cli(rig: dict[str, object], capsys: pytest.CaptureFixt
     assert "channels ['P_In', 'Q_CYL_A', 'X_CYL']" in err
     assert "14 of 14 recording(s) start at a cycle start" in err
     assert "P_In is quantised in steps of 1.9e+04 Pa" in err
-    assert "(0 of 14 independent cycles in 14 recording(s); 95 % interval 0.00-23.16 %" in err
+    assert "(0 of 14 independent cycles in 14 recording(s) of 1 session(s); 95 % interval" in err
+    assert "0.00-23.16 %" in err
+    assert "come from 1 session(s)" in err  # one acquisition: between sessions unmeasured
     assert "needs at least 100 leak-free cycles in several recordings; this one has 14 in 14" in err
     assert "sensor set line-flows" in err
     # held-out healthy captures: none flagged, alone or pooled

@@ -605,7 +605,9 @@ def diagnose(
         if (
             faults
             and located is not None
-            and needs_fault_check(found, located, observed, noise, reference.feature_names)
+            and needs_fault_check(
+                found, located, observed, noise, reference.feature_names, reference.channels
+            )
         ):
 
             def weigh(magnitude: FloatArray, sized: Sequence[tuple[int, float]]) -> Whitener:
@@ -628,6 +630,16 @@ def diagnose(
                 leaks, total, totals, order, remainder = [], 0.0, None, (), None
             if findings and findings[0].fault_type != "leak":
                 notes[:] = [n for n in notes if not n.startswith(_LEAK_ONLY_NOTES)]
+                if not leaks:  # the leaks' remainder reads the fault as hidden leaks
+                    remainder = None
+            elif tested and not findings:
+                notes[:] = [n for n in notes if not n.startswith(_LEAK_ONLY_NOTES[0])]
+                notes.append(
+                    "deviation detected, but no combination of leak signatures and no fault "
+                    "of the catalogue (docs/faults.md) explains it: a fault outside the "
+                    "catalogue, a change of the machine or a reference that does not cover "
+                    "this operation"
+                )
     else:
         remainder = undetected_remainder(reference, observed, m)
     return Diagnosis(

@@ -38,6 +38,7 @@ from pneufdd.diagnosis.localisation.faults import (
     cycle_time_change,
     fault_hypotheses,
     fit_faults,
+    largest_step_change,
 )
 from pneufdd.diagnosis.localisation.search import Localisation, LocalisationSettings
 from pneufdd.physics.units import kg_s_to_slpm
@@ -137,10 +138,14 @@ def needs_fault_check(
     observed: FloatArray,
     noise: FloatArray,
     feature_names: Sequence[str],
+    channels: Sequence[str] | None = None,
 ) -> bool:
     """True when the faults are worth fitting (what bounds their cost).
 
-    When no leak explains the run, when the leaks leave more than
+    When no leak explains the run, when a leak lies on a line whose air no flow meter
+    sees (neither ``Q_<LINE>`` nor ``Q_In`` in ``channels``: there a leak is read from
+    the strokes' timing and pressures only, which an opened meter-out throttle or a
+    spool leak move alike), when the leaks leave more than
     :data:`UNEXPLAINED_SHARE` of it unexplained, or when a step's duration differs
     from what the leaks predict (the twin's change when they were checked by
     simulation, else their signature model) by more than
@@ -151,6 +156,14 @@ def needs_fault_check(
     """
     if localisation is None or not localisation.leaks:
         return True
+    if channels is not None and "Q_In" not in channels:
+        unseen = [
+            leak
+            for leak in localisation.leaks
+            if leak.location.is_supply or f"Q_{leak.location}" not in channels
+        ]
+        if unseen:
+            return True
     if 1.0 - localisation.explained > UNEXPLAINED_SHARE:
         return True
     # what the leaks predict: the twin's change where they were checked by simulation
@@ -348,6 +361,7 @@ def judge_faults(
         group,
         share,
         cycle_time_change=cycle_time_change(effects.signatures.feature_names, chosen.change),
+        step_change=largest_step_change(effects.signatures.feature_names, chosen.change),
     )
     if leaks:
         notes.append(

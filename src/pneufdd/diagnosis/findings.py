@@ -129,7 +129,16 @@ class LeakFinding:
         return DAYS_PER_YEAR * self.repair_cost / self.annual_cost
 
 
-FAULT_TYPES = ("leak", "internal-leak", "throttle", "friction", "valve", "switch", "supply")
+FAULT_TYPES = (
+    "leak",
+    "internal-leak",
+    "throttle",
+    "cushion",
+    "friction",
+    "valve",
+    "switch",
+    "supply",
+)
 """Fault types a :class:`Finding` names (the catalogue's families, ``docs/faults.md``)."""
 
 
@@ -177,7 +186,9 @@ class GroupMember:
 
     def describe(self) -> str:
         """``LOCATION KIND SIZE UNIT``, as an engineer reads it."""
-        unit = _UNIT_LABEL.get(self.unit, self.unit) if self.kind == "throttle" else self.unit
+        unit = self.unit
+        if self.kind in ("throttle", "cushion"):  # % of the screw's Cv
+            unit = _UNIT_LABEL.get(self.unit, self.unit)
         size = f"{self.size:.1f}" if self.unit == "SLPM" else f"{self.size:+.3g}"
         if self.unit in ("%", "ms"):
             size = f"{self.size:+.0f}"
@@ -222,6 +233,9 @@ class Finding:
     cycle_time_change : float or None
         Change of the cycle's duration the fault causes, per cycle [s] (by the twin at
         the fitted size); None for leaks.
+    step_change : tuple of (int, float) or None
+        The step (1-based) whose duration the fault changes most and by how much [s]
+        (by the twin at the fitted size): "+790 ms on step 1"; None for leaks.
 
     Examples
     --------
@@ -241,6 +255,7 @@ class Finding:
     confidence: float
     annual_cost: float | None = None
     cycle_time_change: float | None = None
+    step_change: tuple[int, float] | None = None
 
     def describe(self) -> str:
         """The finding and its ambiguity group in one line."""
@@ -254,7 +269,11 @@ class Finding:
         if self.annual_cost is not None:
             return f"{self.annual_cost:,.0f} $/yr"
         if self.cycle_time_change is not None:
-            return f"{1e3 * self.cycle_time_change:+.0f} ms per cycle"
+            text = f"{1e3 * self.cycle_time_change:+.0f} ms per cycle"
+            if self.step_change is not None:
+                step, change = self.step_change
+                text += f", {1e3 * change:+.0f} ms on step {step}"
+            return text
         return ""
 
     def to_dict(self) -> dict[str, Any]:
@@ -271,6 +290,9 @@ class Finding:
             "ambiguity_group": [m.to_dict() for m in self.ambiguity_group],
             "annual_cost": num(self.annual_cost),
             "cycle_time_change_s": num(self.cycle_time_change),
+            "step_change": None
+            if self.step_change is None
+            else {"step": self.step_change[0], "duration_change_s": num(self.step_change[1])},
             "text": self.describe(),
         }
 
@@ -392,6 +414,15 @@ class Diagnosis:
         leak detected: 0 leaks located, explaining 88 % of the deviation;
         more leaks may be present: up to 12 SLPM more at HGD2, 8.8 SLPM at HMPL_V (95 % bounds)
         """
+        others = [f for f in self.findings if f.fault_type != "leak"]
+        if self.detected and others and not self.leaks:
+            first = others[0]
+            return f"fault detected: {first.fault_type} ({first.describe()}); no leak reported"
+        if self.detected and self.faults_tested and not self.findings:
+            return (
+                "deviation detected: neither leaks nor another fault of the catalogue "
+                "explain it (see the notes)"
+            )
         return summary_sentence(self.detected, len(self.leaks), self.remainder)
 
     def to_pandas(self) -> pd.DataFrame:

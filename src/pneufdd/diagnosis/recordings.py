@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from pneufdd.diagnosis.captures import check_duplicates, startup_of
+from pneufdd.diagnosis.captures import capture_sessions, check_duplicates, startup_of
 from pneufdd.diagnosis.cost import CostSettings
 from pneufdd.diagnosis.effects.twin import (
     SIGNATURE_SIZES_SLPM,
@@ -234,6 +234,7 @@ def build_reference_from_recordings(
     check_duplicates(tables, labels, recordings)
     table = StepTable.concatenate(tables)
     cycle_recording = np.repeat(np.arange(len(tables)), [t.n_cycles for t in tables])
+    sessions = capture_sessions(recordings, [t.n_cycles for t in tables])
     signatures = None
     if with_signatures and description is not None:
         signatures = compute_signatures(
@@ -271,6 +272,7 @@ def build_reference_from_recordings(
             sequence,
             localisation,
             cycle_recording,
+            sessions,
         )
     except InputError as exc:
         raise naming(exc, ", ".join(labels)) from exc
@@ -322,6 +324,7 @@ def _build_model(
     sequence: Sequence[Any],
     localisation: LocalisationSettings | None,
     cycle_recording: npt.NDArray[np.int64],
+    sessions: Sequence[int] = (),
 ) -> ReferenceModel:
     return ReferenceModel.build(
         table,
@@ -332,6 +335,7 @@ def _build_model(
         sequence=sequence_to_records(sequence),
         localisation=localisation,
         cycle_recording=cycle_recording,
+        recording_session=sessions,
     )
 
 

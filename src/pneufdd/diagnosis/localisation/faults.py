@@ -51,12 +51,14 @@ from pneufdd.sim.faults import FAULT_KINDS, Fault
 __all__ = [
     "HYPOTHESES",
     "REFINED",
+    "SETTINGS",
     "FaultFit",
     "FaultHypothesis",
     "Weighing",
     "cycle_time_change",
     "fault_hypotheses",
     "fit_faults",
+    "largest_step_change",
     "residual",
 ]
 
@@ -75,6 +77,22 @@ HYPOTHESES: dict[str, tuple[float, float, float]] = {
 The size searched is ``sign * x`` in the kind's canonical unit with ``0 <= x <=
 largest`` (a throttle closing by x % of its Cv, the set point dropping by x bar); the
 screening size is the catalogue's large size or near it (``docs/faults.md``)."""
+
+SETTINGS: dict[str, tuple[tuple[float, float, float, str, tuple[float, ...]], ...]] = {
+    "throttle": ((1.0, 100.0, 400.0, "%", ()),),
+    "cushion": ((-1.0, 60.0, 95.0, "%", (80.0, 90.0)), (1.0, 200.0, 400.0, "%", ())),
+}
+"""Settings an engineer turns either way, tested besides :data:`HYPOTHESES`:
+``kind -> ((sign, screening size, largest size, unit, more screening sizes), ...)``.
+
+A meter-out throttle turned out passes more (up to 5 times its Cv, the catalogue's
++400 %); an end-position cushion screw (Festo PPV, only where the description gives
+the cushioning, ``cushion_length_mm``) set tighter or looser, in % of the described
+screw's Cv (the catalogue's -95 to +400 %). A tighter screw is screened at -60, -80
+and -90 %: its effect grows steeply as the screw closes (on the issue-33 rig, -60 %
+adds 17 ms to the stroke, -90 % 185 ms), so one screening scaled linearly never reaches
+a badly set cushion and it would not be sized. The issue-34 rig had its meter-out throttle and its
+cushioning set wrong (``docs/faults.md``)."""
 
 REFINED = 3
 """Best screened hypotheses sized by simulation [-]."""
@@ -100,6 +118,12 @@ class FaultHypothesis:
         ``x`` of the screening simulation [unit].
     largest : float
         Largest ``x`` [unit].
+    size_unit : str
+        The size's unit when not the kind's canonical one (a cushion in ``%`` of the
+        described screw); empty: canonical.
+    more_screening : tuple of float
+        Further ``x`` screened, for kinds whose effect is far from linear in the size
+        (the best screened size ranks the hypothesis) [unit].
 
     Examples
     --------
@@ -114,6 +138,8 @@ start_s=0.0, growth_per_s=0.0, repair_s=None))
     sign: float
     screening: float
     largest: float
+    size_unit: str = ""
+    more_screening: tuple[float, ...] = ()
 
     @property
     def family(self) -> str:
@@ -122,8 +148,8 @@ start_s=0.0, growth_per_s=0.0, repair_s=None))
 
     @property
     def unit(self) -> str:
-        """The size's unit (the kind's canonical one)."""
-        return FAULT_KINDS[self.kind].unit
+        """The size's unit (the kind's canonical one unless ``size_unit`` is given)."""
+        return self.size_unit or FAULT_KINDS[self.kind].unit
 
     def fault(self, x: float) -> Fault:
         """The fault of size ``sign * x`` [unit], present from the start."""
@@ -161,22 +187,32 @@ def fault_hypotheses(
     """Every hypothesis of :data:`HYPOTHESES` the description can carry.
 
     Throttle faults only on lines with a meter-out throttle (``meter_out_cv`` below
-    50, free); late switches only on switches a step waits for.
+    50, free), closed and opened (:data:`SETTINGS`); cushion faults, tighter and looser,
+    only on actuators with described cushioning; late switches only on switches a step
+    waits for.
 
     Examples
     --------
     >>> from pneufdd.sim import load_machine
     >>> hyps = fault_hypotheses(load_machine("press-fit-cell"))
     >>> len(hyps), sorted({h.kind for h in hyps})[:3]
-    (45, ['friction', 'late', 'piston-leak'])
+    (53, ['friction', 'late', 'piston-leak'])
+    >>> [(h.sign, h.unit) for h in hyps if h.location == "PRESS_B" and h.kind == "throttle"]
+    [(-1.0, '%'), (1.0, '%')]
     """
-    wanted = tuple(HYPOTHESES) if kinds is None else tuple(kinds)
+    wanted = (*HYPOTHESES, *SETTINGS) if kinds is None else tuple(kinds)
     waited = sorted({s for step in machine.steps for s in (*step.wait, *step.wait_off)})
     out: list[FaultHypothesis] = []
 
     def add(kind: str, location: str) -> None:
-        if kind in wanted:
+        if kind not in wanted:
+            return
+        if kind in HYPOTHESES:
             out.append(FaultHypothesis(kind, location, *HYPOTHESES[kind]))
+        out.extend(
+            FaultHypothesis(kind, location, sign, x0, largest, unit, more)
+            for sign, x0, largest, unit, more in SETTINGS.get(kind, ())
+        )
 
     for act in machine.actuators:
         for kind in ("friction", "valve-delay", "piston-leak"):
@@ -184,6 +220,8 @@ def fault_hypotheses(
         for side, meter in (("A", act.meter_out_cv_a), ("B", act.meter_out_cv_b)):
             if meter < 50.0:
                 add("throttle", f"{act.id}_{side}")
+            if act.cushion_length_mm > 0.0:
+                add("cushion", f"{act.id}_{side}")
             add("valve-leak-in", f"{act.id}_{side}")
             add("valve-leak-out", f"{act.id}_{side}")
     for switch in waited:
@@ -239,7 +277,8 @@ def fit_faults(
     simulations); the ``refined`` best are sized by simulation: a bounded scalar
     minimisation (:func:`scipy.optimize.minimize_scalar`, at most
     :data:`_ITERATIONS` simulations) of :func:`residual` over ``x`` in ``[0.1, 3]``
-    times the scaled start (within the kind's range).
+    times the scaled start (within the kind's range; for a hypothesis screened at
+    several sizes, between the screened sizes around it).
 
     Parameters
     ----------
@@ -258,7 +297,7 @@ def fit_faults(
         Simulations that run at once (``simulate_fault`` must be thread-safe).
     cache : mapping, optional
         Screening simulations kept between runs of one reference,
-        ``(kind, location, size) -> change`` (they do not depend on the run).
+        ``(kind, location, signed size) -> change`` (they do not depend on the run).
 
     Returns
     -------
@@ -280,9 +319,9 @@ def fit_faults(
     """
     store = {} if cache is None else cache
 
-    def screen(h: FaultHypothesis) -> tuple[float, FloatArray] | None:
-        for x in (h.screening, h.screening / 3.0):
-            key = (h.kind, h.location, x)
+    def screen_at(h: FaultHypothesis, sizes: Sequence[float]) -> tuple[float, FloatArray] | None:
+        for x in sizes:
+            key = (h.kind, h.location, h.sign * x)
             if key not in store:
                 try:
                     store[key] = simulate_fault(h.fault(x))
@@ -294,15 +333,26 @@ def fit_faults(
                 return x, change
         return None
 
+    def screen(h: FaultHypothesis) -> list[tuple[float, FloatArray]]:
+        first = screen_at(h, (h.screening, h.screening / 3.0))
+        more = [screen_at(h, (x,)) for x in h.more_screening] if first is not None else []
+        return [got for got in (first, *more) if got is not None]
+
     screened = thread_map(screen, list(hypotheses), threads)
     ranked: list[tuple[float, FaultHypothesis, float, float, FloatArray]] = []
     for h, got in zip(hypotheses, screened, strict=True):
-        if got is None:
+        tries = [
+            (residual(observed, s * change, weigh), s * x0, x0, s * change)
+            for x0, change in got
+            for s in _SCALES
+            if s * x0 <= h.largest
+        ]
+        if not got:
             continue
-        x0, change = got
-        tries = [(residual(observed, s * change, weigh), s) for s in _SCALES if s * x0 <= h.largest]
-        rss, scale = min(tries) if tries else (math.inf, 1.0)
-        ranked.append((rss, h, scale * x0, x0, scale * change))
+        if not tries:
+            tries = [(math.inf, got[0][0], got[0][0], got[0][1])]
+        rss, x, x0, change = min(tries, key=lambda t: t[0])
+        ranked.append((rss, h, x, x0, change))
     ranked.sort(key=lambda item: item[0])
 
     def size(item: tuple[float, FaultHypothesis, float, float, FloatArray]) -> FaultFit | None:
@@ -319,6 +369,10 @@ def fit_faults(
             return scores[value]
 
         low, high = 0.1 * x, min(3.0 * x, h.largest)
+        if h.more_screening:  # far from linear: between the screened sizes around x
+            grid = sorted({h.screening, *h.more_screening})
+            low = max([g for g in grid if g < x], default=low)
+            high = min([g for g in grid if g > x], default=h.largest)
         minimize_scalar(
             objective,
             bounds=(low, high),
@@ -338,6 +392,28 @@ def fit_faults(
         for rss, h, x, _, change in ranked[len(top) :]
     ]
     return sized + rest
+
+
+def largest_step_change(
+    feature_names: Sequence[str], change: FloatArray
+) -> tuple[int, float] | None:
+    """The step (1-based) whose duration changes most, and its change [s].
+
+    Examples
+    --------
+    >>> largest_step_change(("duration@1", "duration@2", "Q_In.mean@1"),
+    ...                     np.array([0.01, -0.25, 3.0]))
+    (2, -0.25)
+    """
+    steps = [
+        (abs(float(v)), int(name.split("@")[1]), float(v))
+        for name, v in zip(feature_names, change, strict=True)
+        if name.startswith("duration@") and math.isfinite(float(v))
+    ]
+    if not steps:
+        return None
+    _, step, value = max(steps)
+    return step, round(value, 12)
 
 
 def cycle_time_change(feature_names: Sequence[str], change: FloatArray) -> float:

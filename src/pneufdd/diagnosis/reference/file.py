@@ -15,6 +15,8 @@ entry                  content
 ``cycle_recording``    (n_cycles,) int64, optional: index in ``sources`` of the
                        recording each reference cycle came from (absent in files
                        written before; the detector then cross-validates cycles in turn)
+                       (the header's optional ``recording_session`` gives each
+                       source's session: triggered captures of one acquisition)
 ``band_mean``          (n_channels, n_samples) float64, optional
 ``band_std``           (n_channels, n_samples) float64, optional
 ``trace_offsets``      (n_steps + 1,) int64, optional (with the band arrays)
@@ -95,6 +97,7 @@ def _header(model: ReferenceModel) -> dict[str, Any]:
         "settings": model.settings.to_dict(),
         "localisation": model.localisation.to_dict(),
         "sources": list(model.sources),
+        "recording_session": list(model.recording_session),
         "supply_pressure": None if math.isnan(model.supply_pressure) else model.supply_pressure,
         "trace_rate_hz": model.trace_rate_hz,
         "signature_locations": None if sig is None else [str(x) for x in sig.locations],
@@ -360,6 +363,13 @@ def _header_fields(header: dict[str, Any], source: Path) -> None:
         "null or a pressure > 0 [Pa]",
     )
     need("sources", str_list(header.get("sources", [])), "a list of file names")
+    sessions = header.get("recording_session", [])
+    need(
+        "recording_session",
+        isinstance(sessions, list)
+        and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in sessions),
+        "a list of session numbers >= 0, one per source",
+    )
     locations = header.get("signature_locations")
     need("signature_locations", locations is None or str_list(locations), "null or names")
     sequence = header.get("sequence", [])
@@ -552,6 +562,7 @@ def _load(handle: Any, source: Path) -> ReferenceModel:
                 sequence=tuple(dict(step) for step in header.get("sequence", [])),
                 localisation=localisation,
                 cycle_recording=cycle_recording,
+                recording_session=tuple(header.get("recording_session", [])),
             )
     except FileFormatError:
         raise

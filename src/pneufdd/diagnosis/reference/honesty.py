@@ -13,7 +13,12 @@ it is only as good as their number and independence:
   statistic's distribution was fitted on something other than what the cycles show:
   repeated cycles, a constant channel, a quantised channel without its floor);
 * how many cycles a good reference needs (:data:`RECOMMENDED_REFERENCE_CYCLES`, in
-  several recordings) and how many it got.
+  several recordings) and how many it got;
+* the **sessions** of triggered captures
+  (:func:`pneufdd.diagnosis.captures.capture_sessions`), and a warning when the
+  captures come from fewer sessions than the cross-validation needs to leave one out
+  (:data:`~pneufdd.diagnosis.detection.statistic.MIN_GROUPS_FOR_GROUPED_CV`): the
+  variation between sessions, which a new run's captures carry, is then not measured.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pneufdd.diagnosis.detection.statistic import MIN_GROUPS_FOR_GROUPED_CV
 from pneufdd.diagnosis.reference.model import RECOMMENDED_REFERENCE_CYCLES, ReferenceModel
 
 __all__ = ["FAR_OUTSIDE", "ReferenceHonesty", "clopper_pearson", "reference_honesty"]
@@ -66,7 +72,10 @@ class ReferenceHonesty:
     statistics : tuple of float
         Median and largest held-out reference statistic [-].
     warnings : tuple of str
-        Threshold far outside the statistics; too few cycles.
+        Threshold far outside the statistics; too few cycles; too few sessions.
+    sessions : int
+        Sessions the recordings form (:attr:`ReferenceModel.recording_session`; the
+        recordings' number when each is its own).
     """
 
     cycles: int
@@ -78,19 +87,38 @@ class ReferenceHonesty:
     threshold: float
     statistics: tuple[float, float]
     warnings: tuple[str, ...]
+    sessions: int = 0
+
+    def _in_sessions(self) -> str:
+        if not self.sessions or self.sessions == self.recordings:
+            return ""
+        return f" of {self.sessions} session(s)"
 
     def lines(self) -> list[str]:
         """The report, one line per fact."""
         return [
             f"cross-validated false-alarm rate per cycle {100 * self.rate:.2f} % "
             f"({self.false_alarms} of {self.cycles} independent cycles in "
-            f"{self.recordings} recording(s); 95 % interval {100 * self.rate_low:.2f}-"
+            f"{self.recordings} recording(s){self._in_sessions()}; "
+            f"95 % interval {100 * self.rate_low:.2f}-"
             f"{100 * self.rate_high:.2f} %, Clopper-Pearson)",
             f"threshold {self.threshold:.3g}; held-out reference statistics median "
             f"{self.statistics[0]:.3g}, largest {self.statistics[1]:.3g}",
             f"a good reference needs at least {RECOMMENDED_REFERENCE_CYCLES} leak-free cycles "
             f"in several recordings; this one has {self.cycles} in {self.recordings}",
         ]
+
+
+def _sessions_warning(recordings: int, sessions: int) -> list[str]:
+    if sessions >= min(recordings, MIN_GROUPS_FOR_GROUPED_CV):
+        return []
+    return [
+        f"the reference's {recordings} captures come from {sessions} session(s) (captures "
+        "taken one after the other): the variation between sessions, which the captures of "
+        "a later run carry, is not measured and the false-alarm rate may be higher than "
+        f"stated; record the reference's captures in at least {MIN_GROUPS_FOR_GROUPED_CV} "
+        "sessions (other hours or days; docs/captures.md, 'Sessions')"
+    ]
 
 
 def reference_honesty(model: ReferenceModel) -> ReferenceHonesty:
@@ -102,6 +130,7 @@ def reference_honesty(model: ReferenceModel) -> ReferenceHonesty:
     lo, hi = clopper_pearson(k, n)
     groups = model.cycle_recording
     recordings = int(np.unique(groups).size) if groups is not None else max(len(model.sources), 1)
+    sessions = len(set(model.recording_session)) if model.recording_session else recordings
     median, largest = float(np.median(scores)), float(np.max(scores))
     threshold = float(det.threshold_)
     warnings = []
@@ -118,6 +147,16 @@ def reference_honesty(model: ReferenceModel) -> ReferenceHonesty:
             "cycles in several recordings are recommended (docs/reference.md, "
             "'Reference length')"
         )
+    warnings += _sessions_warning(recordings, sessions)
     return ReferenceHonesty(
-        n, recordings, k, k / n if n else 0.0, lo, hi, threshold, (median, largest), tuple(warnings)
+        n,
+        recordings,
+        k,
+        k / n if n else 0.0,
+        lo,
+        hi,
+        threshold,
+        (median, largest),
+        tuple(warnings),
+        sessions,
     )

@@ -217,6 +217,11 @@ class ReferenceModel:
         the detector's cross-validation leaves out one recording at a time when there
         are three or more (:mod:`pneufdd.diagnosis.detection.statistic`). None for references
         saved before it was stored, or built from one table of unknown origin.
+    recording_session : tuple of int
+        Session of each recording (index in :attr:`sources`): triggered captures of one
+        acquisition share one (:func:`pneufdd.diagnosis.captures.capture_sessions`),
+        and the detector groups its cycles by session. Empty: each recording is a
+        session of its own (references saved before it was stored).
     """
 
     machine: str
@@ -236,6 +241,7 @@ class ReferenceModel:
     sequence: tuple[dict[str, Any], ...] = ()
     localisation: LocalisationSettings = field(default_factory=LocalisationSettings)
     cycle_recording: npt.NDArray[np.int64] | None = None
+    recording_session: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         feats = np.asarray(self.features, dtype=np.float64)
@@ -256,6 +262,18 @@ class ReferenceModel:
                     )
                 )
             object.__setattr__(self, "cycle_recording", groups.astype(np.int64))
+        if self.recording_session:
+            sessions = tuple(int(v) for v in self.recording_session)
+            used = 0 if self.cycle_recording is None else int(np.max(self.cycle_recording)) + 1
+            if len(sessions) < used or min(sessions) < 0:
+                raise InputError(
+                    describe(
+                        "recording_session (session of each recording)",
+                        f"{len(sessions)} values, smallest {min(sessions)}",
+                        f"at least {used} non-negative integers, one per recording",
+                    )
+                )
+            object.__setattr__(self, "recording_session", sessions)
         if feats.shape[0] < MIN_REFERENCE_CYCLES:
             raise InputError(
                 describe(
@@ -296,6 +314,7 @@ class ReferenceModel:
         sequence: Sequence[Mapping[str, Any]] = (),
         localisation: LocalisationSettings | None = None,
         cycle_recording: npt.ArrayLike | None = None,
+        recording_session: Sequence[int] = (),
     ) -> ReferenceModel:
         """Build a reference from the step table of leak-free cycles.
 
@@ -320,6 +339,8 @@ class ReferenceModel:
             Tuning of leak location and sizing.
         cycle_recording : array_like of int, shape (n_cycles,), optional
             Recording (index in ``sources``) of each cycle of ``table``.
+        recording_session : sequence of int
+            Session of each recording (:attr:`recording_session`).
 
         Returns
         -------
@@ -363,6 +384,7 @@ class ReferenceModel:
             sequence=tuple(dict(step) for step in sequence),
             localisation=localisation or LocalisationSettings(),
             cycle_recording=None if cycle_recording is None else np.asarray(cycle_recording),
+            recording_session=tuple(int(v) for v in recording_session),
         )
 
     # ----------------------------------------------------------- derived
@@ -437,7 +459,15 @@ class ReferenceModel:
             scale_floor=floor,
             run_statistic=self.settings.run_statistic,
             run_correlation=self.settings.run_correlation,
-        ).fit(self.features, groups=self.cycle_recording)
+        ).fit(self.features, groups=self.cycle_session)
+
+    @property
+    def cycle_session(self) -> npt.NDArray[np.int64] | None:
+        """Session of each reference cycle (:attr:`recording_session`), else its
+        recording; None when the recordings are not known."""
+        if self.cycle_recording is None or not self.recording_session:
+            return self.cycle_recording
+        return np.asarray(self.recording_session, dtype=np.int64)[self.cycle_recording]
 
     def band_detector(self, channel: str | None = None) -> BandDetector | None:
         """The band detector of eq. 5.21 over all channels, or over one channel."""
