@@ -130,6 +130,7 @@ def _machine(name: str, seed: int, args: argparse.Namespace) -> list[dict[str, o
                 first and "location" in truth and _component(str(truth["location"])) in places
             ),
             "leak_reported": bool(result.leaks),
+            "leak_claimed": any(f.claims_leak for f in result.findings),
             "faults_tested": result.faults_tested,
             "confidence": None if first is None else round(first.confidence, 3),
             "wall_s": round(wall, 3), "wall_without_faults_s": None if before is None
@@ -166,7 +167,8 @@ def _summary(rows: list[dict[str, object]]) -> None:
             f"  detected {fs(faults, 'detected')}; type in group {fs(faults, 'type_in_group')}"
             f" (>= 10 %: {bs(big, 'type_in_group')}); component in group "
             f"{fs(faults, 'component_in_group')} (>= 10 %: {bs(big, 'component_in_group')});"
-            f" leak reported {fs(faults, 'leak_reported')}"
+            f" leak reported (costed) {fs(faults, 'leak_reported')}, claimed (no other type"
+            f" in its group) {fs(faults, 'leak_claimed')}"
         )
         kinds: dict[str, list[dict[str, object]]] = defaultdict(list)
         for r in faults:
@@ -176,7 +178,8 @@ def _summary(rows: list[dict[str, object]]) -> None:
                 f"  {kind}: detected {share(items, 'detected')}, "
                 f"type {share(items, 'type_in_group')}, "
                 f"component {share(items, 'component_in_group')}, "
-                f"leak reported {share(items, 'leak_reported')}"
+                f"leak reported {share(items, 'leak_reported')}, "
+                f"claimed {share(items, 'leak_claimed')}"
             )
         print(
             f"leak runs: type leak in group {share(leaks, 'type_in_group')}, component "
