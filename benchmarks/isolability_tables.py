@@ -5,7 +5,8 @@ its description (seeds ``S + 1``, ``S + 2``), exported as a DAQ would, make one
 reference per sensor set (no leak signatures: the table simulates its own); the fault
 signatures are simulated once on the ``full`` reference's features and selected per
 set (:func:`pneufdd.diagnosis.isolability.isolability`), with ``--plants`` plausible
-plants at scale 1 as the plant-uncertainty band. Prints markdown for
+plants at scale 1 as the plant-uncertainty band; each set is judged with the true
+faults at their signature size and at a third of it. Prints markdown for
 ``docs/faults.md``; ``--json FILE`` writes every row.
 
     python benchmarks/isolability_tables.py [--machines a,b] [--sets full,...] [--plants 6]
@@ -18,7 +19,7 @@ import json
 import time
 from pathlib import Path
 
-from pneufdd.diagnosis.isolability import fault_signatures, isolability
+from pneufdd.diagnosis.isolability import LADDER, fault_signatures, isolability
 from pneufdd.diagnosis.recordings import build_reference_from_recordings
 from pneufdd.diagnosis.reference.sensor_sets import machine_sensor_sets
 from pneufdd.files import write_text_atomic
@@ -45,34 +46,36 @@ def _tables(name: str, sets: list[str], seed: int, plants: int) -> list[dict[str
     out = []
     print(f"#### {name}\n")
     print(
-        f"{len(signatures.members)} hypotheses simulated "
+        f"{len(signatures.members) + len(signatures.stalled)} hypotheses simulated "
         f"({len(signatures.stalled)} stop the machine: "
         f"{', '.join(m.describe() for m in signatures.stalled) or 'none'}); "
         f"{time.perf_counter() - t0:.0f} s.\n"
     )
-    print("| set | detectable | isolable (group of one) | type isolable | component isolable "
-          "| confusions across types (true -> also in group: count) |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
+    print("| set | size | detectable | isolable (group of one) | type isolable | component "
+          "isolable | confusions across types (true -> also in group: count) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
     groups: dict[str, list[str]] = {}
     for label, ref in refs.items():
-        table = isolability(ref, signatures)
-        s = table.summary()
-        conf = ", ".join(
-            f"{a} -> {b}: {n}" for (a, b), n in sorted(table.type_confusions().items())
-        )
-        print(
-            f"| {label} | {s['detectable']}/{s['hypotheses']} | {s['isolable']} | "
-            f"{s['type_isolable']} | {s['component_isolable']} | {conf or 'none'} |"
-        )
-        lines = []
-        for i, m in enumerate(table.members):
-            others = [table.members[j] for j in table.group(i)]
-            if table.detectable[i] and any(o.fault_type != m.fault_type for o in others):
-                lines.append(f"{m.describe()}: {'; '.join(o.describe() for o in others)}")
-            elif not table.detectable[i]:
-                lines.append(f"{m.describe()}: not detectable as an explanation")
-        groups[label] = lines
-        out.append({"machine": name, **table.to_dict()})
+        for scale in (1.0, LADDER[0]):
+            table = isolability(ref, signatures, truth_scale=scale)
+            s = table.summary()
+            conf = ", ".join(
+                f"{a} -> {b}: {n}" for (a, b), n in sorted(table.type_confusions().items())
+            )
+            print(
+                f"| {label} | {scale:.2g} | {s['detectable']}/{s['hypotheses']} | "
+                f"{s['isolable']} | {s['type_isolable']} | {s['component_isolable']} | "
+                f"{conf or 'none'} |"
+            )
+            lines = []
+            for i, m in enumerate(table.members):
+                others = [table.members[j] for j in table.group(i)]
+                if table.detectable[i] and any(o.fault_type != m.fault_type for o in others):
+                    lines.append(f"{m.describe()}: {'; '.join(o.describe() for o in others)}")
+                elif not table.detectable[i]:
+                    lines.append(f"{m.describe()}: not detectable as an explanation")
+            groups[f"{label}, size x{scale:.2g}"] = lines
+            out.append({"machine": name, **table.to_dict()})
     for label, lines in groups.items():
         print(f"\n{name}, {label}: groups across types, and hypotheses not detectable\n")
         for line in lines:

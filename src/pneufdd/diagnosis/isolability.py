@@ -10,9 +10,9 @@ twin's signature is known on a real plant. This module computes it ahead of any 
 (:func:`~pneufdd.diagnosis.localisation.faults.fault_hypotheses`: throttles, friction,
 valve delays, piston and spool leaks, late switches, the regulator) at its screening
 size, and a leak of :data:`LEAK_SIGNATURE_SLPM` at each leak location, simulated with
-the reference's twin, seed and leak-free baseline
-(:class:`~pneufdd.diagnosis.effects.twin.TwinLeakEffect`), exactly as the diagnosis
-simulates them.
+the reference's twin and seed against its leak-free run, both without sensor noise
+(:class:`~pneufdd.diagnosis.effects.twin.TwinLeakEffect`,
+:func:`~pneufdd.sim.variation.noise_free`), as the diagnosis simulates the faults.
 
 **Told apart or not.** Let :math:`e_i` be the signature of hypothesis :math:`i` and
 :math:`W` the diagnosis's weighting of a run of ``run_cycles`` cycles
@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -66,6 +66,7 @@ from pneufdd.location import Location
 from pneufdd.parallel import thread_map
 from pneufdd.physics.units import slpm_to_kg_s
 from pneufdd.sim import MachineDescription, vary_machine
+from pneufdd.sim.variation import noise_free
 
 __all__ = [
     "LADDER",
@@ -223,7 +224,7 @@ def fault_signatures(
         description: MachineDescription, scales: Sequence[float]
     ) -> list[FloatArray | None]:
         twin = TwinLeakEffect(
-            description, reference.feature_names, sequence, reference.channels, cycles,
+            noise_free(description), reference.feature_names, sequence, reference.channels, cycles,
             SIGNATURE_SEED,
         )  # fmt: skip
 
@@ -292,6 +293,8 @@ class IsolabilityTable:
         Smallest ``strength`` with which ``i`` is an explanation at all [-].
     stalled : tuple of GroupMember
         Hypotheses left out: the machine stops with them.
+    truth_scale : float
+        Size of the true faults, times their signature size [-].
     """
 
     machine: str
@@ -303,6 +306,7 @@ class IsolabilityTable:
     threshold: float
     penalty: float
     stalled: tuple[GroupMember, ...] = field(default=())
+    truth_scale: float = 1.0
 
     @property
     def detectable(self) -> FloatArray:
@@ -354,6 +358,7 @@ class IsolabilityTable:
             "channels": list(self.channels),
             "threshold": self.threshold,
             "penalty": self.penalty,
+            "truth_scale": self.truth_scale,
             "summary": self.summary(),
             "type_confusions": [
                 {"type": a, "confused_with": b, "count": n}
@@ -444,6 +449,7 @@ def isolability(
     run_cycles: int = RUN_CYCLES,
     predicted_cycles: int = 2,
     threads: int = 1,
+    truth_scale: float = 1.0,
 ) -> IsolabilityTable:
     """The isolability table of a reference's machine and sensor set.
 
@@ -460,6 +466,10 @@ def isolability(
         Cycles a simulated change averages (the diagnosis's 2) [-].
     threads : int
         Simulations at once when the signatures are simulated here.
+    truth_scale : float
+        Size of the true faults, times their signature size (one of :data:`LADDER`
+        where simulated, e.g. 1/3 for faults a third as large; the plants' deviations
+        scaled linearly) [-].
 
     Returns
     -------
@@ -478,27 +488,29 @@ def isolability(
     )
     sig = sig.select(reference.feature_names)
     variance, nuisance = _weights(reference, run_cycles, predicted_cycles)
-    e = sig.changes
+    e = sig.path(truth_scale)
     n = e.shape[0]
-    scales = SCALES
-    distance = np.empty((n, n))
-    strength = np.empty(n)
-    dev = sig.deviations if sig.deviations.size else np.zeros((n, 0, e.shape[1]))
-    paths = [sig.path(a) for a in scales]
+    distance = np.full((n, n), np.inf)
+    strength = np.zeros(n)
+    dev = truth_scale * (sig.deviations if sig.deviations.size else np.zeros((n, 0, e.shape[1])))
+    paths = [sig.path(a) for a in SCALES]
+    zero = np.zeros((1, e.shape[1]))
     for i in range(n):
+        if not np.all(np.isfinite(e[i])):  # the machine stops at this size
+            continue
         tried = np.array([_excess(e[i], path, variance, nuisance, dev[i]) for path in paths])
-        distance[i] = np.nanmin(np.where(np.isfinite(tried), tried, np.nan), axis=0)
-        zero = np.zeros((1, e.shape[1]))
+        distance[i] = np.min(np.where(np.isfinite(tried), tried, np.inf), axis=0)
         strength[i] = float(_excess(e[i], zero, variance, nuisance, dev[i])[0])
     dof = max(len(reference.feature_names), 2)
     return IsolabilityTable(
         reference.machine,
         sensor_set_kind(reference.channels),
         tuple(reference.channels),
-        sig.members,
+        tuple(replace(m, size=truth_scale * m.size) for m in sig.members),
         distance,
         strength,
         2.0 * math.log(1.0 / reference.localisation.group_ratio),
         2.0 * math.log(dof),
         sig.stalled,
+        truth_scale,
     )
