@@ -128,3 +128,14 @@ def test_plant_deviations_weigh_as_a_dense_covariance(tables):
     cov = cov + 1e9 * nuisance.T @ nuisance
     r = e[3] - 0.5 * e[7]
     assert mine == pytest.approx(float(r @ np.linalg.solve(cov, r)), rel=1e-4)
+
+
+def test_smaller_faults_are_told_apart_no_better(tables):
+    refs, signatures, by_set = tables
+    big = by_set["supply-only"]
+    small = isolability(refs["supply-only"], signatures, truth_scale=1.0 / 3.0)
+    assert small.truth_scale == pytest.approx(1.0 / 3.0)
+    assert [m.size for m in small.members] == pytest.approx([m.size / 3.0 for m in big.members])
+    # a third of the effect: less evidence against "no explanation"
+    assert np.sum(small.detectable) <= np.sum(big.detectable)
+    assert np.median(small.strength) < np.median(big.strength)
