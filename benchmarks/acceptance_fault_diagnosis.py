@@ -35,18 +35,13 @@ from collections import defaultdict
 import numpy as np
 
 from pneufdd.diagnosis.engine import diagnose
+from pneufdd.diagnosis.isolability import component
 from pneufdd.diagnosis.localisation.faults import HYPOTHESES, fault_hypotheses
 from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
 from pneufdd.diagnosis.reference.sensor_sets import machine_sensor_sets
 from pneufdd.sim import MachineStalledError, as_exported, load_machine, simulate, vary_machine
 from pneufdd.sim.faults import FAULT_KINDS
 from pneufdd.sim.nuisances import HeaderDips, Nuisances, PayloadChange, parse_temperature_profile
-
-
-def _component(location: str) -> str:
-    """The actuator (or switch's actuator, or supply) a location belongs to."""
-    name = location[2:] if location.startswith("S_") else location
-    return name[:-2] if name.endswith(("_A", "_B")) else name
 
 
 def _cases(machine, rng, runs):  # type: ignore[no-untyped-def]
@@ -137,9 +132,9 @@ def _judge(name, label, reference, rec, group, truth, size):  # type: ignore[no-
     first = result.findings[0] if result.findings else None
     members = first.ambiguity_group if first else ()
     types = {m.fault_type for m in members} | ({first.fault_type} if first else set())
-    places = {_component(m.location) for m in members}
+    places = {component(m.location) for m in members}
     if first:
-        places.add(_component(first.location))
+        places.add(component(first.location))
     return {
         "machine": f"{name} {label}", "group": group, "truth": truth, "size": size,
         "moves": round(_moves(reference, result), 4), "detected": result.detected,
@@ -147,7 +142,7 @@ def _judge(name, label, reference, rec, group, truth, size):  # type: ignore[no-
         "first_type": None if first is None else first.fault_type,
         "type_in_group": bool(first and truth["type"] in types),
         "component_in_group": bool(
-            first and "location" in truth and _component(str(truth["location"])) in places
+            first and "location" in truth and component(str(truth["location"])) in places
         ),
         "leak_reported": bool(result.leaks),
         "leak_claimed": any(f.claims_leak for f in result.findings),

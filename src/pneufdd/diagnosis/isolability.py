@@ -76,6 +76,7 @@ __all__ = [
     "SCALES",
     "FaultSignatures",
     "IsolabilityTable",
+    "component",
     "fault_signatures",
     "isolability",
 ]
