@@ -332,7 +332,7 @@ def _print_result(console: Console, run: Path, result: Diagnosis) -> None:
         console.print(leak_table(result))
     for finding in result.findings:
         console.print(
-            f"finding: {finding.fault_type}: {finding.describe()}; confidence "
+            f"finding: {' or '.join(finding.types)}: {finding.describe()}; confidence "
             f"{100 * finding.confidence:.0f} %"
             + (f"; {finding.consequence()}" if finding.consequence() else ""),
             highlight=False,

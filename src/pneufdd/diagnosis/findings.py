@@ -264,6 +264,33 @@ class Finding:
         )
         return " or ".join(m.describe() for m in members)
 
+    @property
+    def types(self) -> tuple[str, ...]:
+        """The fault types its ambiguity group spans, its own first.
+
+        Examples
+        --------
+        >>> f = Finding("leak", "leak", "DNC_B", 12.0, "SLPM",
+        ...             (GroupMember("leak", "leak", "DNC_B", 12.0, "SLPM"),
+        ...              GroupMember("internal-leak", "valve-leak-out", "DNC_B", 12.0, "SLPM")),
+        ...             0.9, 1200.0)
+        >>> f.types, f.claims_leak
+        (('leak', 'internal-leak'), False)
+        """
+        seen = [self.fault_type]
+        seen += [m.fault_type for m in self.ambiguity_group if m.fault_type not in seen]
+        return tuple(dict.fromkeys(seen))
+
+    @property
+    def claims_leak(self) -> bool:
+        """True when it says a leak and nothing else: no other type in its group.
+
+        A leak whose group holds an internal leak (the sensors cannot tell a line's leak
+        from its spool's leak to the exhaust) says "a leak or an internal leak"; its air
+        is lost either way and keeps its cost.
+        """
+        return self.types == ("leak",)
+
     def consequence(self) -> str:
         """What it costs: a leak's annual cost, another fault's cycle time per cycle."""
         if self.annual_cost is not None:
@@ -282,6 +309,7 @@ class Finding:
         num = _finite_or_none
         return {
             "type": self.fault_type,
+            "types": list(self.types),
             "kind": self.kind,
             "location": self.location,
             "size": num(self.size),

@@ -302,7 +302,7 @@ def _findings_table(diagnosis: Diagnosis) -> str:
         group = " or ".join(m.describe() for m in finding.ambiguity_group)
         rows.append(
             "<tr>"
-            f"<td>{i}</td><td class='l'>{_e(finding.fault_type)}</td>"
+            f"<td>{i}</td><td class='l'>{_e(' or '.join(finding.types))}</td>"
             f"<td class='l'>{_e(finding.location)}</td>"
             f"<td>{_fmt(finding.size, 1)} {_e(finding.unit)}</td>"
             f"<td class='l'>{_e(group)}</td><td>{_fmt(100 * finding.confidence, 0)} %</td>"

@@ -76,6 +76,7 @@ __all__ = [
     "ParameterChange",
     "Spread",
     "machine_to_toml",
+    "noise_free",
     "parameter_changes",
     "vary_machine",
     "write_machine",
@@ -387,6 +388,23 @@ def _vary_sensor(table: dict[str, Any], s: Sensor, d: _Draws) -> None:
         f"{p}.offset", s.offset, SPREADS[f"sensor.{s.kind}.offset"], -span, span, span=span
     )
     _put(table, "offset", s.offset, offset)
+
+
+def noise_free(machine: MachineDescription) -> MachineDescription:
+    """The description with every analog sensor's noise set to zero (resolution kept).
+
+    A fault that shifts a step's timing shifts where the twin draws its sensor noise,
+    so its simulated change against a noisy baseline holds two draws of noise that do
+    not cancel; without noise the change is the physics' alone (the fault check,
+    ``docs/faults.md``).
+
+    Examples
+    --------
+    >>> m = noise_free(load_machine("press-fit-cell"))
+    >>> {s.noise for s in m.sensors}
+    {0.0}
+    """
+    return replace(machine, sensors=tuple(replace(s, noise=0.0) for s in machine.sensors))
 
 
 def vary_machine(

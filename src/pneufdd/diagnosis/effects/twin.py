@@ -52,6 +52,7 @@ from pneufdd.sim import (
     vary_machine,
 )
 from pneufdd.sim.faults import Fault
+from pneufdd.sim.variation import noise_free
 
 __all__ = [
     "SIGNATURE_SEED",
@@ -551,6 +552,7 @@ class TwinLeakEffect:
             None if baseline is None else np.array(baseline, dtype=np.float64)
         )
         self._cache: dict[tuple[tuple[Any, ...], ...], npt.NDArray[np.float64] | None] = {}
+        self._quiet: TwinLeakEffect | None = None
 
     def _features(
         self, leaks: Mapping[Location, float], faults: Sequence[Fault] = ()
@@ -572,8 +574,9 @@ class TwinLeakEffect:
 
     def fault_change(self, fault: Fault) -> npt.NDArray[np.float64] | None:
         """Feature change of one fault other than a leak, present from the start
-        (:mod:`pneufdd.sim.faults`), against the same leak-free baseline and seed as
-        the leaks [feature unit]; cached like them.
+        (:mod:`pneufdd.sim.faults`), against the leak-free run of the same seed, both
+        without sensor noise (:func:`~pneufdd.sim.variation.noise_free`) [feature
+        unit]; cached like the leaks.
 
         Returns None when the machine cannot run with it (it stalls, or a cycle does
         not complete). Faults the description cannot carry raise
@@ -583,11 +586,16 @@ class TwinLeakEffect:
         key = (("fault", fault.location, fault.kind, round(fault.size, 6), fault.unit),)
         if key in self._cache:
             return self._cache[key]
-        with self._lock:
-            if self._base is None:
-                self._base = self._features({})
+        with self._lock:  # without sensor noise, baseline and fault alike: a fault that
+            # shifts a step's timing decorrelates the noise (docs/faults.md)
+            if self._quiet is None:
+                self._quiet = TwinLeakEffect(noise_free(self.machine), self.feature_names,
+                    self.sequence, self.channels, self.cycles, self.seed)  # fmt: skip
+                self._quiet._base = self._quiet._features({})
         try:
-            change: npt.NDArray[np.float64] | None = self._features({}, (fault,)) - self._base
+            change: npt.NDArray[np.float64] | None = (
+                self._quiet._features({}, (fault,)) - self._quiet._base  # type: ignore[operator]
+            )
         except MACHINE_CANNOT_RUN:
             change = None
         self._cache[key] = change
