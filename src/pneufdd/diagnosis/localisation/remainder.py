@@ -289,7 +289,9 @@ def size_spread(jacobian: FloatArray, s2: float) -> FloatArray:
     return np.asarray(np.sqrt(s2) * vt.T / np.sqrt(squares + ridge)[None, :], dtype=np.float64)
 
 
-def model_error_spread(jacobian: FloatArray, deviations: FloatArray) -> FloatArray:
+def model_error_spread(
+    jacobian: FloatArray, deviations: FloatArray, unexplained: float = 0.0
+) -> FloatArray:
     r"""A factor :math:`G` of the sizes' covariance from the twin's model error [kg/s].
 
     On plausible plant ``k`` the leaks' joint effect differs from the twin's by
@@ -303,12 +305,23 @@ def model_error_spread(jacobian: FloatArray, deviations: FloatArray) -> FloatArr
     the variance: a deviation every plant shares (a bias of the twin) is an error of
     the sizes too.
 
+    A plant may differ from the twin more than the plausible plants do. What the
+    explanation leaves beyond noise (``unexplained``, :math:`u`) is the part of this
+    plant's deviation beside the leaks' directions; against the plausible plants'
+    mean square there, :math:`\overline{\lVert P d^{(k)} \rVert^2}` (:math:`P` the
+    projection beside the columns of :math:`J`), it gives the factor
+    :math:`\lambda^2 = \max(1, u / \overline{\lVert P d^{(k)} \rVert^2})` by which
+    this plant's deviation is taken to exceed theirs, along the leaks' directions
+    too: :math:`G` is multiplied by :math:`\lambda`.
+
     Parameters
     ----------
     jacobian : ndarray, shape (n_components, k)
         Whitened derivative of the leaks' effect by each size [1/(kg/s)].
     deviations : ndarray, shape (K, n_components)
         Whitened deviation of each plausible plant's effect of the leaks [-].
+    unexplained : float
+        The explanation's residual beyond its noise expectation [-].
 
     Returns
     -------
@@ -326,10 +339,21 @@ def model_error_spread(jacobian: FloatArray, deviations: FloatArray) -> FloatArr
     >>> G = model_error_spread(J, d)
     >>> G.shape, round(float(np.sum(G**2)), 6)
     ((1, 2), 0.04)
+
+    A plant whose deviation beside the leak's direction is 4 times (in square) the
+    plausible plants' doubles the spread:
+
+    >>> d = np.array([[0.3, 0.1], [-0.1, -0.3]])
+    >>> round(float(np.sum(model_error_spread(J, d, unexplained=0.08) ** 2)), 6)
+    0.16
     """
     J = np.asarray(jacobian, dtype=np.float64)
     D = np.atleast_2d(np.asarray(deviations, dtype=np.float64))
     if J.shape[1] == 0 or D.shape[0] == 0:
         return np.zeros((J.shape[1], 0))
     readings = np.linalg.lstsq(J, D.T, rcond=None)[0]
-    return np.asarray(readings / np.sqrt(D.shape[0]), dtype=np.float64)
+    basis = _orthogonal(J, J.shape[0])
+    beside = D.T - basis @ (basis.T @ D.T)
+    seen = float(np.mean(np.sum(beside**2, axis=0)))
+    scale = max(1.0, unexplained / seen) if seen > 0 else 1.0
+    return np.asarray(np.sqrt(scale) * readings / np.sqrt(D.shape[0]), dtype=np.float64)

@@ -690,5 +690,5 @@ def _remainder(
         return remainder, None
     spread = size_spread(jacobian, s2)
     if deviations is not None:
-        spread = np.hstack([spread, model_error_spread(jacobian, deviations)])
+        spread = np.hstack([spread, model_error_spread(jacobian, deviations, unexplained)])
     return remainder, spread
