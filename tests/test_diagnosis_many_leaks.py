@@ -242,3 +242,54 @@ def test_the_totals_interval_covers_a_plant_drawn_like_the_plausible_ones(matrix
         plainly += error <= plain_half
     assert 0.85 * runs <= covered <= runs
     assert plainly <= 0.5 * runs
+
+
+def test_a_supply_leak_is_tried_as_the_lines_of_the_third_best_actuator():
+    # leaks on both lines of actuator C act together like a supply leak (an interaction
+    # no signature holds); the additive signatures rank actuators A and B's lines
+    # closer to the supply's effect, C's third: the swap finds C_A + C_B only because
+    # three actuators are tried
+    from pneufdd.diagnosis.localisation.check import SimulationCheckSettings, refine_all
+    from pneufdd.diagnosis.localisation.simulated import supply_swaps
+
+    names = ("supply", "A_A", "A_B", "B_A", "B_B", "C_A", "C_B", "D_A")
+    rng = np.random.default_rng(383)
+    supply = np.abs(rng.normal(size=40))
+    effects = {0: supply, 7: np.abs(rng.normal(size=40))}
+    for a, b, spread in ((1, 2, 0.05), (3, 4, 0.2)):
+        effects[a] = 0.5 * supply + spread * np.abs(rng.normal(size=40))
+        effects[b] = 0.5 * supply + spread * np.abs(rng.normal(size=40))
+    effects[5], effects[6] = np.abs(rng.normal(size=40)), np.abs(rng.normal(size=40))
+    together = supply - 0.5 * (effects[5] + effects[6])  # C_A + C_B at 1 each: 1.5 supply
+
+    def sim(leaks):
+        out = sum(size * effects[loc] for loc, size in leaks.items())
+        if 5 in leaks and 6 in leaks:
+            out = out + leaks[5] * leaks[6] * together
+        return np.asarray(out, dtype=np.float64)
+
+    target = sim({7: 2.0, 5: 1.0, 6: 1.0})
+    matrix = np.stack([effects[i] for i in range(len(names))])
+    signatures = _linear_set(matrix)
+    signatures = SignatureSet(
+        names,
+        signatures.sizes,
+        signatures.deltas,
+        signatures.feature_names,
+        signatures.nominal_pressure,
+    )
+    model = WhitenedEffects(
+        signatures.sizes, signatures.deltas, lambda d: np.atleast_2d(d), target, 1.25
+    )
+    base = (0, 7)
+    checked = refine_all({base: np.array([1.0, 2.0])}, target, sim, model.size_cap, 6)
+    locations = signatures.locations
+    check = SimulationCheckSettings(max_iterations=6)
+    one = dict(checked)
+    sized_one = supply_swaps(target, one, base, locations, model, sim, check, actuators=1)
+    assert (5, 6, 7) not in sized_one
+    sized = supply_swaps(target, checked, base, locations, model, sim, check)
+    assert (5, 6, 7) in sized
+    best = min(checked, key=lambda sub: checked[sub].rss)
+    assert best == (5, 6, 7)
+    assert checked[best].sizes == pytest.approx([1.0, 1.0, 2.0], rel=0.02)
