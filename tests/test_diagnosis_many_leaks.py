@@ -189,3 +189,107 @@ def test_totals_interval_and_repair_order():
     assert (c_high - totals.annual_cost) / totals.annual_cost == pytest.approx(
         (totals.average_mass_flow_interval[1] - 2e-3) / 2e-3, rel=1e-9
     )
+
+
+def _plants_reading_gains(matrix: np.ndarray, gains: np.ndarray) -> SignatureSet:
+    """Linear signatures whose plausible plant ``k`` moves location ``l``'s features by
+    ``1 + gains[k, l]`` times the signature (its deviation: ``gains[k, l]`` times it)."""
+    base = _linear_set(matrix)
+    deviations = gains[:, :, None, None] * base.deltas[None, :, :, :]
+    return base.with_plant_deviations(deviations, base.sizes[0].copy())
+
+
+def test_the_totals_variance_carries_the_plants_model_error(matrix):
+    # three leaks, no noise in the observation: the fit's part is the linear
+    # least-squares variance at unit residual scale; each plant reads leak l as
+    # (1 + g_kl) a_l, so the model error's part is the mean square of sum_l g_kl a_l
+    gains = np.random.default_rng(381).normal(0.0, 0.1, size=(12, N_LOC))
+    truth = {1: 2.0, 4: 3.0, 7: 1.5}
+    observed = sum(size * matrix[loc] for loc, size in truth.items())
+    result = locate(observed, LeakEffectModel(_plants_reading_gains(matrix, gains)), _white)
+    order = [int(str(leak.location)[1:-2]) for leak in result.leaks]
+    assert sorted(order) == sorted(truth)
+    J = 20.0 * matrix[order].T  # whitened Jacobian, columns in the leaks' order
+    fit = float(np.sum(np.linalg.inv(J.T @ J)))
+    sizes = np.array([truth[i] for i in order])
+    model = float(np.mean((gains[:, order] @ sizes) ** 2))
+    assert result.flow_variance(np.ones(3)) == pytest.approx(fit + model, rel=1e-6)
+    # without plausible plants, the fit's part alone
+    alone = locate(observed, LeakEffectModel(_linear_set(matrix)), _white)
+    assert alone.flow_variance(np.ones(3)) == pytest.approx(fit, rel=1e-6)
+
+
+def test_the_totals_interval_covers_a_plant_drawn_like_the_plausible_ones(matrix):
+    # plants whose gains come from the plausible plants' distribution, noise on the
+    # observation: the 95 % interval of the total covers the true total at about its
+    # nominal rate with the model error, far less often without it
+    rng = np.random.default_rng(382)
+    signatures = _plants_reading_gains(matrix, rng.normal(0.0, 0.1, size=(40, N_LOC)))
+    effects = LeakEffectModel(signatures)
+    plain = LeakEffectModel(_linear_set(matrix))
+    truth = {2: 2.0, 5: 3.0, 8: 1.5}
+    covered = plainly = 0
+    runs = 60
+    for _ in range(runs):
+        gain = rng.normal(0.0, 0.1, size=N_LOC)
+        observed = sum((1.0 + gain[loc]) * size * matrix[loc] for loc, size in truth.items())
+        observed = observed + rng.normal(0.0, 1.0 / 20.0, size=N_FEAT)
+        result = locate(observed, effects, _white)
+        assert len(result.leaks) == 3
+        error = abs(sum(leak.mass_flow for leak in result.leaks) - 6.5)
+        covered += error <= 1.959964 * np.sqrt(result.flow_variance(np.ones(3)))
+        plain_half = 1.959964 * np.sqrt(locate(observed, plain, _white).flow_variance(np.ones(3)))
+        plainly += error <= plain_half
+    assert 0.85 * runs <= covered <= runs
+    assert plainly <= 0.5 * runs
+
+
+def test_a_supply_leak_is_tried_as_the_lines_of_the_third_best_actuator():
+    # leaks on both lines of actuator C act together like a supply leak (an interaction
+    # no signature holds); the additive signatures rank actuators A and B's lines
+    # closer to the supply's effect, C's third: the swap finds C_A + C_B only because
+    # three actuators are tried
+    from pneufdd.diagnosis.localisation.check import SimulationCheckSettings, refine_all
+    from pneufdd.diagnosis.localisation.simulated import supply_swaps
+
+    names = ("supply", "A_A", "A_B", "B_A", "B_B", "C_A", "C_B", "D_A")
+    rng = np.random.default_rng(383)
+    supply = np.abs(rng.normal(size=40))
+    effects = {0: supply, 7: np.abs(rng.normal(size=40))}
+    for a, b, spread in ((1, 2, 0.05), (3, 4, 0.2)):
+        effects[a] = 0.5 * supply + spread * np.abs(rng.normal(size=40))
+        effects[b] = 0.5 * supply + spread * np.abs(rng.normal(size=40))
+    effects[5], effects[6] = np.abs(rng.normal(size=40)), np.abs(rng.normal(size=40))
+    together = supply - 0.5 * (effects[5] + effects[6])  # C_A + C_B at 1 each: 1.5 supply
+
+    def sim(leaks):
+        out = sum(size * effects[loc] for loc, size in leaks.items())
+        if 5 in leaks and 6 in leaks:
+            out = out + leaks[5] * leaks[6] * together
+        return np.asarray(out, dtype=np.float64)
+
+    target = sim({7: 2.0, 5: 1.0, 6: 1.0})
+    matrix = np.stack([effects[i] for i in range(len(names))])
+    signatures = _linear_set(matrix)
+    signatures = SignatureSet(
+        names,
+        signatures.sizes,
+        signatures.deltas,
+        signatures.feature_names,
+        signatures.nominal_pressure,
+    )
+    model = WhitenedEffects(
+        signatures.sizes, signatures.deltas, lambda d: np.atleast_2d(d), target, 1.25
+    )
+    base = (0, 7)
+    checked = refine_all({base: np.array([1.0, 2.0])}, target, sim, model.size_cap, 6)
+    locations = signatures.locations
+    check = SimulationCheckSettings(max_iterations=6)
+    one = dict(checked)
+    sized_one = supply_swaps(target, one, base, locations, model, sim, check, actuators=1)
+    assert (5, 6, 7) not in sized_one
+    sized = supply_swaps(target, checked, base, locations, model, sim, check)
+    assert (5, 6, 7) in sized
+    best = min(checked, key=lambda sub: checked[sub].rss)
+    assert best == (5, 6, 7)
+    assert checked[best].sizes == pytest.approx([1.0, 1.0, 2.0], rel=0.02)

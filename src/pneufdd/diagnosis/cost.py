@@ -380,11 +380,12 @@ class LeakTotals:
     """The reported leaks together, with intervals from the fit.
 
     The interval of a total is that of the sum of the fitted sizes, from their
-    covariance (:attr:`~pneufdd.diagnosis.localisation.search.Localisation.size_spread`):
-    often narrower than the single leaks' intervals would suggest, since leaks the
-    sensors cannot tell apart have a poorly determined difference but a well
-    determined sum. It covers the reported leaks; what could still hide elsewhere is
-    the diagnosis's remainder.
+    covariance (:attr:`~pneufdd.diagnosis.localisation.search.Localisation.size_spread`:
+    the fit's and the twin's model error on the plausible plants): often narrower
+    than the single leaks' intervals would suggest, since leaks the sensors cannot
+    tell apart have a poorly determined difference but a well determined sum. It
+    covers the reported leaks; what could still hide elsewhere is the diagnosis's
+    remainder.
 
     Attributes
     ----------

@@ -199,7 +199,10 @@ def more_leak_reasons(
     - the best explanation with one leak more (residual ``rss_next``; inf: none)
       lowers the chosen one's residual ``rss`` by more than the information
       criterion's penalty of :func:`choose_leak_count`, though not by the relative
-      gain the choice needs; or the search stopped at its ``limit`` of leaks;
+      gain the choice needs; or by that gain too, as the check by simulation
+      predicted it from its probes, yet it was not taken (sized, it explained less,
+      or it is what the larger leaks' model error imitates); or the search stopped
+      at its ``limit`` of leaks;
     - the chosen explanation leaves more than ``misfit_ratio`` per residual
       component: far more than noise and model error explain (leaks the search
       cannot separate, or another fault).
@@ -211,6 +214,10 @@ def more_leak_reasons(
     criterion asks, less than the 25 % the model choice needs',)
     >>> more_leak_reasons(400.0, 390.0, 1, 50, 2, 0.25)
     ()
+    >>> more_leak_reasons(400.0, 280.0, 2, 50, 5, 0.25)  # doctest: +NORMALIZE_WHITESPACE
+    ('a further leak would lower the residual by 30 % as probed beside the leaks found, but
+    was not taken: sized, it explained less, or the model error of the larger leaks imitates a
+    leak of its size',)
     >>> more_leak_reasons(4000.0, math.inf, 1, 50, 2, 0.25, 20.0)
     ('the leaks found leave 80 times the residual that noise and model error explain',)
     """
@@ -224,11 +231,19 @@ def more_leak_reasons(
                     f"the search stopped at its limit of {limit} leak(s); one more would "
                     f"lower the residual by {math.floor(100 * drop)} %"
                 )
-            else:
+            elif drop < min_relative_gain:
                 reasons.append(
                     f"a further leak would lower the residual by {math.floor(100 * drop)} %: more "
                     "than the information criterion asks, less than the "
                     f"{100 * min_relative_gain:.0f} % the model choice needs"
+                )
+            else:
+                # predicted (probed beside the leaks found) but not taken: sized, it
+                # explained less, or the larger leaks' model error imitates it
+                reasons.append(
+                    f"a further leak would lower the residual by {math.floor(100 * drop)} % as "
+                    "probed beside the leaks found, but was not taken: sized, it explained "
+                    "less, or the model error of the larger leaks imitates a leak of its size"
                 )
     if rss > misfit_ratio * max(dof, 1):
         reasons.append(

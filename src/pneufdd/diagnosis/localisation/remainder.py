@@ -18,7 +18,11 @@ must be said too:
 - the **covariance of the sizes** (:func:`size_spread`): :math:`s^2 (J^T J)^{-1}`
   of the whitened Jacobian, from which the total flow and its interval follow even
   when the single leaks cannot be separated (two leaks whose effects are nearly
-  collinear have a poorly determined difference but a well determined sum).
+  collinear have a poorly determined difference but a well determined sum);
+- the **model error of the sizes** (:func:`model_error_spread`): on each plausible
+  plant the leaks act differently from the twin, and the fit would read that
+  difference as different sizes. The spread of those readings over the plants is
+  added to the covariance, so a total's interval carries the twin's model error.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ __all__ = [
     "HiddenLeak",
     "Remainder",
     "hidden_leak_bounds",
+    "model_error_spread",
     "size_spread",
 ]
 
@@ -282,3 +287,73 @@ def size_spread(jacobian: FloatArray, s2: float) -> FloatArray:
     largest = float(np.max(squares, initial=0.0))
     ridge = 1e-12 * largest if largest > 0 else 1.0
     return np.asarray(np.sqrt(s2) * vt.T / np.sqrt(squares + ridge)[None, :], dtype=np.float64)
+
+
+def model_error_spread(
+    jacobian: FloatArray, deviations: FloatArray, unexplained: float = 0.0
+) -> FloatArray:
+    r"""A factor :math:`G` of the sizes' covariance from the twin's model error [kg/s].
+
+    On plausible plant ``k`` the leaks' joint effect differs from the twin's by
+    :math:`d^{(k)}` (whitened like the run, the leaks' deviations summed:
+    :attr:`~pneufdd.diagnosis.effects.signatures.SignatureSet.plant_deviations`).
+    Linearised at the fitted sizes, the fit reads it as the size change
+    :math:`\delta a^{(k)} = J^{+} d^{(k)}` (:math:`J^{+}` the pseudo-inverse of the
+    whitened Jacobian); the model error's covariance is their mean square over the
+    ``K`` plants, :math:`\frac{1}{K} \sum_k \delta a^{(k)} \delta a^{(k)T} = G G^T`,
+    :math:`G = [\delta a^{(1)} \dots \delta a^{(K)}] / \sqrt{K}`. The mean square, not
+    the variance: a deviation every plant shares (a bias of the twin) is an error of
+    the sizes too.
+
+    A plant may differ from the twin more than the plausible plants do. What the
+    explanation leaves beyond noise (``unexplained``, :math:`u`) is the part of this
+    plant's deviation beside the leaks' directions; against the plausible plants'
+    mean square there, :math:`\overline{\lVert P d^{(k)} \rVert^2}` (:math:`P` the
+    projection beside the columns of :math:`J`), it gives the factor
+    :math:`\lambda^2 = \max(1, u / \overline{\lVert P d^{(k)} \rVert^2})` by which
+    this plant's deviation is taken to exceed theirs, along the leaks' directions
+    too: :math:`G` is multiplied by :math:`\lambda`.
+
+    Parameters
+    ----------
+    jacobian : ndarray, shape (n_components, k)
+        Whitened derivative of the leaks' effect by each size [1/(kg/s)].
+    deviations : ndarray, shape (K, n_components)
+        Whitened deviation of each plausible plant's effect of the leaks [-].
+    unexplained : float
+        The explanation's residual beyond its noise expectation [-].
+
+    Returns
+    -------
+    ndarray, shape (k, K)
+        ``G`` [kg/s]; the variance of :math:`g^T a` from model error is
+        :math:`\lVert G^T g \rVert^2`.
+
+    Examples
+    --------
+    One leak whose effect is ``a (1, 1)``; two plants read it 10 % larger and 10 %
+    smaller at ``a = 2``: a model error of 0.2 in the size:
+
+    >>> J = np.array([[1.0], [1.0]])
+    >>> d = np.array([[0.2, 0.2], [-0.2, -0.2]])
+    >>> G = model_error_spread(J, d)
+    >>> G.shape, round(float(np.sum(G**2)), 6)
+    ((1, 2), 0.04)
+
+    A plant whose deviation beside the leak's direction is 4 times (in square) the
+    plausible plants' doubles the spread:
+
+    >>> d = np.array([[0.3, 0.1], [-0.1, -0.3]])
+    >>> round(float(np.sum(model_error_spread(J, d, unexplained=0.08) ** 2)), 6)
+    0.16
+    """
+    J = np.asarray(jacobian, dtype=np.float64)
+    D = np.atleast_2d(np.asarray(deviations, dtype=np.float64))
+    if J.shape[1] == 0 or D.shape[0] == 0:
+        return np.zeros((J.shape[1], 0))
+    readings = np.linalg.lstsq(J, D.T, rcond=None)[0]
+    basis = _orthogonal(J, J.shape[0])
+    beside = D.T - basis @ (basis.T @ D.T)
+    seen = float(np.mean(np.sum(beside**2, axis=0)))
+    scale = max(1.0, unexplained / seen) if seen > 0 else 1.0
+    return np.asarray(np.sqrt(scale) * readings / np.sqrt(D.shape[0]), dtype=np.float64)

@@ -61,6 +61,7 @@ from pneufdd.diagnosis.localisation.remainder import (
     HiddenLeak,
     Remainder,
     hidden_leak_bounds,
+    model_error_spread,
     size_spread,
 )
 from pneufdd.diagnosis.localisation.settings import LocalisationSettings, leak_limit
@@ -134,10 +135,12 @@ class Localisation:
         What the leaks leave: the largest leak that could still hide at each other
         location, whether more leaks may be present
         (:mod:`pneufdd.diagnosis.localisation.remainder`).
-    size_spread : ndarray, shape (n_leaks, n_leaks), optional
+    size_spread : ndarray, shape (n_leaks, m), optional
         A factor ``F`` of the covariance ``F F^T`` of the leaks' flows, rows in the
-        order of :attr:`leaks` (:func:`~pneufdd.diagnosis.localisation.remainder.size_spread`)
-        [kg/s].
+        order of :attr:`leaks`: the fit's
+        (:func:`~pneufdd.diagnosis.localisation.remainder.size_spread`) beside the
+        twin's model error on the plausible plants
+        (:func:`~pneufdd.diagnosis.localisation.remainder.model_error_spread`) [kg/s].
     """
 
     leaks: tuple[SizedLocation, ...]
@@ -452,6 +455,7 @@ def locate(
         residual, jacobian = _signature_residual(search, subset, coef, interacting)
     remainder, spread = _remainder(
         model,
+        _plant_deviations(effects, whiten, subset, coef),
         rss,
         following,
         chosen,
@@ -620,8 +624,23 @@ def _signature_residual(
     return residual, jacobian
 
 
+def _plant_deviations(
+    effects: LeakEffectModel, whiten: Whitener, subset: Subset, sizes: FloatArray
+) -> FloatArray | None:
+    """Whitened deviation of each plausible plant's joint effect of the leaks from the
+    twin's, the leaks' deviations summed (None without plausible plants)."""
+    parts = [
+        effects.signatures.deviations(loc, float(x)) for loc, x in zip(subset, sizes, strict=True)
+    ]
+    found = [part for part in parts if part is not None]
+    if not found or len(found) != len(parts):
+        return None
+    return np.asarray(whiten(np.sum(found, axis=0)), dtype=np.float64)
+
+
 def _remainder(
     model: WhitenedEffects,
+    deviations: FloatArray | None,
     rss: float,
     following: float,
     chosen: int,
@@ -635,7 +654,8 @@ def _remainder(
     locations: tuple[Location, ...],
     settings: LocalisationSettings,
 ) -> tuple[Remainder, FloatArray | None]:
-    """What the chosen leaks leave (:mod:`.remainder`) and the spread of their sizes;
+    """What the chosen leaks leave (:mod:`.remainder`) and the spread of their sizes,
+    the fit's and the plausible plants' ``deviations`` (whitened, one row per plant);
     ``following`` is the residual of the best explanation with one leak more [-]."""
     unexplained = max(0.0, rss - (dof - len(subset)))
     bounds, at_cap = hidden_leak_bounds(
@@ -666,5 +686,9 @@ def _remainder(
         complete_confidence=next_leak_weight(rss, following, chosen, dof),
         next_leak_gain=1.0 - following / rss if math.isfinite(following) and rss > 0 else math.nan,
     )
-    spread = size_spread(jacobian, s2) if subset else None
+    if not subset:
+        return remainder, None
+    spread = size_spread(jacobian, s2)
+    if deviations is not None:
+        spread = np.hstack([spread, model_error_spread(jacobian, deviations, unexplained)])
     return remainder, spread
