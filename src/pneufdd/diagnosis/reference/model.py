@@ -37,7 +37,6 @@ from pneufdd.array_types import FloatArray
 from pneufdd.diagnosis.detection.band import BandDetector
 from pneufdd.diagnosis.detection.statistic import RUN_STATISTICS, CycleDistanceDetector
 from pneufdd.diagnosis.effects.model import LeakEffectModel
-from pneufdd.diagnosis.effects.sensor_range import censor_at_sensor_range, feature_ranges
 from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.diagnosis.localisation.search import LocalisationSettings
 from pneufdd.errors import InputError, MachineError, describe
@@ -346,7 +345,7 @@ class ReferenceModel:
         if "P_In" in table.channels:
             supply = float(np.mean(table.summaries[:, :, table.channels.index("P_In"), 0]))
         names = table.feature_names()
-        model = cls(
+        return cls(
             machine=table.machine,
             machine_description=dict(machine_description or {}),
             channels=table.channels,
@@ -365,7 +364,6 @@ class ReferenceModel:
             localisation=localisation or LocalisationSettings(),
             cycle_recording=None if cycle_recording is None else np.asarray(cycle_recording),
         )
-        return model if signatures is None else model.with_signatures(signatures)
 
     # ----------------------------------------------------------- derived
     @property
@@ -466,20 +464,7 @@ class ReferenceModel:
         )
 
     def with_signatures(self, signatures: SignatureSet | None) -> ReferenceModel:
-        """A copy with ``signatures`` (restricted to this reference's features).
-
-        With a description, every signature is held within its sensor's range around
-        this reference's means (:mod:`~pneufdd.diagnosis.effects.sensor_range`): a
-        reading the plant holds at a range limit cannot move beyond it with a leak.
-        """
-        if signatures is None:
-            return replace(self, signatures=None)
-        chosen = signatures.select(self.feature_names)
-        description = self.description
-        if description is not None:
-            low, high = feature_ranges(description, self.feature_names)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)  # a feature of no cycle: NaN
-                mean = np.nanmean(self.features, axis=0)
-            chosen = censor_at_sensor_range(chosen, mean, low, high)
-        return replace(self, signatures=chosen)
+        """A copy with ``signatures`` (restricted to this reference's features)."""
+        return replace(
+            self, signatures=None if signatures is None else signatures.select(self.feature_names)
+        )
