@@ -9,8 +9,14 @@ leak of each size at each port (10 cycles) diagnosed by both references. Prints 
 machine the located share and the size error median and p90 before and after, and
 writes every run's record to OUT/commissioning.json.
 
+With ``--second-orifice 1.5mm`` the plant is also recorded with the second, larger
+orifice at every port and a third reference is commissioned with both sizes (the
+two-size plan, gains interpolated in size); every leak run is diagnosed by all three
+(labels ``before``, ``after`` (one size) and ``two``).
+
     nice -n 10 python benchmarks/acceptance_commissioning.py OUT --seed 875000000 \\
-        [--machines press-fit-cell,festo-dsd] [--sizes 20,45,90] [--orifice 1.0mm]
+        [--machines press-fit-cell,festo-dsd] [--sizes 20,45,90] [--orifice 1.0mm] \\
+        [--second-orifice 1.5mm]
 
 The commands a user runs are ``reference build``, ``commission plan``, ``commission
 apply`` and ``diagnose``; this script calls the library functions behind them (the
@@ -36,7 +42,6 @@ def _size_at(result: Any, port: str) -> float:
 
 def _machine(name: str, seed: int, args: argparse.Namespace) -> list[dict[str, Any]]:
     from pneufdd.diagnosis.commission_plan import plan_commissioning
-    from pneufdd.diagnosis.commissioning import commission
     from pneufdd.diagnosis.engine import diagnose
     from pneufdd.diagnosis.recordings import build_reference_from_recordings, run_table
     from pneufdd.errors import PneufddError
@@ -59,12 +64,19 @@ def _machine(name: str, seed: int, args: argparse.Namespace) -> list[dict[str, A
             runs[port] = (f"{port}.test", simulate(plant, 22, {port: args.orifice}, seed + 100 + j))
         except MachineStalledError:
             print(f"{name}: {port} stalls with the test orifice: not commissioned", flush=True)
-    t0 = time.perf_counter()
-    done = commission(reference, plan, runs)
-    print(f"{name}: commissioned in {time.perf_counter() - t0:.0f} s", flush=True)
-    for p in done.ports:
-        gain = "-" if p.fit is None else f"{p.fit.overall_gain:.3f}"
-        print(f"  {p.port:10s} {p.status:12s} gain {gain} {p.reason}", flush=True)
+    one = _commissioned(name, reference, plan, runs)
+    models = {"before": reference, "after": one.reference}
+    if args.second_orifice:
+        plan2 = plan_commissioning(reference, None, args.orifice, 20, args.second_orifice)
+        runs2 = dict(runs)
+        for j, port in enumerate(plan.ports):
+            try:
+                rec = simulate(plant, 22, {port: args.second_orifice}, seed + 200 + j)
+                runs2[port + "@2"] = (f"{port}@2.test", rec)
+            except MachineStalledError:
+                print(f"{name}: {port} stalls with the second orifice", flush=True)
+        models["two"] = _commissioned(name, reference, plan2, runs2).reference
+    done_status = {p.port: p.status for p in one.ports}
     p_nom = float(psig_to_pa(nominal.nominal_supply_psig))
     rows: list[dict[str, Any]] = []
     for j, port in enumerate(plan.ports):
@@ -82,9 +94,9 @@ def _machine(name: str, seed: int, args: argparse.Namespace) -> list[dict[str, A
                 "port": port,
                 "slpm": size,
                 "seed": run_seed,
-                "commissioned": dict((p.port, p.status) for p in done.ports)[port],
+                "commissioned": done_status[port],
             }
-            for label, model in (("before", reference), ("after", done.reference)):
+            for label, model in models.items():
                 try:
                     result = diagnose(model, run_table(model, rec, "run"), threads=1)
                 except PneufddError as exc:
@@ -101,10 +113,25 @@ def _machine(name: str, seed: int, args: argparse.Namespace) -> list[dict[str, A
     return rows
 
 
+def _commissioned(name: str, reference: Any, plan: Any, runs: dict[str, Any]) -> Any:
+    """``commission`` (the code of ``commission apply``) with its per-port lines printed."""
+    from pneufdd.diagnosis.commissioning import commission
+
+    t0 = time.perf_counter()
+    done = commission(reference, plan, runs)
+    print(f"{name}: commissioned in {time.perf_counter() - t0:.0f} s", flush=True)
+    for p in done.ports:
+        gain = "-" if p.fit is None else f"{p.fit.overall_gain:.3f}"
+        print(f"  {p.port:10s} {p.orifice:7s} {p.status:12s} gain {gain} {p.reason}", flush=True)
+    return done
+
+
 def _summary(rows: list[dict[str, Any]]) -> None:
     for name in sorted({r["machine"] for r in rows}):
         mine = [r for r in rows if r["machine"] == name and not r.get("stalled")]
-        for label in ("before", "after"):
+        for label in ("before", "after", "two"):
+            if not any(label in r for r in mine):
+                continue
             errors = [
                 r[label]["size_error"] for r in mine if r[label].get("size_error") is not None
             ]
@@ -126,6 +153,7 @@ def main() -> None:
     parser.add_argument("--machines", default="press-fit-cell,festo-dsd")
     parser.add_argument("--sizes", default="20,45,90")
     parser.add_argument("--orifice", default="1.0mm")
+    parser.add_argument("--second-orifice", default="", help="e.g. 1.5mm: also the two-size plan")
     args = parser.parse_args()
     args.sizes = [float(x) for x in args.sizes.split(",")]
     args.out.mkdir(parents=True, exist_ok=True)

@@ -3,8 +3,8 @@
 A press-fit-cell plant varied at scale 2 (seed 3,360,001, a development plant whose
 EJECT_A and PRESS_A leak effects differ most from the nominal twin's), its reference
 built with the NOMINAL description, 1.0 mm test orifices at PRESS_A and EJECT_A and a
-mislabelled run (the orifice at FEED_B, the file named CLAMP_B). Everything through the
-CLI, once per module.
+mislabelled run (the orifice at FEED_B, the file named CLAMP_B), and a second plan with
+a 1.6 mm second orifice at PRESS_A. Everything through the CLI, once per module.
 """
 
 from __future__ import annotations
@@ -66,6 +66,8 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         simulate(plant, 22, {port: "1.0mm"}, seed).write(folder / f"{port}.parquet")
     # the orifice fitted at FEED_B, the file named for CLAMP_B
     simulate(plant, 22, {"FEED_B": "1.0mm"}, PLANT_SEED + 120).write(folder / "CLAMP_B.parquet")
+    # a second, larger orifice at PRESS_A (the two-size plan)
+    simulate(plant, 22, {"PRESS_A": "1.6mm"}, PLANT_SEED + 150).write(folder / "PRESS_A@2.parquet")
     plan = _cli(
         ["commission", "plan", "--reference", "ref.pnref", "--ports", "PRESS_A,EJECT_A,CLAMP_B",
          "--orifice-mm", "1.0", "--cycles", "20", "--out", "plan"], folder,
@@ -76,12 +78,23 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
          "CLAMP_B.parquet", "--out", "corrected.pnref", "--json", "report.json",
          "--figure", "report.png"], folder,
     )  # fmt: skip
+    plan2 = _cli(
+        ["commission", "plan", "--reference", "ref.pnref", "--ports", "PRESS_A",
+         "--orifice-mm", "1.0", "--second-orifice-mm", "1.6", "--out", "plan2"], folder,
+    )  # fmt: skip
+    applied2 = _cli(
+        ["commission", "apply", "--reference", "ref.pnref", "--plan", "plan2",
+         "PRESS_A.parquet", "PRESS_A@2.parquet", "--out", "two.pnref", "--json", "two.json"],
+        folder,
+    )  # fmt: skip
     return {
         "folder": folder,
         "plant": plant,
         "reference": reference,
         "plan": plan,
         "apply": applied,
+        "plan2": plan2,
+        "apply2": applied2,
     }
 
 
@@ -139,26 +152,32 @@ def test_apply_corrects_the_ports_it_saw_and_refuses_the_mislabelled_run(
     assert (site["folder"] / "ref.pnref").exists()  # the input is kept
 
 
-@pytest.mark.parametrize("port", ["EJECT_A", "PRESS_A"])
-def test_corrected_reference_sizes_another_leak_closer(site: dict[str, Any], port: str) -> None:
-    """A 45 SLPM leak (the test orifice passed 36.8) at a commissioned port."""
+def _errors(site: dict[str, Any], port: str, slpm: float, seed: int) -> dict[str, float]:
+    """Size error of a leak at ``port`` by the reference before and after commissioning."""
     from pneufdd.diagnosis.commissioning import _size_at
     from pneufdd.diagnosis.engine import diagnose
     from pneufdd.diagnosis.recordings import run_table
     from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.sim import simulate
 
-    corrected = load_reference(site["folder"] / "corrected.pnref")
-    seed = PLANT_SEED + 300 + 10 * PORTS.index(port) + 1
-    run = simulate(site["plant"], 12, {port: "45slpm"}, seed)
+    run = simulate(site["plant"], 12, {port: f"{slpm}slpm"}, seed)
     truth = float(run.metadata["leaks"][0]["mass_flow_kg_s"])
     errors = {}
-    for label, model in (("before", site["reference"]), ("after", corrected)):
+    models: dict[str, Any] = {"before": site["reference"]}
+    models |= {"after": load_reference(site["folder"] / "corrected.pnref")}
+    models |= {"two": load_reference(site["folder"] / "two.pnref")}
+    for label, model in models.items():
         # the leak's size at its port, as commissioning measures it (faults=False: on this
         # badly described plant a simulated spool leak may fit the uncorrected run better)
-        table = run_table(model, run)
-        size, _ = _size_at(diagnose(model, table, threads=1, faults=False), port)
+        size, _ = _size_at(diagnose(model, run_table(model, run), threads=1, faults=False), port)
         errors[label] = abs(size / truth - 1)
+    return errors
+
+
+@pytest.mark.parametrize("port", ["EJECT_A", "PRESS_A"])
+def test_corrected_reference_sizes_another_leak_closer(site: dict[str, Any], port: str) -> None:
+    """A 45 SLPM leak (the test orifice passed 36.8) at a commissioned port."""
+    errors = _errors(site, port, 45.0, PLANT_SEED + 300 + 10 * PORTS.index(port) + 1)
     # measured: EJECT_A 89.7 % -> 3.2 %, PRESS_A 74.1 % -> 3.9 %
     assert errors["before"] > 0.5
     assert errors["after"] < 0.1
@@ -204,3 +223,30 @@ def test_a_leak_a_spool_leak_fits_as_well_stays_a_costed_leak(site: dict[str, An
     assert [str(leak.location) for leak in result.leaks] == ["PRESS_A"]
     assert result.total_annual_cost > 0
     assert ("valve-leak-out", "PRESS_A") in {(m.kind, m.location) for m in first.ambiguity_group}
+
+
+def test_two_test_sizes_per_port(site: dict[str, Any]) -> None:
+    """A second, larger orifice: two recordings per port, gains interpolated in size."""
+
+    folder = site["folder"]
+    code, _, err = site["plan2"]
+    assert code == 0, err
+    plan = json.loads((folder / "plan2" / "plan.json").read_text())
+    # a sharp-edged hole's flow goes with its area: (1.6 / 1.0)^2 = 2.56
+    assert plan["second_slpm"] / plan["nominal_slpm"] == pytest.approx(2.56, rel=1e-9)
+    text = (folder / "plan2" / "commissioning.md").read_text()
+    assert "PRESS_A.parquet" in text
+    assert "PRESS_A@2.parquet" in text
+    code, _, err = site["apply2"]
+    assert code == 0, err
+    report = json.loads((folder / "two.json").read_text())
+    assert [(p["port"], p["orifice"], p["status"]) for p in report["ports"]] == [
+        ("PRESS_A", "1mm", "corrected"),
+        ("PRESS_A", "1.6mm", "corrected"),
+    ]
+    # a 90 SLPM leak: 2.4 times the first test size (36.8 SLPM), near the second (94.1)
+    errors = _errors(site, "PRESS_A", 90.0, PLANT_SEED + 300 + 10 * PORTS.index("PRESS_A") + 2)
+    # measured: before 5.8 %, the one-size gains 12.9 %, the two sizes 4.2 %
+    assert errors["after"] > 0.1
+    assert errors["two"] < 0.08
+    assert errors["two"] < errors["after"]

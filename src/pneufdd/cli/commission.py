@@ -52,6 +52,18 @@ def plan(
         float | None,
         typer.Option("--turns", help="Test leak valve (GR-3/8B) opened this many turns (0-6)."),
     ] = None,
+    second_orifice_mm: Annotated[
+        float | None,
+        typer.Option(
+            "--second-orifice-mm",
+            help="A second, larger test nozzle [mm] at every port: the correction is "
+            "measured at two sizes (docs/commissioning.md).",
+        ),
+    ] = None,
+    second_turns: Annotated[
+        float | None,
+        typer.Option("--second-turns", help="A second, larger opening of the GR-3/8B (0-6)."),
+    ] = None,
     cycles: Annotated[
         int, typer.Option("--cycles", min=1, max=10_000, help="Cycles to record at each port.")
     ] = 20,
@@ -75,13 +87,8 @@ def plan(
     from pneufdd.diagnosis.reference.file import load_reference
     from pneufdd.files import write_text_atomic
 
-    if orifice_mm is not None and turns is not None:
-        raise InputError(describe("--orifice-mm and --turns", "both", "one of them"))
-    if orifice_mm is not None and not (math.isfinite(orifice_mm) and 0.1 <= orifice_mm <= 20):
-        raise InputError(describe("--orifice-mm", orifice_mm, "a nozzle of 0.1 to 20 mm"))
-    if turns is not None and not (math.isfinite(turns) and 0 < turns <= 6):
-        raise InputError(describe("--turns", turns, "more than 0, at most 6 turns (GR-3/8B)"))
-    orifice = f"{turns}turns" if turns is not None else f"{orifice_mm or 1.0}mm"
+    orifice = _orifice(orifice_mm, turns, "") or "1.0mm"
+    second = _orifice(second_orifice_mm, second_turns, "second-")
     if out is not None:
         if out.exists() and not out.is_dir():
             raise InputError(describe("--out", str(out), "a folder (or a path to create one)"))
@@ -89,7 +96,7 @@ def plan(
         check_outputs(targets, {"--reference": reference}, overwrite)
     model = load_reference(reference)
     chosen = None if ports is None else [p.strip() for p in ports.split(",") if p.strip()]
-    planned = plan_commissioning(model, chosen, orifice, cycles)
+    planned = plan_commissioning(model, chosen, orifice, cycles, second)
     if out is None:
         typer.echo(planned.markdown(), nl=False)
         return
@@ -97,6 +104,21 @@ def plan(
     write_text_atomic(out / "plan.json", json.dumps(planned.to_dict(), indent=1) + "\n")
     write_text_atomic(out / "commissioning.md", planned.markdown())
     _say(f"wrote {out}: {len(planned.ports)} ports, {', '.join(PLAN_FILES)}")
+
+
+def _orifice(mm: float | None, turns: float | None, prefix: str) -> str | None:
+    """``--[second-]orifice-mm`` or ``--[second-]turns`` checked, as ``"1.0mm"``/``"2turns"``."""
+    if mm is not None and turns is not None:
+        raise InputError(describe(f"--{prefix}orifice-mm and --{prefix}turns", "both", "one"))
+    if mm is not None and not (math.isfinite(mm) and 0.1 <= mm <= 20):
+        raise InputError(describe(f"--{prefix}orifice-mm", mm, "a nozzle of 0.1 to 20 mm"))
+    if turns is not None and not (math.isfinite(turns) and 0 < turns <= 6):
+        raise InputError(
+            describe(f"--{prefix}turns", turns, "more than 0, at most 6 turns (GR-3/8B)")
+        )
+    if turns is not None:
+        return f"{turns}turns"
+    return None if mm is None else f"{mm}mm"
 
 
 def _read_plan(folder: Path) -> CommissioningPlan:
@@ -108,8 +130,12 @@ def _read_plan(folder: Path) -> CommissioningPlan:
     return CommissioningPlan.from_dict(data, f"--plan {path}")
 
 
-def _runs(recordings: list[Path], run: list[str], ports: tuple[str, ...]) -> dict[str, Path]:
-    """Port -> file: ``--run PORT=FILE``, or a RECORDING named for its port (``DNC_B.parquet``)."""
+def _runs(recordings: list[Path], run: list[str], ports: list[str]) -> dict[str, Path]:
+    """Test -> file: ``--run PORT=FILE``, or a RECORDING named for its test.
+
+    A test is named by its port (``DNC_B.parquet``), with a second orifice by its port
+    and ``@2`` (``DNC_B@2.parquet``).
+    """
     out: dict[str, Path] = {}
 
     def add(port: str, path: Path, where: str) -> None:
@@ -122,7 +148,9 @@ def _runs(recordings: list[Path], run: list[str], ports: tuple[str, ...]) -> dic
     for item in run:
         port, sep, file = item.partition("=")
         if not sep or not port.strip() or not file.strip():
-            raise InputError(describe("--run", item, "PORT=FILE (e.g. DNC_B=DNC_B.parquet)"))
+            raise InputError(
+                describe("--run", item, "PORT=FILE (e.g. DNC_B=DNC_B.parquet, DNC_B@2=...)")
+            )
         add(port.strip(), Path(file.strip()), f"--run {item}")
     for path in recordings:
         port = path.name.split(".")[0]
@@ -144,6 +172,7 @@ def _table(result: CommissioningResult) -> None:
     table = Table(title=f"commissioning of {result.reference.machine}")
     for name in (
         "port",
+        "orifice",
         "status",
         "test SLPM",
         "before SLPM",
@@ -156,6 +185,7 @@ def _table(result: CommissioningResult) -> None:
         fit = p.fit
         table.add_row(
             p.port,
+            p.orifice,
             p.status,
             slpm(p.test_size),
             slpm(p.size_before),
@@ -176,11 +206,16 @@ def apply(
     ],
     recordings: Annotated[
         list[Path] | None,
-        typer.Argument(help="Test-leak recordings, each named for its port (DNC_B.parquet)."),
+        typer.Argument(
+            help="Test-leak recordings, each named for its port (DNC_B.parquet; "
+            "the second orifice DNC_B@2.parquet)."
+        ),
     ] = None,
     run: Annotated[
         list[str] | None,
-        typer.Option("--run", help="PORT=FILE: the recording with the orifice at PORT."),
+        typer.Option(
+            "--run", help="PORT=FILE: the recording with the orifice at PORT (PORT@2: the second)."
+        ),
     ] = None,
     out: Annotated[
         Path | None, typer.Option("--out", help="The corrected reference (.pnref) to write.")
@@ -221,7 +256,7 @@ def apply(
     positive_count(threads, "--threads")
     plan_file = plan_folder / "plan.json" if plan_folder.is_dir() else plan_folder
     planned = _read_plan(plan_folder)
-    files = _runs(list(recordings or []), list(run or []), planned.ports)
+    files = _runs(list(recordings or []), list(run or []), [t.key for t in planned.tests()])
     inputs: dict[str, Path | None] = {f"--run {p}": f for p, f in files.items()}
     inputs |= {"--reference": reference, "--plan": plan_file, "--map": tag_map}
     check_outputs({"--out": out, "--json": json_out, "--figure": figure}, inputs, overwrite)

@@ -10,7 +10,10 @@ leak-effect model per location (:mod:`pneufdd.diagnosis.commissioning`;
 
 This module writes the procedure: which ports, which orifice, how many cycles, and the
 orifice's nominal flow at the machine's nominal supply pressure (the size the
-diagnosis states, ``docs/twin.md`` "Leaks").
+diagnosis states, ``docs/twin.md`` "Leaks"). With a second, larger orifice every port
+is visited twice (one recording per orifice): the correction is then measured at two
+sizes and interpolated between them, where one size could only be carried to the
+others unchanged.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ __all__ = [
     "DEFAULT_CYCLES",
     "MAX_COMMISSION_CYCLES",
     "CommissioningPlan",
+    "TestLeak",
     "plan_commissioning",
 ]
 
@@ -37,8 +41,38 @@ DEFAULT_CYCLES = 20
 MAX_COMMISSION_CYCLES = 10_000
 """Most cycles a plan asks for at one port (``docs/limits.md``) [-]."""
 
-PLAN_FORMAT = 1
-"""Version of ``plan.json``."""
+PLAN_FORMAT = 2
+"""Version of ``plan.json`` (1: one orifice, still read)."""
+
+SECOND = "@2"
+"""Suffix of a port's recording with the second orifice (``DNC_B@2.parquet``)."""
+
+
+@dataclass(frozen=True)
+class TestLeak:
+    """One recording of the plan: a test orifice fitted at one port.
+
+    Attributes
+    ----------
+    key : str
+        The recording's name: the port (first orifice) or the port and ``@2`` (second).
+    port : str
+        The location the orifice is fitted at.
+    orifice : str
+        The orifice as given (``"1.0mm"``, ``"2turns"``).
+    mass_flow : float
+        Its flow at the nominal supply pressure, 20 degC [kg/s].
+    slpm : float
+        The same flow in SLPM.
+    """
+
+    __test__ = False  # not a pytest class
+
+    key: str
+    port: str
+    orifice: str
+    mass_flow: float
+    slpm: float
 
 
 @dataclass(frozen=True)
@@ -63,6 +97,12 @@ class CommissioningPlan:
         The nominal supply pressure the size is stated at [Pa].
     cycles : int
         Machine cycles to record with the orifice fitted (plus one start-up cycle) [-].
+    second_orifice : str
+        A second, larger test orifice fitted at every port after the first ("": none).
+    second_mass_flow : float
+        Its flow at the nominal supply pressure, 20 degC [kg/s] (0 without).
+    second_slpm : float
+        The same flow in SLPM (0 without).
 
     Examples
     --------
@@ -71,6 +111,11 @@ class CommissioningPlan:
     True
     >>> p.size_of("X_A")
     0.001
+    >>> two = CommissioningPlan("m", ("X_A",), "1mm", 1e-3, 46.4, 5.9e5, 20, "2mm", 4e-3, 186.)
+    >>> [(t.key, t.orifice) for t in two.tests()]
+    [('X_A', '1mm'), ('X_A@2', '2mm')]
+    >>> CommissioningPlan.from_dict(two.to_dict(), "plan.json") == two
+    True
     """
 
     machine: str
@@ -80,12 +125,26 @@ class CommissioningPlan:
     nominal_slpm: float
     nominal_pressure: float
     cycles: int
+    second_orifice: str = ""
+    second_mass_flow: float = 0.0
+    second_slpm: float = 0.0
 
     def size_of(self, port: str) -> float:
-        """Nominal flow of the test orifice at ``port`` [kg/s] (the same at every port)."""
+        """Nominal flow of the (first) test orifice at ``port`` [kg/s] (the same at every port)."""
         if port not in self.ports:
             raise InputError(describe("port", port, list(self.ports)))
         return self.nominal_mass_flow
+
+    def tests(self) -> list[TestLeak]:
+        """Every recording the plan asks for, in the order the technician makes them."""
+        out = []
+        for port in self.ports:
+            out.append(TestLeak(port, port, self.orifice, self.nominal_mass_flow,
+                                self.nominal_slpm))  # fmt: skip
+            if self.second_orifice:
+                out.append(TestLeak(port + SECOND, port, self.second_orifice,
+                                    self.second_mass_flow, self.second_slpm))  # fmt: skip
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible form (``plan.json``)."""
@@ -98,13 +157,16 @@ class CommissioningPlan:
             "nominal_slpm": self.nominal_slpm,
             "nominal_pressure_pa": self.nominal_pressure,
             "cycles": self.cycles,
+            "second_orifice": self.second_orifice,
+            "second_mass_flow_kg_s": self.second_mass_flow,
+            "second_slpm": self.second_slpm,
             "steps": self.steps(),
         }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], where: str) -> CommissioningPlan:
         """Inverse of :meth:`to_dict`; ``where`` names the file in errors."""
-        if not isinstance(data, Mapping) or data.get("format") != PLAN_FORMAT:
+        if not isinstance(data, Mapping) or data.get("format") not in (1, PLAN_FORMAT):
             raise InputError(describe(where, "not a commissioning plan", "commission plan's JSON"))
         try:
             ports = tuple(str(p) for p in data["ports"])
@@ -116,11 +178,18 @@ class CommissioningPlan:
                 float(data["nominal_slpm"]),
                 float(data["nominal_pressure_pa"]),
                 int(data["cycles"]),
+                str(data.get("second_orifice", "")),
+                float(data.get("second_mass_flow_kg_s", 0.0)),
+                float(data.get("second_slpm", 0.0)),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(describe(where, repr(exc), "commission plan's JSON")) from exc
         if not ports or len(set(ports)) != len(ports) or not plan.nominal_mass_flow > 0:
             raise InputError(describe(f"ports of {where}", list(ports), "unique, at least one"))
+        if plan.second_orifice and not plan.second_mass_flow > plan.nominal_mass_flow:
+            raise InputError(
+                describe(f"second orifice of {where}", plan.second_orifice, "larger than the first")
+            )
         if not 1 <= plan.cycles <= MAX_COMMISSION_CYCLES:
             raise InputError(
                 describe(f"cycles of {where}", plan.cycles, f"1 to {MAX_COMMISSION_CYCLES}")
@@ -129,38 +198,49 @@ class CommissioningPlan:
 
     def steps(self) -> list[str]:
         """The procedure, one instruction per step."""
-        what = (
-            f"the {self.orifice.removesuffix('turns')} turns GR-3/8B leak valve"
-            if self.orifice.endswith("turns")
-            else f"the {self.orifice} test nozzle"
-        )
+
+        def what(orifice: str) -> str:
+            if orifice.endswith("turns"):
+                return f"the {orifice.removesuffix('turns')} turns GR-3/8B leak valve"
+            return f"the {orifice} test nozzle"
+
         out = [
             f"Run the machine leak-free as in its reference ({self.machine}); keep it "
             "running through the whole procedure.",
         ]
         for k, port in enumerate(self.ports, start=1):
             where = "the supply manifold" if port == "supply" else f"line {port}"
-            out.append(
-                f"Port {k}/{len(self.ports)} {port}: fit {what} at {where} "
-                f"({self.nominal_slpm:.1f} SLPM at {pa_to_bar_gauge(self.nominal_pressure):.2f} "
-                f"bar(g)); record at least {self.cycles + 1} complete cycles into one file "
-                f"named for the port (e.g. {port}.parquet); remove the orifice."
+            tests = [t for t in self.tests() if t.port == port]
+            fits = "; then ".join(
+                f"fit {what(t.orifice)} at {where} ({t.slpm:.1f} SLPM at "
+                f"{pa_to_bar_gauge(self.nominal_pressure):.2f} bar(g)), record at least "
+                f"{self.cycles + 1} complete cycles into one file named {t.key}.parquet, "
+                "remove the orifice"
+                for t in tests
             )
+            out.append(f"Port {k}/{len(self.ports)} {port}: {fits}.")
+        keys = [t.key for t in self.tests()]
         out.append(
             "Correct the reference: pneufdd commission apply --reference REF --plan PLAN "
-            + " ".join(f"--run {p}={p}.parquet" for p in self.ports[:2])
-            + (" ..." if len(self.ports) > 2 else "")
+            + " ".join(f"--run {p}={p}.parquet" for p in keys[:2])
+            + (" ..." if len(keys) > 2 else "")
             + " --out CORRECTED.pnref"
         )
         return out
 
     def markdown(self) -> str:
         """The procedure for the technician, as Markdown."""
+        second = (
+            f"; then {self.second_orifice}, {self.second_slpm:.1f} SLPM"
+            if self.second_orifice
+            else ""
+        )
         lines = [
             f"# Commissioning with a test leak: {self.machine}",
             "",
             f"Test orifice: {self.orifice}, {self.nominal_slpm:.1f} SLPM at the nominal "
-            f"supply pressure. Cycles per port: {self.cycles} (plus one start-up cycle).",
+            f"supply pressure{second}. Cycles per recording: {self.cycles} (plus one "
+            "start-up cycle).",
             "",
         ]
         lines += [f"{k}. {step}" for k, step in enumerate(self.steps(), start=1)]
@@ -172,6 +252,7 @@ def plan_commissioning(
     ports: Sequence[str] | None = None,
     orifice: str | float = "1.0mm",
     cycles: int = DEFAULT_CYCLES,
+    second_orifice: str | float | None = None,
 ) -> CommissioningPlan:
     """The commissioning procedure for ``reference``'s machine.
 
@@ -187,6 +268,10 @@ def plan_commissioning(
         technician can fit and is refused.
     cycles : int
         Cycles to record at each port (1-10,000).
+    second_orifice : str or float, optional
+        A second, larger test orifice (the same forms as ``orifice``) fitted at every
+        port after the first: the correction is then measured at two sizes
+        (``docs/commissioning.md``).
 
     Returns
     -------
@@ -201,11 +286,7 @@ def plan_commissioning(
                 "a reference built with its machine description (reference build --machine)",
             )
         )
-    value, unit = parse_leak_size(orifice, "--orifice-mm/--turns")
-    if unit == "SLPM" or value <= 0:
-        raise InputError(
-            describe("test orifice", orifice, "a nozzle diameter > 0 mm or turns > 0 of GR-3/8B")
-        )
+    text = _orifice_text(orifice)
     if isinstance(cycles, bool) or not 1 <= int(cycles) <= MAX_COMMISSION_CYCLES:
         raise InputError(describe("--cycles", cycles, f"1 to {MAX_COMMISSION_CYCLES}"))
     known = [str(x) for x in reference.signatures.locations]
@@ -213,8 +294,16 @@ def plan_commissioning(
     bad = [p for p in chosen if p not in known]
     if bad or not chosen or len(set(chosen)) != len(chosen):
         raise InputError(describe("--ports", chosen, f"unique locations among {known}"))
-    text = f"{value:g}{unit}"
     spec = resolve_leaks(description, {chosen[0]: text})[0]
+    extra: tuple[str, float, float] = ("", 0.0, 0.0)
+    if second_orifice is not None:
+        text2 = _orifice_text(second_orifice)
+        spec2 = resolve_leaks(description, {chosen[0]: text2})[0]
+        if not spec2.nominal_mass_flow_kg_s > spec.nominal_mass_flow_kg_s:
+            raise InputError(
+                describe("second test orifice", text2, f"an orifice larger than {text}")
+            )
+        extra = (text2, spec2.nominal_mass_flow_kg_s, spec2.nominal_slpm)
     return CommissioningPlan(
         reference.machine,
         tuple(chosen),
@@ -223,4 +312,15 @@ def plan_commissioning(
         spec.nominal_slpm,
         spec.nominal_pressure_pa,
         int(cycles),
+        *extra,
     )
+
+
+def _orifice_text(orifice: str | float) -> str:
+    """``"1.0mm"`` or ``"2turns"`` as the plan states it; a flow or a size <= 0 is refused."""
+    value, unit = parse_leak_size(orifice, "--orifice-mm/--turns")
+    if unit == "SLPM" or value <= 0:
+        raise InputError(
+            describe("test orifice", orifice, "a nozzle diameter > 0 mm or turns > 0 of GR-3/8B")
+        )
+    return f"{value:g}{unit}"

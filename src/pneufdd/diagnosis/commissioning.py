@@ -29,6 +29,13 @@ the twin's) and, through the pair interaction, for pairs. The plausible plants' 
 error (``plant_deviations``) is kept as it was: the correction is not assumed to make
 the model exact. Locations without an accepted recording keep the twin's signature.
 
+With a second, larger test orifice at the port (:math:`a_1 < a_2`), the gains are
+fitted at each test size and the corrected gain of a ladder size :math:`a` is
+interpolated linearly in :math:`\ln a` between them, held at :math:`g(a_1)` below
+:math:`a_1` and at :math:`g(a_2)` above :math:`a_2`: a plant whose line saturates at
+another size than the twin's has another gain at another size, which one test size
+cannot see (``docs/commissioning.md``, measured on festo-dsd).
+
 A size gain (the plant's leak of size :math:`a` acting as the twin's of size
 :math:`g a`) and a combination of the plausible plants' deviations were tried first on
 development plants and did not lower the size errors (``docs/commissioning.md``).
@@ -44,17 +51,18 @@ from typing import Any
 import numpy as np
 
 from pneufdd.array_types import FloatArray
-from pneufdd.diagnosis.commission_plan import CommissioningPlan
+from pneufdd.diagnosis.commission_plan import CommissioningPlan, TestLeak
 from pneufdd.diagnosis.effects.signatures import SignatureSet
 from pneufdd.diagnosis.engine import diagnose
 from pneufdd.diagnosis.findings import Diagnosis
 from pneufdd.diagnosis.recordings import run_table
 from pneufdd.diagnosis.reference.model import ReferenceModel
 from pneufdd.errors import InputError, describe
+from pneufdd.features.step_table import StepTable
 from pneufdd.physics.units import kg_s_to_slpm
 from pneufdd.recording import Recording
 
-__all__ = ["CommissioningResult", "PortResult", "commission", "fit_location"]
+__all__ = ["CommissioningResult", "PortResult", "commission", "fit_location", "gains_in_size"]
 
 GAIN_PRIOR_SD = 0.5
 """Prior standard deviation of a feature's gain, plant over twin [-] (``docs/assumptions.md``)."""
@@ -148,11 +156,50 @@ def fit_location(
     )
 
 
-def corrected_signatures(signatures: SignatureSet, fits: Mapping[int, LocationFit]) -> SignatureSet:
-    """The signatures with each fitted location's ladder scaled by its feature gains."""
+def gains_in_size(fits: Sequence[tuple[float, LocationFit]], sizes: FloatArray) -> FloatArray:
+    """Feature gains at ``sizes`` from the fits at the test sizes, log-linear in size.
+
+    Parameters
+    ----------
+    fits : sequence of (float, LocationFit)
+        Test size [kg/s] and the fit it gave, one per accepted test at the location.
+    sizes : ndarray, shape (n_sizes,)
+        Leak sizes to correct [kg/s].
+
+    Returns
+    -------
+    ndarray, shape (n_sizes, n_features)
+        Each size's gains: interpolated linearly in the logarithm of the size between
+        the test sizes, the nearest test's gains outside them [-].
+
+    Examples
+    --------
+    >>> f1 = LocationFit(np.array([1.2, 1.0]), np.zeros(2), 1.1, 0.9, 0.95)
+    >>> f2 = LocationFit(np.array([0.8, 1.0]), np.zeros(2), 0.9, 0.9, 0.95)
+    >>> gains_in_size([(1.0, f1), (4.0, f2)], np.array([0.5, 2.0, 9.0])).round(3).tolist()
+    [[1.2, 1.0], [1.0, 1.0], [0.8, 1.0]]
+    """
+    ordered = sorted(fits, key=lambda item: item[0])
+    at = np.log([size for size, _ in ordered])
+    gains = np.stack([fit.gains for _, fit in ordered])  # (n_tests, n_features)
+    where = np.log(np.asarray(sizes, dtype=np.float64))
+    out = np.empty((where.size, gains.shape[1]))
+    for j in range(gains.shape[1]):
+        out[:, j] = np.interp(where, at, gains[:, j])
+    return out
+
+
+def corrected_signatures(
+    signatures: SignatureSet, fits: Mapping[int, Sequence[tuple[float, LocationFit]]]
+) -> SignatureSet:
+    """The signatures with each fitted location's ladder scaled by its feature gains.
+
+    ``fits`` maps a location index to its (test size [kg/s], fit) pairs; the gain of
+    each ladder size is :func:`gains_in_size` (one test: its gains at every size).
+    """
     deltas = signatures.deltas.copy()
-    for index, fit in fits.items():
-        deltas[index] = deltas[index] * fit.gains[None, :]
+    for index, tests in fits.items():
+        deltas[index] = deltas[index] * gains_in_size(tests, signatures.sizes[index])
     return replace(signatures, deltas=deltas)
 
 
@@ -164,6 +211,9 @@ class PortResult:
     ----------
     port : str
         The location.
+    orifice : str
+        The test orifice of this recording (``"1.0mm"``; a plan with a second orifice
+        has two results per port).
     status : str
         ``"corrected"``, ``"refused"`` (the leak was not seen there) or
         ``"no recording"``.
@@ -187,6 +237,7 @@ class PortResult:
 
     port: str
     status: str
+    orifice: str = ""
     source: str = ""
     reason: str = ""
     test_size: float = float("nan")
@@ -208,6 +259,7 @@ class PortResult:
 
         out: dict[str, Any] = {
             "port": self.port,
+            "orifice": self.orifice,
             "status": self.status,
             "source": self.source,
             "reason": self.reason,
@@ -287,7 +339,9 @@ def commission(
     plan : CommissioningPlan
         The procedure that was followed.
     runs : mapping of str to (str, Recording)
-        Port -> (file name, recording with the test orifice fitted at that port).
+        Test key (the port, or the port and ``@2`` for the second orifice,
+        :meth:`CommissioningPlan.tests`) -> (file name, recording with that orifice
+        fitted at that port).
     threads : int, optional
         Threads for the check by simulation (:func:`~pneufdd.diagnosis.engine.diagnose`).
 
@@ -295,50 +349,68 @@ def commission(
     -------
     CommissioningResult
         The corrected reference (a new object; ``reference`` is unchanged) and one
-        :class:`PortResult` per port of the plan.
+        :class:`PortResult` per recording the plan asks for.
     """
     sig = reference.signatures
     if sig is None:
         raise InputError(describe("--reference", "without leak signatures", "with signatures"))
     if plan.machine != reference.machine:
         raise InputError(describe("machine of --plan", plan.machine, [reference.machine]))
-    extra = sorted(set(runs) - set(plan.ports))
+    tests = plan.tests()
+    extra = sorted(set(runs) - {t.key for t in tests})
     if extra:
-        raise InputError(describe("--run port", extra, list(plan.ports)))
+        raise InputError(describe("--run port", extra, [t.key for t in tests]))
     names = [str(x) for x in sig.locations]
-    fits: dict[int, LocationFit] = {}
+    fits: dict[int, list[tuple[float, LocationFit]]] = {}
     results: dict[str, PortResult] = {}
     tables = {}
-    for port in plan.ports:
-        if port not in runs:
-            results[port] = PortResult(port, NOT_RUN, test_size=plan.size_of(port))
+    for test in tests:
+        if test.key not in runs:
+            results[test.key] = PortResult(test.port, NOT_RUN, test.orifice,
+                                           test_size=test.mass_flow)  # fmt: skip
             continue
-        source, recording = runs[port]
-        table = run_table(reference, recording, source)
-        tables[port] = table
-        # the technician fitted a leak: its size is what is measured, not other faults
-        result = diagnose(reference, table, threads=threads, faults=False)
-        index = names.index(port)
-        size = plan.size_of(port)
-        predicted = sig.effect(index, size)
-        measured = np.asarray(result.observed_change, dtype=np.float64)
-        before, found = _size_at(result, port)
-        seen = PortResult(port, CORRECTED, source, "", size, found, before, predicted=predicted,
-                          measured=measured)  # fmt: skip
-        if not result.detected or math.isnan(before):
-            where = ", ".join(found) if found else "nowhere (no leak located)"
-            if not result.detected:
-                where = "nowhere: not detected at all"
-            reason = f"{source}: the test leak fitted at {port} was seen at {where}"
-            results[port] = replace(seen, status=REFUSED, reason=reason)
-            continue
-        fit = fit_location(reference, index, size, measured, result.cycles_analyzed)
-        fits[index] = fit
-        results[port] = replace(seen, fit=fit)
+        source, recording = runs[test.key]
+        tables[test.key] = run_table(reference, recording, source)
+        results[test.key] = _check(reference, names, test, source, tables[test.key], threads)
+        fit = results[test.key].fit
+        if fit is not None:
+            fits.setdefault(names.index(test.port), []).append((test.mass_flow, fit))
     corrected = reference.with_signatures(corrected_signatures(sig, fits)) if fits else reference
-    for port, table in tables.items():
-        if results[port].status != CORRECTED:
+    for key, table in tables.items():
+        if results[key].status != CORRECTED:
             continue
+        port = results[key].port
         after, _ = _size_at(diagnose(corrected, table, threads=threads, faults=False), port)
-        results[port] = replace(results[port], size_after=after)
-    return CommissioningResult(corrected, tuple(results[p] for p in plan.ports))
+        results[key] = replace(results[key], size_after=after)
+    return CommissioningResult(corrected, tuple(results[t.key] for t in tests))
+
+
+def _check(
+    reference: ReferenceModel,
+    names: list[str],
+    test: TestLeak,
+    source: str,
+    table: StepTable,
+    threads: int | None,
+) -> PortResult:
+    """One test recording diagnosed with the uncorrected reference: refused or fitted."""
+    sig = reference.signatures
+    if sig is None:  # checked by commission
+        raise InputError(describe("--reference", "without leak signatures", "with signatures"))
+    # the technician fitted a leak: its size is what is measured, not other faults
+    result = diagnose(reference, table, threads=threads, faults=False)
+    port, size = test.port, test.mass_flow
+    index = names.index(port)
+    predicted = sig.effect(index, size)
+    measured = np.asarray(result.observed_change, dtype=np.float64)
+    before, found = _size_at(result, port)
+    seen = PortResult(port, CORRECTED, test.orifice, source, "", size, found, before,
+                      predicted=predicted, measured=measured)  # fmt: skip
+    if not result.detected or math.isnan(before):
+        where = ", ".join(found) if found else "nowhere (no leak located)"
+        if not result.detected:
+            where = "nowhere: not detected at all"
+        reason = f"{source}: the test leak fitted at {port} was seen at {where}"
+        return replace(seen, status=REFUSED, reason=reason)
+    fit = fit_location(reference, index, size, measured, result.cycles_analyzed)
+    return replace(seen, fit=fit)

@@ -41,7 +41,7 @@ def commissioning_figure(result: CommissioningResult, path: Path) -> Path:
         ax.scatter(x, y, s=6, color="C0" if port.status == "corrected" else "C3")
         ax.set_xlim(low, high)
         ax.set_ylim(low, high)
-        ax.set_title(f"{port.port}: {port.status}", fontsize="small")
+        ax.set_title(f"{port.port} {port.orifice}: {port.status}", fontsize="small")
         ax.set_xlabel("twin [reference SD]", fontsize="x-small")
         ax.set_ylabel("measured [reference SD]", fontsize="x-small")
     for ax in list(axes.flat)[len(ports) :]:
