@@ -207,8 +207,8 @@ def _finish(err: Any, mon: Any, src: Any, stats: Any, held: int) -> ExitCode:
     if mon.state.in_alarm:
         return ExitCode.LEAK_FOUND
     if stats.judged + stats.skipped == 0:
-        err.print(
-            f"no cycle was judged ({stats.cycles} complete cycle(s): {stats.startup} start-up, "
+        err.print(  # an exit 2 says "error:" (its history keeps what was recorded)
+            f"error: no cycle was judged ({stats.cycles} complete cycle(s): {stats.startup} start-up, "
             f"{stats.incomplete} skipped for lost samples; see the notes above): this run "
             "says nothing about leaks"
         )
