@@ -208,9 +208,9 @@ def _finish(err: Any, mon: Any, src: Any, stats: Any, held: int) -> ExitCode:
         return ExitCode.LEAK_FOUND
     if stats.judged + stats.skipped == 0:
         err.print(  # an exit 2 says "error:" (its history keeps what was recorded)
-            f"error: no cycle was judged ({stats.cycles} complete cycle(s): {stats.startup} start-up, "
-            f"{stats.incomplete} skipped for lost samples; see the notes above): this run "
-            "says nothing about leaks"
+            f"error: no cycle was judged ({stats.cycles} complete cycle(s): "
+            f"{stats.startup} start-up, {stats.incomplete} skipped for lost samples; see the "
+            "notes above): this run says nothing about leaks"
         )
         return ExitCode.INPUT_ERROR
     return ExitCode.OK
