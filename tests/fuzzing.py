@@ -2106,16 +2106,58 @@ _FOLDER_OUTPUTS: dict[Path, set[str]] = {}
 """Every output name of the cases sharing a folder (they may run at the same time)."""
 
 
+def _record(outcome: Outcome) -> dict[str, Any]:
+    """One outcome as JSON (``--json`` and its running ``.jsonl``)."""
+    o = outcome
+    return {
+        "case": o.case.name,
+        "command": o.case.command,
+        "argv": o.case.argv,
+        "exit": o.code,
+        "problems": o.problems,
+        "stderr": o.stderr[-2000:],
+        "seconds": round(o.seconds, 2),
+        "peak_rss_mib": None if o.peak_rss is None else round(o.peak_rss / 2**20, 1),
+    }
+
+
 def run_corpus(
-    cases: list[Case], in_process: bool, workers: int = 1, log: Callable[[str], None] | None = None
+    cases: list[Case],
+    in_process: bool,
+    workers: int = 1,
+    log: Callable[[str], None] | None = None,
+    running: Path | None = None,
 ) -> list[Outcome]:
-    """Run ``cases`` (in ``workers`` threads when in subprocesses)."""
+    """Run ``cases`` (in ``workers`` threads when in subprocesses); ``running``: a JSON-lines
+    file each outcome is appended to as it ends (a long run stopped early keeps them)."""
+    sink = running.open("a", encoding="utf-8") if running is not None else None
+
+    def ran(outcome: Outcome) -> Outcome:
+        if sink is not None:
+            sink.write(json.dumps(_record(outcome)) + "\n")
+            sink.flush()
+        return outcome
+
+    try:
+        return _run_all(cases, in_process, workers, log, ran)
+    finally:
+        if sink is not None:
+            sink.close()
+
+
+def _run_all(
+    cases: list[Case],
+    in_process: bool,
+    workers: int,
+    log: Callable[[str], None] | None,
+    ran: Callable[[Outcome], Outcome],
+) -> list[Outcome]:
     for case in cases:
         _FOLDER_OUTPUTS.setdefault(case.folder, set()).update(case.outputs)
     if in_process or workers <= 1:
         outcomes = []
         for k, case in enumerate(cases):
-            outcomes.append(run_case(case, in_process))
+            outcomes.append(ran(run_case(case, in_process)))
             if log and outcomes[-1].problems:
                 log(f"[{k + 1}/{len(cases)}] {case.name}: {outcomes[-1].problems}")
         return outcomes
@@ -2124,7 +2166,7 @@ def run_corpus(
         done: dict[int, Outcome] = {}
         for future in as_completed(futures):  # each problem printed when it happens
             k = futures[future]
-            done[k] = future.result()
+            done[k] = ran(future.result())
             if log and done[k].problems:
                 log(f"[{len(done)}/{len(cases)}] {cases[k].name}: {done[k].problems}")
     return [done[k] for k in range(len(cases))]
@@ -2155,6 +2197,10 @@ def summary(outcomes: list[Outcome]) -> dict[str, Any]:
         if outcomes
         else 0.0,
         "slowest_s": round(max((o.seconds for o in outcomes), default=0.0), 1),
+        "slowest_case": max(outcomes, key=lambda o: o.seconds).case.name if outcomes else None,
+        "largest_rss_case": max(outcomes, key=lambda o: o.peak_rss or 0).case.name
+        if outcomes
+        else None,
         "exit_codes_by_command": {
             c: dict(sorted(v.items())) for c, v in sorted(by_command.items())
         },
@@ -2202,29 +2248,15 @@ def main(argv: list[str] | None = None) -> int:
 
     missing = fuzzing_generators.missing_entries(discover_commands())
     print(f"{len(cases)} invocations; commands without cases: {missing or 'none'}", flush=True)
-    outcomes = run_corpus(cases, args.in_process, args.workers, lambda s: print(s, flush=True))
+    running = None if args.json is None else args.json.with_suffix(".running.jsonl")
+    if running is not None:
+        running.unlink(missing_ok=True)
+    say = lambda s: print(s, flush=True)  # noqa: E731
+    outcomes = run_corpus(cases, args.in_process, args.workers, say, running)
     result = summary(outcomes)
     print(json.dumps(result, indent=2))
     if args.json:
-        args.json.write_text(
-            json.dumps(
-                [
-                    {
-                        "case": o.case.name,
-                        "argv": o.case.argv,
-                        "exit": o.code,
-                        "problems": o.problems,
-                        "stderr": o.stderr[-2000:],
-                        "seconds": round(o.seconds, 2),
-                        "peak_rss_mib": None
-                        if o.peak_rss is None
-                        else round(o.peak_rss / 2**20, 1),
-                    }
-                    for o in outcomes
-                ],
-                indent=1,
-            )
-        )
+        args.json.write_text(json.dumps([_record(o) for o in outcomes], indent=1))
     return 1 if result["cases_with_problems"] or missing else 0
 
 
