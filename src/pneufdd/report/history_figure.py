@@ -8,8 +8,8 @@ fall. Repairs are vertical lines; the machines and the time span head the figure
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 import warnings
+from collections.abc import Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
