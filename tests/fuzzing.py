@@ -2009,6 +2009,8 @@ def _subprocess(case: Case) -> tuple[int, str, str, int]:
     proc.returncode = os.waitstatus_to_exitcode(status)
     for reader in readers:
         reader.join()
+    proc.stdout.close()
+    proc.stderr.close()
     stderr = streams.get("err", b"").decode("utf-8", "replace")
     stdout = streams.get("out", b"").decode("utf-8", "replace")
     code = EXIT_HANG if hung.is_set() else proc.returncode
