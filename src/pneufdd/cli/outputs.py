@@ -173,6 +173,12 @@ def check_place(name: str, path: str | Path, folder: bool = False) -> None:
     if str(path).strip() == "":
         raise InputError(describe(name, str(path), allowed))
     try:
+        for parent in target.parents:
+            if os.path.lexists(parent) and not parent.is_dir():
+                what = "is a file" if parent.is_file() else "is no folder"
+                raise InputError(
+                    describe(name, _shown(path), f"a path in a folder ({str(parent)!r} {what})")
+                )
         with contextlib.suppress(FileNotFoundError):
             os.lstat(target)  # a name too long, or a loop on the way, raises here
         if folder and os.path.lexists(target) and not target.exists():
@@ -183,11 +189,6 @@ def check_place(name: str, path: str | Path, folder: bool = False) -> None:
             )
         if folder and target.exists() and not target.is_dir():
             raise InputError(describe(name, str(path), f"{allowed}; this is a file"))
-        for parent in target.parents:
-            if os.path.lexists(parent) and not parent.is_dir():
-                raise InputError(
-                    describe(name, str(path), f"a path in a folder ({str(parent)!r} is not one)")
-                )
     except OSError as exc:
         raise InputError(
             describe(name, _shown(path), f"{allowed} ({exc.strerror or type(exc).__name__})")
