@@ -48,7 +48,14 @@ from pathlib import Path
 
 from pneufdd.errors import FileExistsInputError, InputError, describe
 
-__all__ = ["check_outputs", "check_place", "check_writable", "database_files", "same_file"]
+__all__ = [
+    "check_appended",
+    "check_outputs",
+    "check_place",
+    "check_writable",
+    "database_files",
+    "same_file",
+]
 
 SQLITE_COMPANIONS = ("-wal", "-shm", "-journal")
 """Files SQLite writes beside a database (write-ahead log, shared memory, rollback)."""
@@ -199,6 +206,33 @@ def check_place(name: str, path: str | Path, folder: bool = False) -> None:
         check_writable(name, target)  # a probe in the nearest existing folder
     elif folder:  # an existing folder: a probe inside it
         check_writable(name, target, inside=True)
+
+
+def check_appended(name: str, path: str | Path) -> None:
+    """Refuse a file a command appends to (an alarm log, a SQLite history) that is a link
+    leading nowhere or to itself: appending would create a file where the link points,
+    outside what the user named (``monitor --history`` on a dangling link did).
+
+    >>> import tempfile
+    >>> place = Path(tempfile.mkdtemp())
+    >>> (place / "h.db").symlink_to("elsewhere.db")
+    >>> try:
+    ...     check_appended("--history", place / "h.db")
+    ... except InputError as exc:
+    ...     print(str(exc).split("allowed: ")[1])
+    a file, or a path where one can be created (this is a link that leads nowhere or to itself)
+    >>> check_appended("--history", place / "new.db")
+    """
+    target = Path(path)
+    if os.path.lexists(target) and not target.exists():
+        raise InputError(
+            describe(
+                name,
+                _shown(path),
+                "a file, or a path where one can be created (this is a link that leads "
+                "nowhere or to itself)",
+            )
+        )
 
 
 def _is_file(path: Path) -> bool:
