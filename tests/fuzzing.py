@@ -111,6 +111,9 @@ class Outcome:
     problems: list[str]
     peak_rss: int | None = None
     """Largest resident set of the command's process [bytes] (None in-process)."""
+    cpu_s: float | None = None
+    """CPU time the command used, user and system [s] (None in-process): a command killed
+    at the time limit with little CPU was starved by a loaded machine, not hung."""
 
 
 # --------------------------------------------------------------- base inputs
@@ -1923,10 +1926,11 @@ def run_case(case: Case, in_process: bool) -> Outcome:
     listing_before = set(os.listdir(case.folder))
     start = time.perf_counter()
     peak: int | None = None
+    cpu: float | None = None
     if in_process:
         code, stderr, stdout = _in_process(case)
     else:
-        code, stderr, stdout, peak = _subprocess(case)
+        code, stderr, stdout, peak, cpu = _subprocess(case)
     seconds = time.perf_counter() - start
     problems = check(case, code, stderr, before, outputs_before, listing_before)
     shown = [s for s in case.secrets if s in stderr or s in stdout]
@@ -1936,10 +1940,11 @@ def run_case(case: Case, in_process: bool) -> Outcome:
     if through:
         problems.append(f"wrote outside its outputs, through a link: {through}")
     if code == EXIT_HANG and not case.live:
-        problems.append(f"hang (killed after {CASE_TIMEOUT_S:g} s)")
+        used = "" if cpu is None else f"; {cpu:.1f} s of CPU"
+        problems.append(f"hang (killed after {CASE_TIMEOUT_S:g} s{used})")
     if peak is not None and peak > RSS_LIMIT_BYTES:
         problems.append(f"resident set {peak / 2**30:.2f} GiB, over 2 GiB")
-    return Outcome(case, code, stderr, seconds, problems, peak)
+    return Outcome(case, code, stderr, seconds, problems, peak, cpu)
 
 
 def _in_process(case: Case) -> tuple[int, str, str]:
@@ -1963,9 +1968,9 @@ def _cap_memory() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
 
 
-def _subprocess(case: Case) -> tuple[int, str, str, int]:
-    """Exit code (:data:`EXIT_HANG` when killed at the time limit), stderr, stdout and the
-    peak resident set [bytes]."""
+def _subprocess(case: Case) -> tuple[int, str, str, int, float]:
+    """Exit code (:data:`EXIT_HANG` when killed at the time limit), stderr, stdout, the
+    peak resident set [bytes] and the CPU time used [s]."""
     import threading
 
     exe = Path(sys.executable).with_name("pneufdd")
@@ -2001,7 +2006,7 @@ def _subprocess(case: Case) -> tuple[int, str, str, int]:
     watcher = threading.Thread(target=_watch_peak, args=(proc.pid, ended, peak))
     watcher.start()
     try:
-        _, status, _usage = os.wait4(proc.pid, 0)
+        _, status, usage = os.wait4(proc.pid, 0)
     finally:
         ended.set()
         timer.cancel()
@@ -2014,7 +2019,7 @@ def _subprocess(case: Case) -> tuple[int, str, str, int]:
     stderr = streams.get("err", b"").decode("utf-8", "replace")
     stdout = streams.get("out", b"").decode("utf-8", "replace")
     code = EXIT_HANG if hung.is_set() else proc.returncode
-    return code, stderr, stdout, peak[0]
+    return code, stderr, stdout, peak[0], usage.ru_utime + usage.ru_stime
 
 
 def _watch_peak(pid: int, ended: Any, peak: list[int], every_s: float = 0.05) -> None:
@@ -2147,6 +2152,7 @@ def _record(outcome: Outcome) -> dict[str, Any]:
         "stderr": o.stderr[-2000:],
         "seconds": round(o.seconds, 2),
         "peak_rss_mib": None if o.peak_rss is None else round(o.peak_rss / 2**20, 1),
+        "cpu_s": None if o.cpu_s is None else round(o.cpu_s, 2),
     }
 
 
@@ -2227,6 +2233,7 @@ def summary(outcomes: list[Outcome]) -> dict[str, Any]:
         else 0.0,
         "slowest_s": round(max((o.seconds for o in outcomes), default=0.0), 1),
         "slowest_case": max(outcomes, key=lambda o: o.seconds).case.name if outcomes else None,
+        "most_cpu_s": round(max((o.cpu_s or 0.0) for o in outcomes), 1) if outcomes else 0.0,
         "largest_rss_case": max(outcomes, key=lambda o: o.peak_rss or 0).case.name
         if outcomes
         else None,

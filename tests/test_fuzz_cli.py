@@ -275,6 +275,8 @@ def test_a_commands_peak_memory_is_its_own_not_the_harness(tmp_path) -> None:
     assert outcome.problems == []
     assert outcome.peak_rss is not None
     assert 5 * 2**20 < outcome.peak_rss < 200 * 2**20  # the command's, far below the ballast
+    assert outcome.cpu_s is not None
+    assert 0.0 < outcome.cpu_s < outcome.seconds * 2 + 1.0  # its own CPU, both cores at most
     time_exe = shutil.which("time", path="/usr/bin")
     if time_exe is None:
         return
