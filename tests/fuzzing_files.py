@@ -389,6 +389,71 @@ NAMES = (
 tag, column, location): traversal, NUL and control characters, rich markup, mathtext,
 format strings, HTML, a right-to-left override, 10,000 characters."""
 
+_DOTS = ("..", "..", "...", ".", "%2e%2e", "%2e.", ".%2e", "\uff0e\uff0e", "..%c0%af", "..\u2215")
+_SEPARATORS = ("/", "/", "\\", "//", "/./", "\\\\", "%2f", "%5c", "\u2215", "/\u200b")
+_ROOTS = ("", "", "./", "/", "//", "~/", "C:\\", "C:/", "\\\\host\\share\\", "file:///", "/dev/")
+_TAILS = ("victim", "etc/passwd", "x.toml", "run.parquet", ".", "", "con", "aux.txt", "nul",
+          "a" * 300, "dir/", " ", "x\u202eevil")  # fmt: skip
+
+
+def traversal_name(rng: np.random.Generator) -> str:
+    """A random name that tries to leave the folder it is joined to.
+
+    A random root (none, ``/``, ``//``, ``~/``, a drive, a UNC share, ``file:///``), one to
+    eight steps up each spelt at random (``..``, ``...``, percent-encoded or full-width
+    dots, an overlong UTF-8 slash) with a random separator (``/``, ``\\``, doubled,
+    ``/./``, percent-encoded, a division slash, a zero-width space after ``/``), and a
+    random tail (a file, a device name, nothing, 300 characters). Never a NUL: the names
+    reach processes through argv.
+
+    >>> rng = np.random.default_rng(1)
+    >>> names = [traversal_name(rng) for _ in range(200)]
+    >>> sum(".." in n for n in names) > 100, all("\\x00" not in n for n in names)
+    (True, True)
+    """
+    steps = int(rng.integers(1, 9))
+    path = str(rng.choice(_ROOTS))
+    for _ in range(steps):
+        path += str(rng.choice(_DOTS)) + str(rng.choice(_SEPARATORS))
+    return path + str(rng.choice(_TAILS))
+
+
+_MARKUP = ("[", "]", "[/]", "[bold]", "[/bold]", "[/bold", "[red on blue]", "[b", "[i]x[/b]",
+           "[link=file:///etc/passwd]", "[@click=app.quit]", "[/link]", ":smile:", "\\[", "[]",
+           "[[", "]]", "[#ff0000]", "[blink]")  # fmt: skip
+_MATHTEXT = ("$", "$", "$$", "\\frac{", "\\undefinedcmd", "\\", "^", "_", "{", "}", "^^",
+             "\\mathrm{", "\\$", "\\sqrt[", "\\left(", "\\hspace{1e9}", "\\\\", "%", "\\begin{x}",
+             "$\\undefinedcmd$")  # fmt: skip
+_PLAIN = ("cell", "A", "PRESS", " ", "x", "%s", "{0}", "<b>", "&amp;", "\x1b[31m", "\x07", "\t",
+          "\u202e", "\ud7ff", "é")  # fmt: skip
+
+
+def markup_name(rng: np.random.Generator) -> str:
+    """A random name of rich console markup and matplotlib mathtext pieces.
+
+    Two to twelve tokens drawn from rich tags (balanced or not, closing without opening,
+    links, click actions, emoji codes, escaped brackets), mathtext (``$`` in odd numbers,
+    unknown commands, open braces, ``\\frac{``, ``^^``, a 10^9 em space) and plain text
+    with format strings, HTML entities, ANSI escapes and a right-to-left override: a name
+    printed through rich or drawn by matplotlib must come out as the same text.
+
+    >>> rng = np.random.default_rng(2)
+    >>> names = [markup_name(rng) for _ in range(200)]
+    >>> sum("[" in n for n in names) > 50, sum("$" in n for n in names) > 50
+    (True, True)
+    """
+    pools = (_MARKUP, _MATHTEXT, _PLAIN)
+    tokens = [
+        str(rng.choice(pools[int(rng.integers(len(pools)))])) for _ in range(rng.integers(2, 13))
+    ]
+    return "".join(tokens)
+
+
+def hostile_names(rng: np.random.Generator, count: int) -> list[str]:
+    """``count`` random names, traversal and markup alternately (see :func:`traversal_name`
+    and :func:`markup_name`), for the generators beside the fixed list :data:`NAMES`."""
+    return [traversal_name(rng) if k % 2 == 0 else markup_name(rng) for k in range(count)]
+
 
 def _toml_key(text: str) -> str:
     return json.dumps(text)  # a TOML basic string is a JSON string (\\uXXXX escapes)

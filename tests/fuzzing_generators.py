@@ -45,7 +45,7 @@ import numpy as np
 import fuzzing
 import fuzzing_bounds
 from fuzzing import EXIT_INPUT, EXIT_LEAK, EXIT_OK, MACHINE, Case, _case_dir
-from fuzzing_files import NAMES
+from fuzzing_files import NAMES, hostile_names
 
 __all__ = ["COMMANDS", "SEED", "Entry", "build_generated"]
 
@@ -462,14 +462,19 @@ def _numbers(command: str, argv: list[str], ok: frozenset[int], expensive: bool,
                 yield f"{option}={value!r}", [*argv, option, value], ok | TWO, (), ()
 
 
+RANDOM_NAMES = 8
+"""Random traversal and markup names (:func:`fuzzing_files.hostile_names`) drawn per
+text option, per input's name and per leak location, beside the fixed :data:`NAMES`."""
+
+
 def _texts(command: str, argv: list[str], ok: frozenset[int], expensive: bool,
-           fixed: tuple[str, ...]) -> Iterator[Variant]:  # fmt: skip
+           fixed: tuple[str, ...], rng: np.random.Generator) -> Iterator[Variant]:  # fmt: skip
     if expensive:
         return
     for option, kind, _ in _options(command):
         if kind != "text" or option in fixed:
             continue
-        for k, value in enumerate((*NAMES, *TEXTS)):
+        for k, value in enumerate((*NAMES, *TEXTS, *hostile_names(rng, RANDOM_NAMES))):
             if "\x00" in value:
                 continue  # no process argument holds a NUL
             yield f"{option}=text{k}", [*argv, option, value], ok | TWO, (), ()
@@ -587,8 +592,9 @@ def _names(kit: Kit, argv: list[str], ok: frozenset[int], rng: np.random.Generat
            command: str, expensive: bool) -> Iterator[Variant]:  # fmt: skip
     if expensive:
         return
+    pool = [*NAMES, *hostile_names(rng, RANDOM_NAMES)]
     for name, kind in list(kit.inputs.items()):
-        label = NAMES[int(rng.integers(len(NAMES)))]
+        label = pool[int(rng.integers(len(pool)))]
         path = kit.folder / name
         if kind == "machine":
             text = path.read_text("utf-8")
@@ -601,7 +607,7 @@ def _names(kit: Kit, argv: list[str], ok: frozenset[int], rng: np.random.Generat
         (kit.folder / new).write_bytes(data)
         yield f"name_{kind}_{name}", _swap(argv, name, new), ok | TWO, (new,), ()
     if command == "simulate":
-        for k, label in enumerate(NAMES):
+        for k, label in enumerate(pool):
             if "\x00" not in label:
                 yield f"leak_location_{k}", [*argv, "--leak", f"{label}=40slpm"], TWO, (
                     "--leak",), ()  # fmt: skip
@@ -621,7 +627,7 @@ def variants(
     if only_stray:
         return found
     found += _numbers(command, argv, ok, expensive, entry.fixed)
-    found += _texts(command, argv, ok, expensive, entry.fixed)
+    found += _texts(command, argv, ok, expensive, entry.fixed, rng)
     found += _links(kit, argv, ok, expensive)
     found += _nesting(kit, argv, ok, rng, expensive)
     found += _names(kit, argv, ok, rng, command, expensive)
@@ -641,10 +647,17 @@ def _outputs(argv: list[str], names: Iterable[str]) -> list[str]:
 
 
 def build_generated(
-    base: dict[str, Path], root: Path, full: bool, wanted: Iterable[str], seed: int = SEED
+    base: dict[str, Path],
+    root: Path,
+    full: bool,
+    wanted: Iterable[str],
+    seed: int = SEED,
+    per_command: int | None = None,
 ) -> list[Case]:
-    """:data:`PER_COMMAND` variants of each command in ``wanted`` drawn with ``seed``; the
-    quick slice: each quick command with a stray option (in-process, so never a pipe)."""
+    """``per_command`` (:data:`PER_COMMAND`) variants of each command in ``wanted`` drawn
+    with ``seed``; the quick slice: each quick command with a stray option (in-process, so
+    never a pipe)."""
+    per_command = PER_COMMAND if per_command is None else per_command
     cases = []
     for k, command in enumerate(sorted(set(wanted) & set(COMMANDS))):
         entry = COMMANDS[command]
@@ -654,7 +667,7 @@ def build_generated(
         folder = _case_dir(root, f"gen-{command.replace(' ', '-')}")
         kit = Kit(base, root, folder)
         found = variants(command, kit, rng, only_stray=not full)
-        pick = sorted(int(j) for j in rng.permutation(len(found))[:PER_COMMAND]) if full else [0]
+        pick = sorted(int(j) for j in rng.permutation(len(found))[:per_command]) if full else [0]
         for i in pick:
             label, argv, allowed, words, absent = found[i]
             for name in kit.outputs.values():  # each variant its own outputs

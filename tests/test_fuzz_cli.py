@@ -258,3 +258,34 @@ def test_simulate_command_imports_only_what_a_simulation_needs(tmp_path: Path) -
     args = ["simulate", "--machine", "press-fit-cell", "--out", str(out)]
     assert _loaded_after(args, heavy) == []
     assert out.stat().st_size > 0
+
+
+def test_a_commands_peak_memory_is_its_own_not_the_harness(tmp_path) -> None:
+    """``make fuzz`` reports each command's own peak resident set. wait4's ru_maxrss also
+    held the forked copy of the harness (2 GB with its corpus: every command seemed to use
+    1.8 GB); the peak is now the command's VmHWM, checked against GNU time as oracle."""
+    import shutil
+    import time
+
+    ballast = bytearray(400 * 2**20)  # the harness holding a corpus
+    ballast[::4096] = b"x" * len(ballast[::4096])  # resident, not just mapped
+    case = fuzzing.Case("machines/list", "machines", ["machines"], tmp_path, [], [], frozenset({0}))
+    outcome = fuzzing.run_case(case, in_process=False)
+    assert outcome.code == 0, outcome.stderr
+    assert outcome.problems == []
+    assert outcome.peak_rss is not None
+    assert 5 * 2**20 < outcome.peak_rss < 200 * 2**20  # the command's, far below the ballast
+    assert outcome.cpu_s is not None
+    assert 0.0 < outcome.cpu_s < outcome.seconds * 2 + 1.0  # its own CPU, both cores at most
+    time_exe = shutil.which("time", path="/usr/bin")
+    if time_exe is None:
+        return
+    exe = str(Path(sys.executable).with_name("pneufdd"))
+    started = time.perf_counter()
+    proc = subprocess.run([time_exe, "-v", exe, "machines"], capture_output=True, text=True,
+                          check=True, cwd=tmp_path)  # fmt: skip
+    assert time.perf_counter() > started
+    line = next(x for x in proc.stderr.splitlines() if "Maximum resident set size" in x)
+    oracle = int(line.split(":")[1]) * 1024
+    assert abs(outcome.peak_rss - oracle) < 0.3 * oracle
+    del ballast

@@ -108,6 +108,20 @@ def test_a_history_database_onto_an_input_or_the_alarm_log_is_refused(files, tmp
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("option", ["--history", "--alarm-log"])
+def test_an_appended_output_on_a_dangling_link_is_refused(files, tmp_path, capsys, option):
+    """The history and the alarm log are appended to: on a link that leads nowhere the
+    monitor created the database where the link pointed (outside what was named)."""
+    (tmp_path / "h.db").symlink_to("elsewhere.db")
+    (tmp_path / "a.jsonl").symlink_to("elsewhere.jsonl")
+    db = "h.db" if option == "--history" else "fresh.db"
+    log = "a.jsonl" if option == "--alarm-log" else "fresh.jsonl"
+    argv = ["--history", f"sqlite:///{tmp_path / db}", "--alarm-log", str(tmp_path / log)]
+    assert _monitor(files, *argv) == 2
+    assert f"error: {option}: received" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.jsonl", "h.db"]  # links only
+
+
 def test_an_alarm_log_that_cannot_be_written_is_refused_at_start(files, tmp_path, capsys):
     (tmp_path / "file").write_text("x")
     for path, allowed in [

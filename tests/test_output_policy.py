@@ -119,3 +119,52 @@ def test_an_output_on_a_link_that_leads_nowhere_needs_overwrite(tmp_path, target
     assert not link.is_symlink()
     assert link.read_text() == "x = 1\n"
     assert not (tmp_path / "elsewhere").exists()
+
+
+def test_one_place_check_names_the_option_for_every_bad_place(tmp_path) -> None:
+    """Issue 39 (fuzz round 3): an output whose place cannot hold it is refused at start by
+    one check that names the option (the messages named only the path, or a folder of it)."""
+    from pneufdd.cli.outputs import check_outputs, check_place
+    from pneufdd.errors import InputError
+
+    (tmp_path / "loop").symlink_to("loop")
+    (tmp_path / "gone").symlink_to("nowhere")
+    (tmp_path / "a-file").write_text("x")
+    refused = {
+        "x" * 300 + ".json": "File name too long",
+        "loop/sub/out.json": "loop. is no folder",
+        "a-file/out.json": "is a file",
+    }
+    for name, why in refused.items():
+        with pytest.raises(InputError, match=r"^--json: received .*" + why):
+            check_outputs({"--json": tmp_path / name}, {})
+    for name in ("loop", "gone"):  # a folder output behind a link: never written through
+        with pytest.raises(InputError, match=r"^--out: .*a link that leads nowhere or to itself"):
+            check_place("--out", tmp_path / name, folder=True)
+    with pytest.raises(InputError, match=r"^--out: .*this is a file"):
+        check_place("--out", tmp_path / "a-file", folder=True)
+    check_outputs({"--json": tmp_path / "new" / "sub" / "out.json"}, {})  # created when written
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file", "gone", "loop"]
+
+
+def test_a_long_machine_name_and_a_missing_folder(tmp_path, capsys) -> None:
+    """A 10,000-character --machine names --machine, not just 'File name too long'; an
+    --out in a missing folder is created (simulate wrote nothing after its simulation)."""
+    bad = ["simulate", "--machine", "x" * 10_000, "--cycles", "1", "--out", str(tmp_path / "o.pq")]
+    assert main(bad) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: machine: received 'xxx")
+    assert len(err) < 400
+    assert "File name too long" in err
+    out = tmp_path / "new" / "sub" / "o.parquet"
+    assert (
+        main(["simulate", "--machine", "press-fit-cell", "--cycles", "1", "--out", str(out)]) == 0
+    )
+    assert out.is_file()
+
+
+def test_demo_refuses_an_out_on_a_link_loop_before_any_work(tmp_path, capsys) -> None:
+    (tmp_path / "loop").symlink_to("loop")
+    assert main(["demo", "--out", str(tmp_path / "loop")]) == 2
+    assert "--out: received" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loop"]

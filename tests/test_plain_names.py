@@ -18,7 +18,7 @@ from pneufdd.cli.app import main
 from pneufdd.cli.progress_bar import progress_bars
 from pneufdd.report.figures import save_figure
 from pneufdd.report.history_figure import history_figure
-from pneufdd.report.plain_text import plain_text
+from pneufdd.report.plain_text import plain_text, printable
 
 matplotlib.use("Agg")
 
@@ -94,3 +94,31 @@ def test_plain_text_keeps_dollars_literal(tmp_path) -> None:
     assert fig.axes[0].title.get_text() == r"$\undefinedcmd$"
     save_figure(fig, tmp_path / "f.png")  # drawn after the function returned: still plain
     assert (tmp_path / "f.png").read_bytes().startswith(PNG)
+
+
+def test_random_markup_and_mathtext_names_are_text_everywhere(tmp_path, capsys) -> None:
+    """Names drawn by the fuzz generator (rich tags, mathtext, control characters) come out
+    as the same text in a progress bar, and draw in a figure; a bad --actuator is named."""
+    import numpy as np
+
+    from fuzzing_files import markup_name
+
+    rng = np.random.default_rng(97_000_201)
+    names = [markup_name(rng) for _ in range(8)]
+    for name in names:
+        buffer = io.StringIO()
+        console = Console(file=buffer, force_terminal=True, color_system=None, width=1000)
+        with progress_bars(console) as update:
+            update(name, 1, 2)
+        assert printable(name).strip() in buffer.getvalue()  # the same text, escapes shown
+        assert "\x1b[3" not in buffer.getvalue()  # no colour a name could switch on
+    path = history_figure([h for n in names for h in _history(n)], tmp_path / "h.png")
+    assert path.read_bytes().startswith(PNG)
+    run = tmp_path / "run.parquet"
+    assert (
+        main(["simulate", "--machine", "press-fit-cell", "--cycles", "1", "--out", str(run)]) == 0
+    )
+    capsys.readouterr()
+    code = main(["features", str(run), "--actuator", "\x1b[31m", "--out", str(tmp_path / "f.csv")])
+    assert code == 2
+    assert "error: --actuator: received '\\x1b[31m'" in capsys.readouterr().err

@@ -176,7 +176,9 @@ def main(argv: list[str] | None = None) -> int:
         # the system refused a file the user named (permissions, a folder, a full disk)
         if getattr(exc, "filename", None) is None:
             return _internal_error(exc)
-        _error(f"{exc.strerror or type(exc).__name__}: {exc.filename!r}")
+        name = str(exc.filename)
+        shown = name if len(name) <= 200 else f"{name[:197]}..."  # one line, not 10,000 chars
+        _error(f"{exc.strerror or type(exc).__name__}: {shown!r}")
         return ExitCode.INPUT_ERROR
     except Exception as exc:
         code = getattr(exc, "exit_code", None)

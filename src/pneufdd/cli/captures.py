@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from pneufdd.cli.outputs import check_place
 from pneufdd.errors import InputError, describe
 from pneufdd.recording.model import Recording
 
@@ -133,6 +134,7 @@ def write_field_recordings(
         raise InputError(
             describe("--out with --capture triggered", str(out), "a folder (created if missing)")
         )
+    check_place("--out", out, folder=True)
     paths = [out / f"capture_{k + 1:04d}.parquet" for k in range(options.files)]
     existing = [p for p in paths if p.exists()]
     if existing and not overwrite:

@@ -42,6 +42,9 @@ def demo(
     from pneufdd.limits import MAX_CYCLES, check_count
 
     check_count("--reference-cycles", reference_cycles, MAX_CYCLES, low=10)
+    from pneufdd.cli.outputs import check_place
+
+    check_place("--out", out, folder=True)  # before minutes of work, naming --out
     import numpy as np
     from rich.console import Console
     from rich.table import Table

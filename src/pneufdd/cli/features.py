@@ -87,6 +87,9 @@ def features(
     inputs: dict[str, Path | None] = {f"RUNS[{i}]": r for i, r in enumerate(runs)}
     inputs["--map"] = tag_map
     check_outputs({"--out": out}, inputs, overwrite)
+    for name in actuator or ():  # a name is printed and becomes column names
+        if not name.strip() or not name.isprintable():
+            raise InputError(describe("--actuator", name, "an actuator's name, e.g. PRESS"))
     unknown = [g for g in group or () if g not in GROUPS]
     if unknown:
         raise InputError(describe("--group", unknown, GROUPS))

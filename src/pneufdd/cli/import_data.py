@@ -38,6 +38,7 @@ def import_data(
 
     check_outputs({"--out": out}, {"DATA": data, "--map": tag_map}, overwrite)
     recording = read_mapped(data, load_tag_map(tag_map, preset=export_format))
+    out.parent.mkdir(parents=True, exist_ok=True)  # as every output (cli/outputs.py)
     recording.write(out, overwrite=overwrite)
     rates = sorted({recording.rate(c) for c in recording.channels})
     Console(stderr=True).print(

@@ -207,10 +207,10 @@ def _finish(err: Any, mon: Any, src: Any, stats: Any, held: int) -> ExitCode:
     if mon.state.in_alarm:
         return ExitCode.LEAK_FOUND
     if stats.judged + stats.skipped == 0:
-        err.print(
-            f"no cycle was judged ({stats.cycles} complete cycle(s): {stats.startup} start-up, "
-            f"{stats.incomplete} skipped for lost samples; see the notes above): this run "
-            "says nothing about leaks"
+        err.print(  # an exit 2 says "error:" (its history keeps what was recorded)
+            f"error: no cycle was judged ({stats.cycles} complete cycle(s): "
+            f"{stats.startup} start-up, {stats.incomplete} skipped for lost samples; see the "
+            "notes above): this run says nothing about leaks"
         )
         return ExitCode.INPUT_ERROR
     return ExitCode.OK
@@ -296,7 +296,12 @@ def _check_outputs(
     reference, the replayed recording or the tag map (resolved through links), never
     each other, never a folder, and in a place this user may write.
     """
-    from pneufdd.cli.outputs import check_outputs, check_writable, database_files
+    from pneufdd.cli.outputs import (
+        check_appended,
+        check_outputs,
+        check_writable,
+        database_files,
+    )
 
     replay = source[len("replay:") :].partition("?")[0] if source.startswith("replay:") else None
     inputs = {"--reference": reference, "--source": replay, "--tags": tags}
@@ -305,6 +310,9 @@ def _check_outputs(
     outputs.update({f"--history ({path.name})": path for path in database[1:]})
     outputs["--history"] = database[0] if database else None
     check_outputs(outputs, inputs, overwrite=True)  # both are appended to, never replaced
+    for option, path in outputs.items():  # appended to: never through a dangling link
+        if path is not None:
+            check_appended(option, path)
     if alarm_log is not None:
         check_writable("--alarm-log", alarm_log)
     if database:

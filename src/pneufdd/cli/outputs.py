@@ -8,7 +8,13 @@ and its outputs named by the option that gave them. The rules (issue 14):
 * two outputs of one command may not share a path (one would lose the other);
 * an output may not be a folder, nor lie inside a path that is a file;
 * an existing output is replaced only with ``--overwrite`` (a symbolic link too, even
-  one that leads nowhere or to itself: the link is replaced, never written through).
+  one that leads nowhere or to itself: the link is replaced, never written through);
+* the place must be one the output can be written to (:func:`check_place`: a name the
+  system accepts, a writable folder; missing folders are created). Folder outputs
+  (``--out DIR``) call :func:`check_place` with ``folder=True`` before their files are
+  checked.
+
+Every refusal names the option that gave the path.
 
 Writing goes through :mod:`pneufdd.files` (``write_text_atomic``, ``atomic_target``): a temporary
 file in the target's folder, renamed into place once complete, so an error (or
@@ -34,6 +40,7 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from collections.abc import Mapping
@@ -41,7 +48,14 @@ from pathlib import Path
 
 from pneufdd.errors import FileExistsInputError, InputError, describe
 
-__all__ = ["check_outputs", "check_writable", "database_files", "same_file"]
+__all__ = [
+    "check_appended",
+    "check_outputs",
+    "check_place",
+    "check_writable",
+    "database_files",
+    "same_file",
+]
 
 SQLITE_COMPANIONS = ("-wal", "-shm", "-journal")
 """Files SQLite writes beside a database (write-ahead log, shared memory, rollback)."""
@@ -96,8 +110,9 @@ def check_outputs(
     for name, path in given.items():
         if str(path).strip() == "":
             raise InputError(describe(name, str(path), "a file path"))
+        check_place(name, path)  # a name too long, a loop on the way, a read-only folder
         for source_name, source in sources.items():
-            if source.is_file() and same_file(path, source):
+            if _is_file(source) and same_file(path, source):
                 raise InputError(
                     describe(
                         name,
@@ -126,6 +141,114 @@ def check_outputs(
             )
 
 
+def check_place(name: str, path: str | Path, folder: bool = False) -> None:
+    """Refuse at start an output path that cannot be created where it is named.
+
+    The one check of where an output goes, naming the option: a link that leads nowhere
+    or to itself where a folder output goes (it could only be written through), a path
+    inside a file, a path whose name the system refuses (too long), and a nearest
+    existing folder this process cannot write in (missing folders are created).
+
+    Parameters
+    ----------
+    name : str
+        The option that names the output (``"--out"``).
+    path : str or Path
+        The output file, or folder when ``folder``.
+    folder : bool
+        Whether the output is a folder (its files are checked by :func:`check_outputs`).
+
+    Raises
+    ------
+    InputError
+        Naming the option, the path and what is allowed.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> place = Path(tempfile.mkdtemp())
+    >>> (place / "loop").symlink_to("loop")
+    >>> try:
+    ...     check_place("--out", place / "loop", folder=True)
+    ... except InputError as exc:
+    ...     print(str(exc).split("allowed: ")[1])
+    a folder (or a path to create one); this is a link that leads nowhere or to itself
+    >>> check_place("--out", place / "new" / "sub" / "x.json")  # created when written
+    """
+    target = Path(path)
+    allowed = "a folder (or a path to create one)" if folder else "a file path"
+    if str(path).strip() == "":
+        raise InputError(describe(name, str(path), allowed))
+    try:
+        for parent in target.parents:
+            if os.path.lexists(parent) and not parent.is_dir():
+                what = "is a file" if parent.is_file() else "is no folder"
+                raise InputError(
+                    describe(name, _shown(path), f"a path in a folder ({str(parent)!r} {what})")
+                )
+        with contextlib.suppress(FileNotFoundError):
+            os.lstat(target)  # a name too long, or a loop on the way, raises here
+        if folder and os.path.lexists(target) and not target.exists():
+            raise InputError(
+                describe(
+                    name, str(path), f"{allowed}; this is a link that leads nowhere or to itself"
+                )
+            )
+        if folder and target.exists() and not target.is_dir():
+            raise InputError(describe(name, str(path), f"{allowed}; this is a file"))
+    except OSError as exc:
+        raise InputError(
+            describe(name, _shown(path), f"{allowed} ({exc.strerror or type(exc).__name__})")
+        ) from None
+    if target.is_file():
+        check_writable(name, target)
+    elif not target.exists():
+        check_writable(name, target)  # a probe in the nearest existing folder
+    elif folder:  # an existing folder: a probe inside it
+        check_writable(name, target, inside=True)
+
+
+def check_appended(name: str, path: str | Path) -> None:
+    """Refuse a file a command appends to (an alarm log, a SQLite history) that is a link
+    leading nowhere or to itself: appending would create a file where the link points,
+    outside what the user named (``monitor --history`` on a dangling link did).
+
+    >>> import tempfile
+    >>> place = Path(tempfile.mkdtemp())
+    >>> (place / "h.db").symlink_to("elsewhere.db")
+    >>> try:
+    ...     check_appended("--history", place / "h.db")
+    ... except InputError as exc:
+    ...     print(str(exc).split("allowed: ")[1])
+    a file, or a path where one can be created (this is a link that leads nowhere or to itself)
+    >>> check_appended("--history", place / "new.db")
+    """
+    target = Path(path)
+    if os.path.lexists(target) and not target.exists():
+        raise InputError(
+            describe(
+                name,
+                _shown(path),
+                "a file, or a path where one can be created (this is a link that leads "
+                "nowhere or to itself)",
+            )
+        )
+
+
+def _is_file(path: Path) -> bool:
+    """Whether ``path`` is a file; False for a name the system refuses (its reader says why)."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
+
+
+def _shown(path: str | Path, limit: int = 120) -> str:
+    """``path`` as text, cut to ``limit`` characters (a 10,000-character name in one line)."""
+    text = str(path)
+    return text if len(text) <= limit else f"{text[: limit - 3]}..."
+
+
 def database_files(url: str) -> list[Path]:
     """The files a SQLAlchemy URL makes a command write: a SQLite database and its companions.
 
@@ -151,7 +274,7 @@ def database_files(url: str) -> list[Path]:
     return [db, *(db.with_name(db.name + suffix) for suffix in SQLITE_COMPANIONS)]
 
 
-def check_writable(name: str, path: str | Path) -> None:
+def check_writable(name: str, path: str | Path, inside: bool = False) -> None:
     """Refuse at start a file this process could not write (created, appended or replaced).
 
     Parameters
@@ -160,6 +283,8 @@ def check_writable(name: str, path: str | Path) -> None:
         The option that names the file (``"--alarm-log"``).
     path : str or Path
         The file; it need not exist, its nearest existing folder must be writable.
+    inside : bool
+        ``path`` is an existing folder a command writes files in: probed inside.
 
     Raises
     ------
@@ -168,8 +293,10 @@ def check_writable(name: str, path: str | Path) -> None:
     """
     target = Path(path)
     folder = next((p for p in target.absolute().parents if p.exists()), Path("/"))
+    if inside:
+        folder = target
     try:
-        if target.exists():
+        if target.exists() and not inside:
             with open(target, "ab"):  # opened for appending, nothing written
                 pass
         else:  # a probe file in the nearest existing folder, removed at once

@@ -19,11 +19,12 @@ __all__ = ["progress_bars"]
 def progress_bars(console: Console | None = None) -> Iterator[ProgressCallback]:
     """A rich display with one bar per task; yields the callback to pass to the library."""
     from rich.console import Console
-    from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from pneufdd.report.plain_text import printable
+
     with Progress(
-        TextColumn("{task.description}"),
+        TextColumn("{task.description}", markup=False),  # a task may name a machine
         BarColumn(),
         TextColumn("{task.completed}/{task.total}"),
         TimeElapsedColumn(),
@@ -34,8 +35,9 @@ def progress_bars(console: Console | None = None) -> Iterator[ProgressCallback]:
 
         def update(task: str, done: int, total: int) -> None:
             if task not in tasks:
-                # plain text: a task may name a machine (``cell[/]`` is no markup)
-                tasks[task] = bars.add_task(escape(task), total=total)
+                # plain text: ``cell[/]`` is no markup, ``a\\[b`` keeps its backslash, an
+                # escape sequence in a machine's name is shown, never sent to the terminal
+                tasks[task] = bars.add_task(printable(task), total=total)
             bars.update(tasks[task], completed=done, total=total)
 
         yield update

@@ -257,6 +257,7 @@ def simulate_command(
         written = write_export(recording, export_format, out, export_map, overwrite)
         err.print(f"wrote {written}, {recording.duration:.1f} s", markup=False)
         return
+    out.parent.mkdir(parents=True, exist_ok=True)  # as every output (cli/outputs.py)
     path = recording.write(out, overwrite=overwrite)
     err.print(
         f"wrote {path} ({recording.duration:.1f} s, {len(recording.channels)} channels)",

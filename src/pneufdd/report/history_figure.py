@@ -8,13 +8,14 @@ fall. Repairs are vertical lines; the machines and the time span head the figure
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 from pneufdd.report.axes import COST_FLOOR, FLOW_FLOOR_SLPM, ratio_range
-from pneufdd.report.plain_text import plain_text
+from pneufdd.report.plain_text import plain_text, printable
 
 __all__ = ["history_figure"]
 
@@ -40,7 +41,7 @@ def history_figure(report: Sequence[dict[str, Any]], path: Path) -> Path:
             if not points:
                 continue
             times = [datetime.fromisoformat(s["time"]) for s in points]
-            label = f"{entry['machine']} {leak['location']} ({leak['state']})"
+            label = _cut(printable(f"{entry['machine']} {leak['location']} ({leak['state']})"))
             flow = [s["flow_slpm"] for s in points]
             cost = [s["annual_cost"] or 0.0 for s in points]
             (line,) = ax_flow.plot(times, flow, "o-", label=label)
@@ -65,7 +66,7 @@ def history_figure(report: Sequence[dict[str, Any]], path: Path) -> Path:
         )
     else:
         ax_flow.text(0.5, 0.5, "no leaks recorded", transform=ax_flow.transAxes, ha="center")
-    names = ", ".join(str(e["machine"]) for e in report) or "no machine"
+    names = _cut(printable(", ".join(str(e["machine"]) for e in report)), 120) or "no machine"
     span = (
         f"{min(times_all):%Y-%m-%d %H:%M} .. {max(times_all):%Y-%m-%d %H:%M} UTC"
         if times_all
@@ -75,6 +76,13 @@ def history_figure(report: Sequence[dict[str, Any]], path: Path) -> Path:
         f"Leak sizes and costs over time (axes from zero)\n{names} | {span}", fontsize="medium"
     )
     fig.autofmt_xdate()
-    fig.tight_layout()
+    with warnings.catch_warnings():  # long names: the layout is as tight as it can be
+        warnings.filterwarnings("ignore", "Tight layout not applied", UserWarning)
+        fig.tight_layout()
     save_figure(fig, path, dpi=fig.dpi)  # atomically: a link is replaced, not written through
     return path
+
+
+def _cut(text: str, limit: int = 60) -> str:
+    """``text`` cut to ``limit`` characters (a 10,000-character machine name in a legend)."""
+    return text if len(text) <= limit else f"{text[: limit - 3]}..."

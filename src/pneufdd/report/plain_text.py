@@ -29,7 +29,7 @@ import functools
 from collections.abc import Callable
 from typing import Any, ParamSpec, TypeVar
 
-__all__ = ["PLAIN_TEXT", "plain_text"]
+__all__ = ["PLAIN_TEXT", "plain_text", "printable"]
 
 PLAIN_TEXT: dict[Any, Any] = {"text.parse_math": False, "text.usetex": False}
 """Matplotlib settings under which text is drawn as given."""
@@ -49,3 +49,12 @@ def plain_text(function: Callable[P, R]) -> Callable[P, R]:
             return function(*args, **kwargs)
 
     return wrapper
+
+
+def printable(text: str) -> str:
+    r"""``text`` with each control or other unprintable character shown as its escape.
+
+    >>> printable("cell\x1b[31m\x07 ok")
+    'cell\\x1b[31m\\x07 ok'
+    """
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)

@@ -127,10 +127,15 @@ def load_machine(machine: MachineLike) -> MachineDescription:
     if isinstance(machine, str) and machine in builtin_machines():
         return _builtin(machine)
     path = Path(machine)
-    if path.suffix.lower() == ".toml" or path.exists():
-        if not path.is_file():
-            raise MachineError(describe("machine file", str(path), "an existing .toml file"))
+    shown = str(machine) if len(str(machine)) <= 200 else f"{str(machine)[:197]}..."
+    try:
+        there = path.suffix.lower() == ".toml" or path.exists()
+        if there and not path.is_file():
+            raise MachineError(describe("machine file", shown, "an existing .toml file"))
+    except OSError as exc:  # a name too long, a loop on the way
+        raise MachineError(
+            describe("machine", shown, f"a built-in name or a .toml file ({exc.strerror})")
+        ) from None
+    if there:
         return parse_description(_read_toml(_read_file(path), str(path)), str(path))
-    raise MachineError(
-        describe("machine", str(machine), [*builtin_machines(), "a path to a .toml file"])
-    )
+    raise MachineError(describe("machine", shown, [*builtin_machines(), "a path to a .toml file"]))
