@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from pneufdd.array_types import FloatArray
+from pneufdd.diagnosis.effects.signatures import feature_columns
 from pneufdd.diagnosis.effects.twin import SIGNATURE_SEED, TwinLeakEffect
 from pneufdd.diagnosis.fault_choice import FAULT_MODEL_ERROR
 from pneufdd.diagnosis.findings import GroupMember
@@ -142,13 +143,7 @@ class FaultSignatures:
 
     def select(self, names: Sequence[str]) -> FaultSignatures:
         """The same signatures over the features ``names`` (a sensor set's)."""
-        index = {n: i for i, n in enumerate(self.feature_names)}
-        missing = [n for n in names if n not in index]
-        if missing:
-            raise InputError(
-                describe("features of the sensor set", missing[:5], "features of the signatures")
-            )
-        cols = [index[n] for n in names]
+        cols = feature_columns(self.feature_names, names, "features of the sensor set")
         dev = self.deviations[:, :, cols] if self.deviations.size else self.deviations
         ladder = self.ladder[:, :, cols] if self.ladder.size else self.ladder
         return FaultSignatures(

@@ -27,7 +27,17 @@ from pneufdd.diagnosis.effects.piecewise import PiecewiseLinear
 from pneufdd.errors import InputError, describe
 from pneufdd.location import SUPPLY, Location
 
-__all__ = ["SignatureSet"]
+__all__ = ["SignatureSet", "feature_columns"]
+
+
+def feature_columns(feature_names: Sequence[str], names: Sequence[str], what: str) -> list[int]:
+    """Columns of ``names`` in ``feature_names`` (a sensor subset's); an ``InputError``
+    naming ``what`` and up to five of them when some are not there."""
+    index = {n: i for i, n in enumerate(feature_names)}
+    missing = [n for n in names if n not in index]
+    if missing:
+        raise InputError(describe(what, missing[:5], "features of the signatures"))
+    return [index[n] for n in names]
 
 
 @dataclass(frozen=True, eq=False)
@@ -260,13 +270,7 @@ class SignatureSet:
 
     def select(self, names: Sequence[str]) -> SignatureSet:
         """Restrict the signatures to the features ``names`` (a sensor subset)."""
-        index = {n: i for i, n in enumerate(self.feature_names)}
-        missing = [n for n in names if n not in index]
-        if missing:
-            raise InputError(
-                describe("features without a signature", missing[:5], "features of the signatures")
-            )
-        cols = [index[n] for n in names]
+        cols = feature_columns(self.feature_names, names, "features without a signature")
         return SignatureSet(
             self.locations,
             self.sizes,
