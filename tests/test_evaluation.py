@@ -382,3 +382,17 @@ def test_many_leak_runs_are_scored_against_the_remainder_they_state():
     lines = "\n".join(tally.lines(3, {"all_in_group": 0.85, "remainder_stated": 1.0}))
     assert "all_in_group >= 0.85: FAIL" in lines
     assert "remainder_stated >= 1: FAIL" in lines
+
+
+@pytest.mark.parametrize("value", ["-nan", "inf", "11", "-0.5"])
+def test_a_capture_option_is_checked_without_triggered_captures(tmp_path, capsys, value):
+    # found by make fuzz (seed 97,000,310): a continuous campaign ignored the value, so
+    # --pre-trigger-s -nan ran to exit 0 instead of naming the option
+    out = tmp_path / "c"
+    args = ["campaign", "--machine", "press-fit-cell", "--pre-trigger-s", value]
+    code = main([*args, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--pre-trigger-s" in err
+    assert "0 to 10 s" in err
+    assert not out.exists()

@@ -157,11 +157,12 @@ def campaign(
 
     if capture not in CAPTURE_KINDS:
         raise InputError(describe("--capture", capture, list(CAPTURE_KINDS)))
-    triggered = None
-    if capture == "triggered":
-        triggered = CaptureDesign(
-            captures_per_reference, captures_per_run, cycles_per_file, pre_trigger_s
-        )
+    # the capture options are checked with or without --capture triggered: a value
+    # given but not used must still be one the option allows
+    captures = CaptureDesign(
+        captures_per_reference, captures_per_run, cycles_per_file, pre_trigger_s
+    )
+    triggered = captures if capture == "triggered" else None
 
     design = CampaignDesign(
         machines=tuple(machine),
