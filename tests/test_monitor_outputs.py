@@ -151,6 +151,16 @@ def test_a_webhook_that_is_not_http_is_refused_at_start(files, tmp_path, capsys,
         AlarmSinks(webhook=url)
 
 
+@pytest.mark.parametrize("url", ["=", "ftp://broker/x", "mqtt://broker/"])
+def test_a_refused_publish_url_leaves_no_history_behind(files, tmp_path, capsys, url):
+    # found by make fuzz (seed 97,000,310): the history database was created before
+    # --publish was checked, so an exit 2 left an empty h.db behind
+    db = tmp_path / "h.db"
+    assert _monitor(files, "--publish", url, "--history", f"sqlite:///{db}") == 2
+    assert "--publish" in capsys.readouterr().err
+    assert not db.exists()
+
+
 def test_check_webhook_accepts_http_and_https():
     for url in ("http://127.0.0.1:8080/a", "HTTPS://alarms.example.com/x?y=1"):
         assert check_webhook(url) == url

@@ -104,15 +104,20 @@ def monitor_command(
     model = load_reference(reference)
     analog, digital = needed_channels(model)
     src = open_source(source, analog, digital, tags, log=lambda m: err.print(m))
-    db = open_history(history)
-    db.check_writable()  # a read-only history fails now, not at the first cycle
+    # the publishers before the history: a refused --publish leaves no database behind
+    publishers = _publishers(publish or [], metrics_port, lambda m: err.print(f"warning: {m}"))
+    try:
+        db = open_history(history)
+        db.check_writable()  # a read-only history fails now, not at the first cycle
+    except BaseException:
+        publishers.close()
+        raise
     sinks = AlarmSinks(
         echo=lambda m: typer.echo(m),
         log_path=alarm_log,
         webhook=webhook,
         warn=lambda m: err.print(f"warning: {m}"),
     )
-    publishers = _publishers(publish or [], metrics_port, lambda m: err.print(f"warning: {m}"))
     mon = MachineMonitor(
         model, db, machine, arl0=arl0, alarm=sinks, source=masked_url(source), publish=publishers
     )
