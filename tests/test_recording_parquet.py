@@ -422,3 +422,28 @@ def test_channel_count_must_match(written: Path) -> None:
     path = _rewrite(written, written.with_name("rows.parquet"), table)
     with pytest.raises(FileFormatError, match=r"rows\.parquet.*3 channel rows.*51"):
         read_parquet(path)
+
+
+def test_a_damaged_column_name_in_a_chunk_of_the_footer_is_read_or_refused(
+    tmp_path: Path,
+) -> None:
+    # found by make fuzz (seed 97,000,310, bitflip_17): one bit flipped "values_float64"
+    # in a column chunk's path into "values_f|oat64", and the declared-size check
+    # crashed on it (exit 3); the samples are intact, so the file reads as written
+    rec = rig_recording()
+    path = write_parquet(rec, tmp_path / "run.parquet")
+    data = path.read_bytes()
+    first = data.find(b"values_float64")
+    at = data.find(b"values_float64", first + 1)  # a chunk's path, after the schema's
+    assert first > 0 and at > first
+    flipped = bytearray(data)
+    flipped[at + len("values_f")] ^= 0x10  # 'l' -> '|'
+    assert flipped[at : at + 14] == b"values_f|oat64"
+    path.write_bytes(bytes(flipped))
+    assert identical(read_parquet(path), rec)
+    # the same flip in the schema itself is refused, naming the file
+    flipped = bytearray(data)
+    flipped[first + len("values_f")] ^= 0x10
+    path.write_bytes(bytes(flipped))
+    with pytest.raises(FileFormatError, match="run.parquet"):
+        read_parquet(path)

@@ -377,7 +377,9 @@ def _check_declared_size(path: Path, metadata: Any) -> None:
             chunk = row_group.column(col)
             column = chunk.path_in_schema.split(".", 1)[0]
             if column.startswith("values_"):
-                itemsize = np.dtype(column[len("values_") :]).itemsize
+                # a damaged footer may name a column no dtype has: the widest one counts
+                dtype = column[len("values_") :]
+                itemsize = np.dtype(dtype).itemsize if dtype in _VALUE_COLUMNS else 8
                 declared += max(int(chunk.num_values), 0) * itemsize
     check_memory(
         f"{file_label(path)}: samples declared by its channels "
