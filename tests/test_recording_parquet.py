@@ -435,7 +435,8 @@ def test_a_damaged_column_name_in_a_chunk_of_the_footer_is_read_or_refused(
     data = path.read_bytes()
     first = data.find(b"values_float64")
     at = data.find(b"values_float64", first + 1)  # a chunk's path, after the schema's
-    assert first > 0 and at > first
+    assert first > 0
+    assert at > first
     flipped = bytearray(data)
     flipped[at + len("values_f")] ^= 0x10  # 'l' -> '|'
     assert flipped[at : at + 14] == b"values_f|oat64"
@@ -445,5 +446,5 @@ def test_a_damaged_column_name_in_a_chunk_of_the_footer_is_read_or_refused(
     flipped = bytearray(data)
     flipped[first + len("values_f")] ^= 0x10
     path.write_bytes(bytes(flipped))
-    with pytest.raises(FileFormatError, match="run.parquet"):
+    with pytest.raises(FileFormatError, match=r"run\.parquet"):
         read_parquet(path)
