@@ -83,6 +83,8 @@ _KEY_CHECKSUM = b"pneufdd.recording.crc32"  # the footer has no checksum of its 
 _EXPECTED = f"a pneufdd recording (Parquet, format {FORMAT_NAME!r} version {FORMAT_VERSION})"
 _MAGIC = b"PAR1"
 _VALUE_COLUMNS = {"float32": "values_float32", "float64": "values_float64", "uint8": "values_uint8"}
+_WIDEST = max(np.dtype(d).itemsize for d in _VALUE_COLUMNS)
+"""Item size of the widest sample type [B]."""
 _SCALAR_COLUMNS = ("name", "kind", "unit", "rate_hz", "t0_s", "dtype", "n_samples")
 _MAX_SAMPLES = 2**31 - 1  # int32 list offsets
 
@@ -379,7 +381,7 @@ def _check_declared_size(path: Path, metadata: Any) -> None:
             if column.startswith("values_"):
                 # a damaged footer may name a column no dtype has: the widest one counts
                 dtype = column[len("values_") :]
-                itemsize = np.dtype(dtype).itemsize if dtype in _VALUE_COLUMNS else 8
+                itemsize = np.dtype(dtype).itemsize if dtype in _VALUE_COLUMNS else _WIDEST
                 declared += max(int(chunk.num_values), 0) * itemsize
     check_memory(
         f"{file_label(path)}: samples declared by its channels "
